@@ -1,0 +1,84 @@
+//! RS274/NGC G-code for interpd.
+//!
+//! Per `DESIGN.md`, this crate will hold the parser from G-code text to a typed
+//! program (lines, arcs, NURBS blocks such as G5.2/G6.2, modal state) and the
+//! writer from a program back to text, and it must never panic on any input.
+//! The parser and writer are filled in by the later G-code issue; for now the
+//! crate holds only the length-units mode (G20/G21) that both will use.
+
+/// A G-code number that is not a units mode (only G20 and G21 are).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error("G{0} is not a units mode (expected G20 or G21)")]
+pub struct NotAUnitsCode(pub u32);
+
+/// Length units of a program, the modal state set by G20 (inches) and G21
+/// (millimetres). interpd works in millimetres internally.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum Units {
+    /// G21.
+    #[default]
+    Millimetres,
+    /// G20.
+    Inches,
+}
+
+impl Units {
+    /// Millimetres per inch, exact by definition.
+    pub const MM_PER_INCH: f64 = 25.4;
+
+    /// The units mode selected by the G-code number `code` (`20` or `21`).
+    pub fn from_g_code(code: u32) -> Result<Self, NotAUnitsCode> {
+        match code {
+            20 => Ok(Self::Inches),
+            21 => Ok(Self::Millimetres),
+            other => Err(NotAUnitsCode(other)),
+        }
+    }
+
+    /// The G-code number that selects this mode.
+    pub fn g_code(self) -> u32 {
+        match self {
+            Self::Inches => 20,
+            Self::Millimetres => 21,
+        }
+    }
+
+    /// Converts a length (or a feed, per minute or per second) given in these
+    /// units to millimetres.
+    pub fn to_mm(self, value: f64) -> f64 {
+        match self {
+            Self::Millimetres => value,
+            Self::Inches => value * Self::MM_PER_INCH,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn to_mm_converts_inches_and_keeps_millimetres() {
+        assert_eq!(Units::Millimetres.to_mm(12.5), 12.5);
+        assert_eq!(Units::Inches.to_mm(1.0), 25.4);
+        assert_eq!(Units::Inches.to_mm(-2.0), -50.8);
+        assert!(Units::Inches.to_mm(f64::NAN).is_nan());
+    }
+
+    #[test]
+    fn g_codes_round_trip_and_others_are_rejected() {
+        for units in [Units::Millimetres, Units::Inches] {
+            assert_eq!(Units::from_g_code(units.g_code()), Ok(units));
+        }
+        assert_eq!(Units::from_g_code(1), Err(NotAUnitsCode(1)));
+        assert_eq!(
+            NotAUnitsCode(90).to_string(),
+            "G90 is not a units mode (expected G20 or G21)"
+        );
+    }
+
+    #[test]
+    fn default_is_millimetres() {
+        assert_eq!(Units::default(), Units::Millimetres);
+    }
+}

@@ -1,0 +1,134 @@
+//! Interpolator configuration: every tolerance and limit is a named field
+//! with a documented default. Read once at start; the RT tick never changes it.
+
+/// How the parameter `u` advances each tick (seed 004, §2.2).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "kebab-case"))]
+pub enum ParamUpdate {
+    /// First-order Taylor, eq. 10: `Δu = V·Ts / |C'|`.
+    FirstOrder,
+    /// Second-order Taylor in time with the feed-rate-change (`dV/du`) term
+    /// kept, which eq. 11 omits. With the tick's displacement
+    /// `Δ = V·Ts + ½·(dV/dt)·Ts²` it reads
+    /// `Δu = Δ/|C'| − Δ²·(C'·C'')/(2|C'|⁴)`. (Eq. 11 prints the curvature term
+    /// with a plus sign; `d²u/ds² = −(C'·C'')/|C'|⁴`, so it is a minus.)
+    SecondOrder,
+    /// Newton iteration on the chord length `|C(u_{i+1}) − C(u_i)| = Δ`,
+    /// started from the second-order estimate. Feed fluctuation at the
+    /// round-off level. The default.
+    #[default]
+    Corrected,
+}
+
+/// Interpolator configuration (mm, s). `Default` gives the documented values.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(default, rename_all = "kebab-case"))]
+pub struct InterpConfig {
+    /// Interpolation period `Ts`, s. Default 0.001 (1 kHz).
+    pub period: f64,
+    /// Chord-error law (eq. 16–17) on or off. Default on.
+    pub chord_error_law: bool,
+    /// Chord tolerance `ER`, mm. Default 0.001 (1 µm).
+    pub chord_tolerance: f64,
+    /// Constant-MRR law (eq. 23) on or off for blocks that carry MRR parameters. Default on.
+    pub mrr_law: bool,
+    /// Machine path-speed limit, mm/s. Default 250 (15 m/min).
+    pub max_path_speed: f64,
+    /// Tangential acceleration limit, mm/s². Default 2000.
+    pub max_path_accel: f64,
+    /// Fraction of `max_path_accel` held back when planning braking, so that the
+    /// chord-versus-arc difference of a tick never forces a harder stop.
+    /// Default 0.05.
+    pub brake_reserve: f64,
+    /// Target spacing of the look-ahead profile nodes, mm; never below one
+    /// tick's travel at the block's feed. Default 0.25.
+    pub profile_step: f64,
+    /// Samples of the feed laws per profile interval (the interval's limit is
+    /// their minimum). Default 8.
+    pub law_samples_per_interval: u32,
+    /// Blocks meeting at a tangent angle up to this are passed without stopping,
+    /// rad. Default 1e-6 (numerically tangent). Larger corners stop (junction
+    /// speeds are the look-ahead issue's).
+    pub tangent_tolerance: f64,
+    /// How `u` advances.
+    pub param_update: ParamUpdate,
+    /// Newton (corrected update) stops when `|chord − Δ| ≤ newton_rel_tol · Δ`. Default 1e-13.
+    pub newton_rel_tol: f64,
+    /// Newton iteration cap (then it keeps its best iterate). Default 6.
+    pub newton_max_iter: u32,
+}
+
+impl Default for InterpConfig {
+    fn default() -> Self {
+        InterpConfig {
+            period: 0.001,
+            chord_error_law: true,
+            chord_tolerance: 0.001,
+            mrr_law: true,
+            max_path_speed: 250.0,
+            max_path_accel: 2000.0,
+            brake_reserve: 0.05,
+            profile_step: 0.25,
+            law_samples_per_interval: 8,
+            tangent_tolerance: 1e-6,
+            param_update: ParamUpdate::Corrected,
+            newton_rel_tol: 1e-13,
+            newton_max_iter: 6,
+        }
+    }
+}
+
+/// Why a configuration was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ConfigError {
+    /// The named field is out of its range (or not finite).
+    OutOfRange(&'static str),
+}
+
+impl core::fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            ConfigError::OutOfRange(field) => write!(f, "config field `{field}` out of range"),
+        }
+    }
+}
+
+impl InterpConfig {
+    /// Check every field.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let pos = |v: f64| v.is_finite() && v > 0.0;
+        if !pos(self.period) || self.period > 1.0 {
+            return Err(ConfigError::OutOfRange("period"));
+        }
+        if !pos(self.chord_tolerance) {
+            return Err(ConfigError::OutOfRange("chord-tolerance"));
+        }
+        if !pos(self.max_path_speed) {
+            return Err(ConfigError::OutOfRange("max-path-speed"));
+        }
+        if !pos(self.max_path_accel) {
+            return Err(ConfigError::OutOfRange("max-path-accel"));
+        }
+        if !(self.brake_reserve >= 0.0 && self.brake_reserve < 0.5) {
+            return Err(ConfigError::OutOfRange("brake-reserve"));
+        }
+        if !pos(self.profile_step) {
+            return Err(ConfigError::OutOfRange("profile-step"));
+        }
+        if self.law_samples_per_interval == 0 || self.law_samples_per_interval > 64 {
+            return Err(ConfigError::OutOfRange("law-samples-per-interval"));
+        }
+        if !(self.tangent_tolerance >= 0.0 && self.tangent_tolerance < 1.0) {
+            return Err(ConfigError::OutOfRange("tangent-tolerance"));
+        }
+        if !pos(self.newton_rel_tol) {
+            return Err(ConfigError::OutOfRange("newton-rel-tol"));
+        }
+        if self.newton_max_iter == 0 || self.newton_max_iter > 50 {
+            return Err(ConfigError::OutOfRange("newton-max-iter"));
+        }
+        Ok(())
+    }
+}

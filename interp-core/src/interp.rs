@@ -1,0 +1,711 @@
+//! The fixed-period interpolator: `tick()` turns the queued segments and
+//! their planned profile into one setpoint per period. No allocation, lock or
+//! system call in `tick`.
+//!
+//! Per tick the path advances by a displacement `Δ` (mm) from the discrete
+//! schedule: `Δ = min(Δ_prev + a, cap·Ts, brake_step(node) for every node and
+//! stop within stopping distance)`, never below `Δ_prev − a`, where
+//! `a = A·Ts²`. The parameter update ([`ParamUpdate`]) then finds the next
+//! `u` whose chord from the last point is `Δ`; a segment end inside the tick
+//! carries the rest of `Δ` into the next segment in the same tick.
+
+use heapless::Deque;
+
+use crate::config::{ConfigError, InterpConfig, ParamUpdate};
+use crate::feed::speed_limit;
+use crate::geom::{Curve, Vec3};
+use crate::path::{Block, Path, SplitAtError};
+use crate::plan::{Profile, Segment, brake_step, stop_distance};
+
+/// Default segment-queue capacity.
+pub const DEFAULT_QUEUE: usize = 64;
+
+/// Largest gap accepted between one block's end and the next block's start, mm.
+pub const JOIN_TOLERANCE: f64 = 1e-6;
+
+/// What the interpolator is doing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[repr(u8)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum RunState {
+    /// At rest with nothing (more) queued; the program is not marked finished.
+    #[default]
+    Idle = 0,
+    /// Moving along the path (or about to).
+    Running = 1,
+    /// Feed hold (look-ahead issue).
+    Holding = 2,
+    /// Stopping after an abort (look-ahead issue).
+    Stopping = 3,
+    /// The program was marked finished and its last point reached.
+    Done = 4,
+    /// A numerical fault stopped motion.
+    Fault = 5,
+}
+
+/// One output sample. `#[repr(C)]` so it can be shared with other processes as is.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+#[repr(C)]
+pub struct Setpoint {
+    /// Tick count since start, from 1, gapless.
+    pub seq: u64,
+    /// `seq · Ts`, s.
+    pub time: f64,
+    /// X Y Z A B C (mm; rotary axes in degrees).
+    pub axes: [f64; 6],
+    /// Commanded path speed over the tick that ended here, `Δ/Ts`, mm/s.
+    pub feed: f64,
+    /// Path parameter of the block at this point.
+    pub u: f64,
+    /// Arc length of the run at this point, mm.
+    pub s: f64,
+    /// Id of the block the point is on (0 before any block).
+    pub block_id: u32,
+    /// State after this tick.
+    pub state: RunState,
+}
+
+/// Why a block was not queued. Nothing was queued when this is returned.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum PushError {
+    /// The segment queue lacks room: `needed` segments, `free` left.
+    Full {
+        /// Segments this block needs.
+        needed: usize,
+        /// Segments free.
+        free: usize,
+    },
+    /// The look-ahead profile cannot reach that far ahead yet (`MAX_PROFILE`
+    /// grid steps): push again once the machine has moved on.
+    ProfileFull,
+    /// The block does not start where the previous one ends (gap in mm).
+    Discontinuous {
+        /// Distance between the previous end and this start, mm.
+        gap: f64,
+    },
+    /// The programmed feed is not a positive finite number.
+    Feed,
+    /// The path has no length.
+    Empty,
+    /// `finish()` was already called.
+    Finished,
+    /// Splitting the path at a tangent break failed.
+    Split(SplitAtError),
+}
+
+impl core::fmt::Display for PushError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            PushError::Full { needed, free } => {
+                write!(f, "queue full: block needs {needed} segments, {free} free")
+            }
+            PushError::ProfileFull => write!(f, "look-ahead profile full"),
+            PushError::Discontinuous { gap } => {
+                write!(f, "block does not start at the previous end (gap {gap} mm)")
+            }
+            PushError::Feed => write!(f, "feed must be a positive finite number"),
+            PushError::Empty => write!(f, "path of zero length"),
+            PushError::Finished => write!(f, "program already finished"),
+            PushError::Split(e) => write!(f, "cannot split block: {e:?}"),
+        }
+    }
+}
+
+/// Counters the caller can read at any time.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct Stats {
+    /// Ticks run.
+    pub ticks: u64,
+    /// Segments completed.
+    pub segments_done: u64,
+    /// Ticks where the schedule asked for more deceleration than the limit
+    /// allows (the step was held at `Δ_prev − a`). Zero in a correct plan.
+    pub brake_overruns: u64,
+    /// Largest Newton iteration count used in one tick.
+    pub max_newton_iters: u32,
+}
+
+/// Upper bound on the pieces one block is cut into at tangent breaks.
+pub const MAX_PIECES: usize = 16;
+
+/// The interpolator with a segment queue of capacity `Q`.
+#[derive(Debug)]
+pub struct Interpolator<const Q: usize = DEFAULT_QUEUE> {
+    cfg: InterpConfig,
+    queue: Deque<Segment, Q>,
+    profile: Profile,
+    /// Displacement of the last tick, mm.
+    step: f64,
+    /// Parameter in the front segment.
+    u: f64,
+    /// Arc length of the run at the current point, mm.
+    s: f64,
+    /// Current position (X Y Z).
+    point: Vec3,
+    abc: [f64; 3],
+    /// End of everything queued so far (where the next block must start).
+    tail: Vec3,
+    tail_s: f64,
+    tail_tangent: Option<Vec3>,
+    seq: u64,
+    block_id: u32,
+    finished: bool,
+    state: RunState,
+    stats: Stats,
+}
+
+impl<const Q: usize> Interpolator<Q> {
+    /// A new interpolator at rest at `position` (X Y Z A B C).
+    pub fn new(cfg: InterpConfig, position: [f64; 6]) -> Result<Self, ConfigError> {
+        cfg.validate()?;
+        let p = Vec3::new(position[0], position[1], position[2]);
+        if !p.iter().all(|c| c.is_finite()) {
+            return Err(ConfigError::OutOfRange("position"));
+        }
+        Ok(Interpolator {
+            cfg,
+            queue: Deque::new(),
+            profile: Profile::new(Self::grid_step(&cfg)),
+            step: 0.0,
+            u: 0.0,
+            s: 0.0,
+            point: p,
+            abc: [position[3], position[4], position[5]],
+            tail: p,
+            tail_s: 0.0,
+            tail_tangent: None,
+            seq: 0,
+            block_id: 0,
+            finished: false,
+            state: RunState::Idle,
+            stats: Stats::default(),
+        })
+    }
+
+    /// Profile grid spacing: `profile_step`, but never less than one tick's
+    /// travel at the machine's top speed, so one step spans at most two intervals.
+    pub fn grid_step(cfg: &InterpConfig) -> f64 {
+        cfg.profile_step.max(cfg.max_path_speed * cfg.period)
+    }
+
+    /// The configuration in force.
+    pub fn config(&self) -> &InterpConfig {
+        &self.cfg
+    }
+    /// Counters.
+    pub fn stats(&self) -> Stats {
+        self.stats
+    }
+    /// Current state.
+    pub fn state(&self) -> RunState {
+        self.state
+    }
+    /// Free segment slots.
+    pub fn free_segments(&self) -> usize {
+        Q - self.queue.len()
+    }
+    /// Queued segments (including the one being executed).
+    pub fn queued_segments(&self) -> usize {
+        self.queue.len()
+    }
+    /// Arc length queued but not yet travelled, mm.
+    pub fn queued_length(&self) -> f64 {
+        self.tail_s - self.s
+    }
+    /// Marks the end of the program: reaching the end of the queue then means `Done`.
+    pub fn finish(&mut self) {
+        self.finished = true;
+        if self.queue.is_empty() && self.state == RunState::Idle {
+            self.state = RunState::Done;
+        }
+    }
+
+    /// The planned speed limit at grid node `g` (for plots and tests).
+    pub fn planned_node_limit(&self, g: i64) -> f64 {
+        self.profile.node(g)
+    }
+    /// The profile (grid caps and node limits) ahead of the machine.
+    pub fn profile(&self) -> &Profile {
+        &self.profile
+    }
+
+    /// Queue a block: cut at tangent breaks, sample the feed laws onto the
+    /// grid, run the backward pass (non-RT work). All or nothing: on error
+    /// nothing was queued.
+    pub fn push(&mut self, block: &Block) -> Result<(), PushError> {
+        if self.finished {
+            return Err(PushError::Finished);
+        }
+        if !(block.feed.is_finite() && block.feed > 0.0) {
+            return Err(PushError::Feed);
+        }
+        let gap = (block.path.start_point() - self.tail).norm();
+        if !(gap <= JOIN_TOLERANCE) {
+            return Err(PushError::Discontinuous { gap });
+        }
+        let mut pieces = [block.path; MAX_PIECES];
+        let n_pieces =
+            split_at_tangent_breaks(&block.path, &mut pieces, self.cfg.tangent_tolerance)?;
+        if n_pieces > self.free_segments() {
+            return Err(PushError::Full {
+                needed: n_pieces,
+                free: self.free_segments(),
+            });
+        }
+        let mut total = 0.0;
+        let mut lengths = [0.0; MAX_PIECES];
+        for (len, piece) in lengths.iter_mut().zip(&pieces[..n_pieces]) {
+            *len = piece.length();
+            if !(*len > 0.0 && len.is_finite()) {
+                return Err(PushError::Empty);
+            }
+            total += *len;
+        }
+        if self.queue.is_empty() {
+            // Nothing ahead: restart the ring where the machine stands.
+            let g = self.profile.index_of(self.s);
+            self.profile.reset_at(g);
+        }
+        let g_last = self.profile.index_of(self.tail_s + total);
+        if !self.profile.can_extend_to(g_last) {
+            return Err(PushError::ProfileFull);
+        }
+        // From here on nothing can fail.
+        let cfg = self.cfg;
+        let was_empty = self.queue.is_empty();
+        let old_tail_s = self.tail_s;
+        if let Some(t) = self.tail_tangent {
+            let smooth = t.dot(&block.path.start_tangent()) >= libm::cos(cfg.tangent_tolerance);
+            if let Some(last) = self.queue.back_mut() {
+                last.stop_at_end = !smooth;
+            }
+        }
+        self.profile.extend_to(g_last);
+        for (k, piece) in pieces[..n_pieces].iter().enumerate() {
+            let seg = Segment {
+                path: *piece,
+                block_id: block.id,
+                feed: block.feed,
+                mrr: block.mrr,
+                s0: self.tail_s,
+                length: lengths[k],
+                // Pieces of one block meet at tangent breaks: stop there.
+                stop_at_end: true,
+            };
+            sample_laws(&seg, &cfg, &mut self.profile);
+            self.tail_s += seg.length;
+            let _ = self.queue.push_back(seg); // room checked above
+        }
+        self.tail = block.path.end_point();
+        self.tail_tangent = Some(block.path.end_tangent());
+        self.backward_pass(old_tail_s);
+        if was_empty {
+            if let Some(front) = self.queue.front() {
+                self.u = front.path.u_start();
+            }
+        }
+        if matches!(self.state, RunState::Idle) {
+            self.state = RunState::Running;
+        }
+        Ok(())
+    }
+
+    /// Backward pass over the grid nodes from the end of the queue. Stops
+    /// early once it reaches nodes before `changed_from` whose limit did not change.
+    fn backward_pass(&mut self, changed_from: f64) {
+        let h = self.profile.h();
+        let accel = self.cfg.max_path_accel * (1.0 - self.cfg.brake_reserve);
+        let two_a_h = 2.0 * accel * h;
+        let last = self.profile.index_of(self.tail_s);
+        let first = self.profile.base();
+        let mut segs = self.queue.iter().rev().peekable();
+        let mut nearest_stop = self.tail_s;
+        let mut next_v: Option<f64> = None; // limit at node g + 1 when it is before the stop
+        let mut g = last;
+        while g >= first {
+            let x = g as f64 * h;
+            // Stops at or after x: the nearest one constrains this node.
+            while let Some(seg) = segs.peek() {
+                if seg.s1() >= x {
+                    if seg.stop_at_end {
+                        nearest_stop = seg.s1();
+                        next_v = next_v.filter(|_| (g + 1) as f64 * h <= nearest_stop);
+                    }
+                    segs.next();
+                } else {
+                    break;
+                }
+            }
+            let mut v = self.profile.raw_node(g);
+            v = v.min(libm::sqrt(2.0 * accel * (nearest_stop - x).max(0.0)));
+            if let Some(vn) = next_v {
+                v = v.min(libm::sqrt(vn * vn + two_a_h));
+            }
+            let old = self.profile.node(g);
+            self.profile.set_node(g, v);
+            if x < changed_from - h && old == v {
+                break;
+            }
+            next_v = Some(v);
+            g -= 1;
+        }
+    }
+
+    /// One period: advance along the path and return the setpoint. Never
+    /// allocates, locks or blocks.
+    pub fn tick(&mut self) -> Setpoint {
+        self.stats.ticks += 1;
+        self.seq += 1;
+        let ts = self.cfg.period;
+        let delta = if self.state == RunState::Running {
+            self.schedule_step()
+        } else {
+            0.0
+        };
+        if delta > 0.0 {
+            self.advance(delta);
+        } else if self.state == RunState::Running {
+            // At rest with nothing reachable: a corner or the end of the queue.
+            self.settle_at_end();
+        }
+        self.step = delta;
+        Setpoint {
+            seq: self.seq,
+            time: self.seq as f64 * ts,
+            axes: [
+                self.point.x,
+                self.point.y,
+                self.point.z,
+                self.abc[0],
+                self.abc[1],
+                self.abc[2],
+            ],
+            feed: delta / ts,
+            u: self.u,
+            s: self.s,
+            block_id: self.block_id,
+            state: self.state,
+        }
+    }
+
+    /// The tick's displacement from the discrete schedule.
+    #[inline]
+    fn schedule_step(&mut self) -> f64 {
+        let ts = self.cfg.period;
+        let a = self.cfg.max_path_accel * ts * ts;
+        let ab = a * (1.0 - self.cfg.brake_reserve);
+        let Some(front) = self.queue.front() else {
+            return 0.0;
+        };
+        self.block_id = front.block_id;
+        let h = self.profile.h();
+        let g = self.profile.index_of(self.s);
+        self.profile.drop_before(g);
+        let mut cand = (self.step + a).min(self.profile.cap(g) * ts);
+        let mut reach = stop_distance(cand, ab);
+        // Grid nodes ahead within stopping distance.
+        let last = self.profile.index_of(self.tail_s);
+        let mut k = g + 1;
+        while k <= last {
+            let r = k as f64 * h - self.s;
+            if r >= reach {
+                break;
+            }
+            let w = self.profile.node(k) * ts;
+            if w < cand {
+                cand = cand.min(brake_step(r, w, ab));
+                reach = stop_distance(cand, ab);
+            }
+            k += 1;
+        }
+        // Stops (corners, end of queue) within stopping distance.
+        for seg in self.queue.iter() {
+            let r = seg.s1() - self.s;
+            if seg.s0 - self.s >= reach {
+                break;
+            }
+            if seg.stop_at_end && r >= 0.0 {
+                cand = cand.min(brake_step(r, 0.0, ab));
+                reach = stop_distance(cand, ab);
+            }
+        }
+        let lower = self.step - a;
+        if cand < lower {
+            self.stats.brake_overruns += 1;
+            cand = lower;
+        }
+        cand.max(0.0)
+    }
+
+    /// Move the point by `delta` along the path, across segment ends.
+    fn advance(&mut self, mut delta: f64) {
+        let from = self.point;
+        let update = self.cfg.param_update;
+        loop {
+            let Some(seg) = self.queue.front() else {
+                return;
+            };
+            let end = seg.path.end_point();
+            let to_end = match update {
+                ParamUpdate::Corrected => (end - from).norm(),
+                _ => seg.s1() - self.s,
+            };
+            if to_end <= delta {
+                if seg.stop_at_end {
+                    // Land exactly on the end point.
+                    self.u = seg.path.u_end();
+                    self.s = seg.s1();
+                    self.point = end;
+                    return;
+                }
+                // Carry the rest into the next segment in this tick.
+                if update != ParamUpdate::Corrected {
+                    delta -= to_end;
+                }
+                let _ = self.queue.pop_front();
+                self.stats.segments_done += 1;
+                let Some(next) = self.queue.front() else {
+                    return;
+                };
+                self.u = next.path.u_start();
+                self.s = next.s0;
+                self.block_id = next.block_id;
+                if update != ParamUpdate::Corrected {
+                    self.point = next.path.start_point();
+                }
+                continue;
+            }
+            let path = seg.path;
+            let s0 = seg.s0;
+            let u_end = path.u_end();
+            let u_old = self.u;
+            let u_new = match update {
+                ParamUpdate::FirstOrder => {
+                    let d = path.eval(u_old, 1);
+                    (u_old + delta / d.d1.norm()).min(u_end)
+                }
+                ParamUpdate::SecondOrder => (u_old + taylor2(&path, u_old, delta)).min(u_end),
+                ParamUpdate::Corrected => {
+                    // Distance still to go from the start of this segment.
+                    let guess =
+                        taylor2(&path, u_old, delta - (path.eval(u_old, 0).p - from).norm());
+                    self.newton_chord(&path, from, delta, u_old, guess)
+                }
+            };
+            let travelled = path.short_arc_length(u_old, u_new);
+            self.s = if u_old == path.u_start() {
+                s0 + travelled
+            } else {
+                self.s + travelled
+            };
+            self.u = u_new;
+            self.point = path.eval(u_new, 0).p;
+            return;
+        }
+    }
+
+    /// Solve `|C(u) − from| = delta` for `u` in `(u_lo, u_end)` by Newton with a bracket.
+    #[inline]
+    fn newton_chord(&mut self, path: &Path, from: Vec3, delta: f64, u_lo: f64, guess: f64) -> f64 {
+        let u_end = path.u_end();
+        // The chord cannot be resolved below the round-off of the coordinates.
+        let tol = (self.cfg.newton_rel_tol * delta).max(8.0 * f64::EPSILON * (from.amax() + delta));
+        // A local bracket: the chord equation has other roots wherever the
+        // curve comes back within Δ of this point (loops, cusps), so never
+        // search the whole segment. Widen from twice the estimate until the
+        // chord exceeds Δ.
+        let est = if guess > 0.0 { guess } else { (u_end - u_lo) * 1e-9 };
+        let mut hi = u_end;
+        let mut width = 2.0 * est;
+        let mut iters = 0;
+        while u_lo + width < u_end {
+            iters += 1;
+            if (path.eval(u_lo + width, 0).p - from).norm() > delta {
+                hi = u_lo + width;
+                break;
+            }
+            width *= 2.0;
+        }
+        let mut lo = u_lo;
+        let mut u = (u_lo + est).clamp(lo, hi);
+        let (mut best_u, mut best_f) = (u, f64::INFINITY);
+        for _ in 0..self.cfg.newton_max_iter {
+            iters += 1;
+            let d = path.eval(u, 1);
+            let v = d.p - from;
+            let chord = v.norm();
+            let f = chord - delta;
+            if libm::fabs(f) < best_f {
+                best_f = libm::fabs(f);
+                best_u = u;
+            }
+            if libm::fabs(f) <= tol {
+                break;
+            }
+            if f > 0.0 {
+                hi = u;
+            } else {
+                lo = u;
+            }
+            // d|v|/du = v·C'/|v|
+            let df = if chord > 0.0 {
+                v.dot(&d.d1) / chord
+            } else {
+                d.d1.norm()
+            };
+            let next = u - f / df;
+            if next == u {
+                break; // converged to the last bit
+            }
+            u = if next > lo && next < hi {
+                next
+            } else {
+                0.5 * (lo + hi)
+            };
+        }
+        if iters > self.stats.max_newton_iters {
+            self.stats.max_newton_iters = iters;
+        }
+        best_u
+    }
+
+    /// At rest at a stop: continue past a corner, or report the end of the queue.
+    fn settle_at_end(&mut self) {
+        let Some(seg) = self.queue.front() else {
+            self.state = if self.finished {
+                RunState::Done
+            } else {
+                RunState::Idle
+            };
+            return;
+        };
+        if self.u < seg.path.u_end() {
+            return; // not at the end yet (waiting on the schedule)
+        }
+        if seg.stop_at_end {
+            let _ = self.queue.pop_front();
+            self.stats.segments_done += 1;
+            if let Some(next) = self.queue.front() {
+                self.u = next.path.u_start();
+                self.block_id = next.block_id;
+            } else {
+                self.state = if self.finished {
+                    RunState::Done
+                } else {
+                    RunState::Idle
+                };
+            }
+        }
+    }
+}
+
+/// Second-order Taylor step in arc length: `Δ/|C'| − Δ²·(C'·C'')/(2|C'|⁴)`.
+#[inline]
+fn taylor2(path: &Path, u: f64, delta: f64) -> f64 {
+    let d = path.eval(u, 2);
+    let sp2 = d.d1.norm_squared();
+    let sp = libm::sqrt(sp2);
+    delta / sp - delta * delta * d.d1.dot(&d.d2) / (2.0 * sp2 * sp2)
+}
+
+/// Sample the feed laws of `seg` onto the global grid: sample `k` sits at
+/// arc length `k·h/M` and feeds interval `⌊k/M⌋` (and the one before when it
+/// is on a node).
+fn sample_laws(seg: &Segment, cfg: &InterpConfig, profile: &mut Profile) {
+    let m = cfg.law_samples_per_interval as i64;
+    let hs = profile.h() / m as f64;
+    let path = &seg.path;
+    let k0 = libm::ceil(seg.s0 / hs) as i64;
+    let k1 = libm::floor(seg.s1() / hs) as i64;
+    let (mut u_prev, mut x_prev) = (path.u_start(), seg.s0);
+    let u_end = path.u_end();
+    for k in k0..=k1 {
+        let x = k as f64 * hs;
+        let u = invert_arc_length(path, u_prev, x - x_prev, u_end);
+        let d = path.eval(u, 2);
+        let v = speed_limit(&d, seg.feed, seg.mrr.as_ref(), cfg);
+        let g = k.div_euclid(m);
+        profile.lower_cap(g, v);
+        if k.rem_euclid(m) == 0 {
+            profile.lower_cap(g - 1, v);
+        }
+        u_prev = u;
+        x_prev = x;
+    }
+}
+
+/// The parameter `u ≥ u0` at arc length `ds` past `u0` (Newton with a bracket).
+fn invert_arc_length(path: &Path, u0: f64, ds: f64, u_end: f64) -> f64 {
+    if ds <= 0.0 {
+        return u0;
+    }
+    let (mut lo, mut hi) = (u0, u_end);
+    let mut u = (u0 + ds / path.eval(u0, 1).d1.norm()).clamp(lo, hi);
+    for _ in 0..60 {
+        let f = path.arc_length(u0, u) - ds;
+        if libm::fabs(f) <= 1e-13 * (1.0 + ds) {
+            break;
+        }
+        if f > 0.0 {
+            hi = u;
+        } else {
+            lo = u;
+        }
+        let mut next = u - f / path.eval(u, 1).d1.norm();
+        if !(next > lo && next < hi) {
+            next = 0.5 * (lo + hi);
+        }
+        u = next;
+    }
+    u
+}
+
+/// Cut a NURBS at interior knots of full multiplicity where the tangent
+/// turns by more than `tol` (a corner inside one block). Lines and arcs are
+/// one piece. Returns the number of pieces written.
+fn split_at_tangent_breaks(
+    path: &Path,
+    out: &mut [Path; MAX_PIECES],
+    tol: f64,
+) -> Result<usize, PushError> {
+    out[0] = *path;
+    let Path::Nurbs(n) = path else {
+        return Ok(1);
+    };
+    let p = n.degree();
+    let knots = n.knots();
+    let (ua, ub) = (n.u_start(), n.u_end());
+    let mut count = 1;
+    let mut i = p + 1;
+    while i < knots.len() - p - 1 {
+        let u = knots[i];
+        let mut mult = 1;
+        while i + mult < knots.len() && knots[i + mult] == u {
+            mult += 1;
+        }
+        if u > ua && u < ub && mult >= p {
+            // Left and right tangents at a C0 knot.
+            // Just before the knot (evaluation at the knot takes the right span).
+            let prev_knot = knots[..i]
+                .iter()
+                .rev()
+                .find(|&&k| k < u)
+                .copied()
+                .unwrap_or(ua);
+            let left = n.eval(u - (u - prev_knot) * 1e-9, 1).d1;
+            let right = n.eval(u, 1).d1;
+            let cos = left.dot(&right) / (left.norm() * right.norm());
+            if !(cos >= libm::cos(tol)) {
+                if count >= MAX_PIECES {
+                    return Err(PushError::Split(SplitAtError::NotInterior));
+                }
+                let (a, b) = out[count - 1].split_at(u).map_err(PushError::Split)?;
+                out[count - 1] = a;
+                out[count] = b;
+                count += 1;
+            }
+        }
+        i += mult;
+    }
+    Ok(count)
+}

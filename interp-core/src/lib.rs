@@ -1,0 +1,25 @@
+//! # interp-core
+//!
+//! The real-time heart of interpd: exact evaluation of line, arc and NURBS
+//! blocks, the seed paper's feed laws (chord error, constant material removal
+//! rate), a look-ahead feed schedule, and the fixed-period [`Interpolator`]
+//! whose `tick` never allocates, locks or blocks.
+//!
+//! Everything is `no_std` and fixed-capacity: queues report `Full` instead of
+//! growing. Same blocks + same config give bit-identical setpoints.
+#![no_std]
+#![warn(missing_docs)]
+
+pub mod config;
+pub mod feed;
+pub mod geom;
+pub mod interp;
+pub mod nurbs;
+pub mod path;
+pub mod plan;
+
+pub use config::{InterpConfig, ParamUpdate};
+pub use geom::{Curve, Derivs, Vec3};
+pub use interp::{Interpolator, RunState, Setpoint};
+pub use nurbs::{Nurbs, NurbsError};
+pub use path::{Arc, Block, Line, Path};

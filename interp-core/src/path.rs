@@ -1,0 +1,462 @@
+//! Path kinds of a block: straight line, circular/helical arc, NURBS.
+//!
+//! All are exact: the interpolator evaluates them analytically at every tick.
+
+use crate::geom::{Curve, Derivs, Vec3};
+use crate::nurbs::{Nurbs, NurbsError};
+
+/// Relative tolerance on the two radii of an arc given by its centre
+/// (start–centre vs end–centre), as a fraction of the radius. LinuxCNC allows
+/// 0.002 mm absolute or 0.1 % relative; we accept the larger of the two.
+pub const ARC_RADIUS_REL_TOL: f64 = 0.001;
+/// Absolute part of the arc radius tolerance, mm.
+pub const ARC_RADIUS_ABS_TOL: f64 = 0.002;
+
+/// Why a line or an arc was refused.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum PathError {
+    /// NaN or infinity in an input coordinate.
+    NonFinite,
+    /// Start and end coincide (a line of zero length).
+    ZeroLength,
+    /// Radius zero, or the axis has zero length.
+    DegenerateArc,
+    /// |start − centre| and |end − centre| differ beyond tolerance (mm).
+    RadiusMismatch {
+        /// |start − centre| in the arc plane, mm.
+        start_radius: f64,
+        /// |end − centre| in the arc plane, mm.
+        end_radius: f64,
+    },
+}
+
+impl core::fmt::Display for PathError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            PathError::NonFinite => write!(f, "non-finite coordinate"),
+            PathError::ZeroLength => write!(f, "line of zero length"),
+            PathError::DegenerateArc => write!(f, "arc with zero radius or zero axis"),
+            PathError::RadiusMismatch {
+                start_radius,
+                end_radius,
+            } => write!(
+                f,
+                "arc radius mismatch: start radius {start_radius} mm, end radius {end_radius} mm"
+            ),
+        }
+    }
+}
+
+fn finite(v: &Vec3) -> bool {
+    v.iter().all(|c| c.is_finite())
+}
+
+/// Straight segment, parametrised by arc length `u ∈ [0, length]`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Line {
+    start: Vec3,
+    end: Vec3,
+    dir: Vec3,
+    length: f64,
+}
+
+impl Line {
+    /// A line from `start` to `end`.
+    pub fn new(start: Vec3, end: Vec3) -> Result<Self, PathError> {
+        if !finite(&start) || !finite(&end) {
+            return Err(PathError::NonFinite);
+        }
+        let d = end - start;
+        let length = d.norm();
+        if length == 0.0 || !length.is_finite() {
+            return Err(PathError::ZeroLength);
+        }
+        Ok(Line {
+            start,
+            end,
+            dir: d / length,
+            length,
+        })
+    }
+    /// Length, mm.
+    pub fn length(&self) -> f64 {
+        self.length
+    }
+}
+
+impl Curve for Line {
+    fn u_start(&self) -> f64 {
+        0.0
+    }
+    fn u_end(&self) -> f64 {
+        self.length
+    }
+    fn eval(&self, u: f64, _order: usize) -> Derivs {
+        let u = u.clamp(0.0, self.length);
+        Derivs {
+            p: self.start + self.dir * u,
+            d1: self.dir,
+            ..Derivs::ZERO
+        }
+    }
+    fn start_point(&self) -> Vec3 {
+        self.start
+    }
+    fn end_point(&self) -> Vec3 {
+        self.end
+    }
+}
+
+/// Circular arc, optionally helical, parametrised by the swept angle `u ∈ [0, sweep]`.
+///
+/// `p(u) = c + r(cos u·e1 + sin u·e2) + axis·(rise·u/sweep)`, counter-clockwise
+/// about `axis` (right-hand rule). A clockwise arc is the same with `axis` negated.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Arc {
+    centre: Vec3,
+    axis: Vec3,
+    e1: Vec3,
+    e2: Vec3,
+    radius: f64,
+    sweep: f64,
+    rise: f64,
+    start: Vec3,
+    end: Vec3,
+}
+
+impl Arc {
+    /// Arc from `start` to `end` about `centre`, turning counter-clockwise about
+    /// `axis` (pass `-axis` for clockwise), plus `full_turns` extra whole turns.
+    /// The component of `end − start` along `axis` is the helix rise. A start
+    /// equal to the end (in the plane) is a full circle.
+    pub fn from_centre(
+        start: Vec3,
+        end: Vec3,
+        centre: Vec3,
+        axis: Vec3,
+        full_turns: u32,
+    ) -> Result<Self, PathError> {
+        if !finite(&start) || !finite(&end) || !finite(&centre) || !finite(&axis) {
+            return Err(PathError::NonFinite);
+        }
+        let an = axis.norm();
+        if an == 0.0 {
+            return Err(PathError::DegenerateArc);
+        }
+        let axis = axis / an;
+        // Project the centre into the start point's plane so that only the rise is axial.
+        let rs = start - centre;
+        let rs = rs - axis * rs.dot(&axis);
+        let re = end - centre;
+        let rise = (end - start).dot(&axis);
+        let re = re - axis * re.dot(&axis);
+        let r0 = rs.norm();
+        let r1 = re.norm();
+        if r0 == 0.0 || r1 == 0.0 {
+            return Err(PathError::DegenerateArc);
+        }
+        let tol = ARC_RADIUS_ABS_TOL.max(ARC_RADIUS_REL_TOL * r0);
+        if libm::fabs(r0 - r1) > tol {
+            return Err(PathError::RadiusMismatch {
+                start_radius: r0,
+                end_radius: r1,
+            });
+        }
+        let e1 = rs / r0;
+        let e2 = axis.cross(&e1);
+        let mut sweep = libm::atan2(re.dot(&e2), re.dot(&e1));
+        // Same point (to the radius tolerance) means a full circle, as in RS274/NGC.
+        if sweep <= 0.0 || (re / r1 - e1).norm() * r0 <= tol * 1e-3 {
+            sweep += 2.0 * core::f64::consts::PI;
+        }
+        sweep += 2.0 * core::f64::consts::PI * full_turns as f64;
+        Ok(Arc {
+            centre: centre + axis * (start - centre).dot(&axis),
+            axis,
+            e1,
+            e2,
+            radius: r0,
+            sweep,
+            rise,
+            start,
+            end,
+        })
+    }
+
+    /// Radius, mm.
+    pub fn radius(&self) -> f64 {
+        self.radius
+    }
+    /// Swept angle, rad (> 0).
+    pub fn sweep(&self) -> f64 {
+        self.sweep
+    }
+    /// Length of the (helical) arc, mm.
+    pub fn length(&self) -> f64 {
+        libm::hypot(self.radius * self.sweep, self.rise)
+    }
+    /// Unit axis (counter-clockwise about it).
+    pub fn axis(&self) -> Vec3 {
+        self.axis
+    }
+}
+
+impl Curve for Arc {
+    fn u_start(&self) -> f64 {
+        0.0
+    }
+    fn u_end(&self) -> f64 {
+        self.sweep
+    }
+    fn eval(&self, u: f64, order: usize) -> Derivs {
+        let u = u.clamp(0.0, self.sweep);
+        let (s, c) = (libm::sin(u), libm::cos(u));
+        let radial = self.e1 * c + self.e2 * s;
+        let tangential = self.e2 * c - self.e1 * s;
+        let mut d = Derivs {
+            p: self.centre + radial * self.radius + self.axis * (self.rise * u / self.sweep),
+            d1: tangential * self.radius + self.axis * (self.rise / self.sweep),
+            ..Derivs::ZERO
+        };
+        if order >= 2 {
+            d.d2 = -radial * self.radius;
+        }
+        if order >= 3 {
+            d.d3 = -tangential * self.radius;
+        }
+        d
+    }
+    fn start_point(&self) -> Vec3 {
+        self.start
+    }
+    fn end_point(&self) -> Vec3 {
+        self.end
+    }
+}
+
+/// The geometry of one block.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[allow(clippy::large_enum_variant)] // fixed-capacity by design: no boxing in a no_std core
+pub enum Path {
+    /// Straight line.
+    Line(Line),
+    /// Circular or helical arc.
+    Arc(Arc),
+    /// Rational B-spline.
+    Nurbs(Nurbs),
+}
+
+impl Path {
+    /// Arc length between two parameters `ua <= ub`, mm.
+    ///
+    /// Lines and arcs are closed-form; NURBS uses Gauss–Legendre per knot span
+    /// (speed is only piecewise smooth across knots).
+    pub fn arc_length(&self, ua: f64, ub: f64) -> f64 {
+        match self {
+            Path::Line(_) => ub - ua,
+            Path::Arc(a) => (ub - ua) * a.length() / a.sweep,
+            Path::Nurbs(n) => n.arc_length(ua, ub, ARC_LENGTH_TOL),
+        }
+    }
+
+    /// Arc length of a short piece `[ua, ub]` (one tick) with a fixed 5-point
+    /// Gauss–Legendre rule per knot span: no recursion, bounded cost for `tick`.
+    #[inline]
+    pub fn short_arc_length(&self, ua: f64, ub: f64) -> f64 {
+        match self {
+            Path::Line(_) | Path::Arc(_) => self.arc_length(ua, ub),
+            Path::Nurbs(n) => {
+                let knots = n.knots();
+                let mut total = 0.0;
+                let mut a = ua;
+                // Split at interior knots inside (ua, ub) so each piece is polynomial-smooth.
+                let i0 = n.find_span(ua, 0);
+                let mut i = i0 + 1;
+                while i < knots.len() && knots[i] < ub {
+                    if knots[i] > a {
+                        total += gauss5(n, a, knots[i]);
+                        a = knots[i];
+                    }
+                    i += 1;
+                }
+                total + gauss5(n, a, ub)
+            }
+        }
+    }
+
+    /// Total length, mm.
+    pub fn length(&self) -> f64 {
+        self.arc_length(self.u_start(), self.u_end())
+    }
+
+    /// Split at interior parameter `u` into two paths that are exactly the same geometry.
+    pub fn split_at(&self, u: f64) -> Result<(Path, Path), SplitAtError> {
+        if !(u > self.u_start() && u < self.u_end()) {
+            return Err(SplitAtError::NotInterior);
+        }
+        match self {
+            Path::Line(l) => {
+                let mid = l.eval(u, 0).p;
+                // Both halves are non-degenerate because u is strictly interior.
+                let a = Line::new(l.start, mid).map_err(|_| SplitAtError::NotInterior)?;
+                let b = Line::new(mid, l.end).map_err(|_| SplitAtError::NotInterior)?;
+                Ok((Path::Line(a), Path::Line(b)))
+            }
+            Path::Arc(a) => {
+                let mid = a.eval(u, 0).p;
+                let mut first = *a;
+                first.sweep = u;
+                first.rise = a.rise * u / a.sweep;
+                first.end = mid;
+                let mut second = *a;
+                let (s, c) = (libm::sin(u), libm::cos(u));
+                second.e1 = a.e1 * c + a.e2 * s;
+                second.e2 = a.axis.cross(&second.e1);
+                second.sweep = a.sweep - u;
+                second.rise = a.rise - first.rise;
+                second.centre = a.centre + a.axis * first.rise;
+                second.start = mid;
+                Ok((Path::Arc(first), Path::Arc(second)))
+            }
+            Path::Nurbs(n) => {
+                let (a, b) = n.split_at(u).map_err(SplitAtError::Nurbs)?;
+                Ok((Path::Nurbs(a), Path::Nurbs(b)))
+            }
+        }
+    }
+
+    /// Unit tangent at the start.
+    pub fn start_tangent(&self) -> Vec3 {
+        self.eval(self.u_start(), 1).d1.normalize()
+    }
+    /// Unit tangent at the end.
+    pub fn end_tangent(&self) -> Vec3 {
+        self.eval(self.u_end(), 1).d1.normalize()
+    }
+}
+
+/// Why a path could not be split.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum SplitAtError {
+    /// The parameter is not strictly inside the path's range (or gives a zero-length piece).
+    NotInterior,
+    /// Knot insertion failed (capacity).
+    Nurbs(NurbsError),
+}
+
+/// Tolerance of the adaptive arc-length quadrature used for planning, mm.
+pub const ARC_LENGTH_TOL: f64 = 1e-12;
+
+/// Gauss–Legendre nodes and weights on [-1, 1], 5 points (exact for degree 9).
+const GL5: [(f64, f64); 5] = [
+    (0.0, 0.568_888_888_888_888_9),
+    (-0.538_469_310_105_683_1, 0.478_628_670_499_366_47),
+    (0.538_469_310_105_683_1, 0.478_628_670_499_366_47),
+    (-0.906_179_845_938_664, 0.236_926_885_056_189_08),
+    (0.906_179_845_938_664, 0.236_926_885_056_189_08),
+];
+
+#[inline]
+fn gauss5(c: &Nurbs, a: f64, b: f64) -> f64 {
+    if b <= a {
+        return 0.0;
+    }
+    let h = 0.5 * (b - a);
+    let m = 0.5 * (a + b);
+    let mut sum = 0.0;
+    for (x, w) in GL5 {
+        sum += w * c.eval(m + h * x, 1).d1.norm();
+    }
+    sum * h
+}
+
+impl Curve for Path {
+    fn u_start(&self) -> f64 {
+        match self {
+            Path::Line(c) => c.u_start(),
+            Path::Arc(c) => c.u_start(),
+            Path::Nurbs(c) => c.u_start(),
+        }
+    }
+    fn u_end(&self) -> f64 {
+        match self {
+            Path::Line(c) => c.u_end(),
+            Path::Arc(c) => c.u_end(),
+            Path::Nurbs(c) => c.u_end(),
+        }
+    }
+    #[inline]
+    fn eval(&self, u: f64, order: usize) -> Derivs {
+        match self {
+            Path::Line(c) => c.eval(u, order),
+            Path::Arc(c) => c.eval(u, order),
+            Path::Nurbs(c) => c.eval(u, order),
+        }
+    }
+    fn start_point(&self) -> Vec3 {
+        match self {
+            Path::Line(c) => c.start_point(),
+            Path::Arc(c) => c.start_point(),
+            Path::Nurbs(c) => c.start_point(),
+        }
+    }
+    fn end_point(&self) -> Vec3 {
+        match self {
+            Path::Line(c) => c.end_point(),
+            Path::Arc(c) => c.end_point(),
+            Path::Nurbs(c) => c.end_point(),
+        }
+    }
+}
+
+/// Which side of the path the tool is on, for the sign of curvature in the
+/// constant-MRR law (concave k > 0: centre of curvature on the tool side).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum ToolSide {
+    /// A fixed direction from the workpiece towards the tool, e.g. +Z for a
+    /// ball end mill finishing a surface from above.
+    Direction([f64; 3]),
+    /// Contouring with the tool left of the path in the plane with this normal (G41).
+    LeftOfPath([f64; 3]),
+    /// Contouring with the tool right of the path in the plane with this normal (G42).
+    RightOfPath([f64; 3]),
+}
+
+/// Cutting parameters that switch on the constant-MRR law for a block (seed eq. 23).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct MrrParams {
+    /// Tool radius `rt`, mm.
+    pub tool_radius: f64,
+    /// Depth of cut `δ`, mm.
+    pub depth_of_cut: f64,
+    /// Where the tool is relative to the material.
+    pub tool_side: ToolSide,
+}
+
+/// One motion block as the interpolator receives it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Block {
+    /// Caller's id (reported in every setpoint of this block).
+    pub id: u32,
+    /// Geometry.
+    pub path: Path,
+    /// Programmed feed `F`, mm/s.
+    pub feed: f64,
+    /// Constant-MRR law parameters; `None` leaves that law off for this block.
+    pub mrr: Option<MrrParams>,
+}
+
+impl Block {
+    /// A block with programmed feed `feed` (mm/s) and no MRR law.
+    pub fn new(id: u32, path: Path, feed: f64) -> Self {
+        Block {
+            id,
+            path,
+            feed,
+            mrr: None,
+        }
+    }
+}

@@ -1,0 +1,333 @@
+//! Feed scheduling (non-RT): a speed-limit profile on a global arc-length
+//! grid, and the look-ahead pass under the tangential acceleration limit.
+//!
+//! The grid has spacing `h` and is anchored at arc length 0 of the run, not at
+//! block boundaries, so where a curve is cut into blocks or segments does not
+//! change the schedule (a split curve gives the same setpoints as the whole).
+//! Interval `g` covers `[g·h, (g+1)·h]`; its `cap` is the minimum of the feed
+//! laws over `law_samples_per_interval + 1` points evenly spaced in arc length.
+//! Node `g` (at `g·h`) gets `min(cap[g−1], cap[g])`, then the backward pass
+//! lowers node limits so the machine can brake, at every node, to every later
+//! limit and to rest at each stop (corner, end of the queue). The RT tick only
+//! reads these numbers.
+
+use crate::path::{MrrParams, Path};
+
+/// Grid intervals the profile ring holds (look-ahead distance = this × `h`).
+pub const MAX_PROFILE: usize = 4096;
+
+/// A piece of a block in the RT queue.
+#[derive(Clone, Copy, Debug)]
+pub struct Segment {
+    /// Geometry.
+    pub path: Path,
+    /// Id of the block this piece belongs to.
+    pub block_id: u32,
+    /// Programmed feed, mm/s.
+    pub feed: f64,
+    /// MRR law parameters of the block.
+    pub mrr: Option<MrrParams>,
+    /// Arc length of the run at the start of this segment, mm.
+    pub s0: f64,
+    /// Arc length of this segment, mm.
+    pub length: f64,
+    /// The path must come to rest at the end of this segment (a corner, or
+    /// the end of what is queued).
+    pub stop_at_end: bool,
+}
+
+impl Segment {
+    /// Arc length of the run at the end of this segment, mm.
+    #[inline]
+    pub fn s1(&self) -> f64 {
+        self.s0 + self.length
+    }
+}
+
+/// Fixed-capacity ring of grid intervals: cap and node limit per interval.
+#[derive(Clone, Debug)]
+pub struct Profile {
+    h: f64,
+    /// Grid index of the first interval held.
+    base: i64,
+    head: usize,
+    len: usize,
+    cap: [f64; MAX_PROFILE],
+    v: [f64; MAX_PROFILE],
+}
+
+impl Profile {
+    /// An empty profile with grid spacing `h` (mm).
+    pub fn new(h: f64) -> Self {
+        Profile {
+            h,
+            base: 0,
+            head: 0,
+            len: 0,
+            cap: [f64::INFINITY; MAX_PROFILE],
+            v: [0.0; MAX_PROFILE],
+        }
+    }
+    /// Grid spacing, mm.
+    #[inline]
+    pub fn h(&self) -> f64 {
+        self.h
+    }
+    /// Grid index of the interval containing arc length `s`.
+    #[inline]
+    pub fn index_of(&self, s: f64) -> i64 {
+        libm::floor(s / self.h) as i64
+    }
+    /// First grid index held.
+    #[inline]
+    pub fn base(&self) -> i64 {
+        self.base
+    }
+    /// One past the last grid index held.
+    #[inline]
+    pub fn end(&self) -> i64 {
+        self.base + self.len as i64
+    }
+    #[inline]
+    fn slot(&self, g: i64) -> usize {
+        debug_assert!(g >= self.base && g < self.end());
+        (self.head + (g - self.base) as usize) % MAX_PROFILE
+    }
+    /// Cap of interval `g` (mm/s); infinity outside what is held.
+    #[inline]
+    pub fn cap(&self, g: i64) -> f64 {
+        if g < self.base || g >= self.end() {
+            f64::INFINITY
+        } else {
+            self.cap[self.slot(g)]
+        }
+    }
+    /// Planned limit at node `g` (mm/s); zero outside what is held.
+    #[inline]
+    pub fn node(&self, g: i64) -> f64 {
+        if g < self.base || g >= self.end() {
+            0.0
+        } else {
+            self.v[self.slot(g)]
+        }
+    }
+    /// Room to extend the ring up to and including interval `g`?
+    pub fn can_extend_to(&self, g: i64) -> bool {
+        g < self.base + MAX_PROFILE as i64
+    }
+    /// Make intervals up to and including `g` present (new ones uncapped).
+    /// Returns false (changing nothing) when the ring is too small.
+    pub fn extend_to(&mut self, g: i64) -> bool {
+        if !self.can_extend_to(g) {
+            return false;
+        }
+        while self.end() <= g {
+            let slot = (self.head + self.len) % MAX_PROFILE;
+            self.cap[slot] = f64::INFINITY;
+            self.v[slot] = 0.0;
+            self.len += 1;
+        }
+        true
+    }
+    /// Restart an empty ring at grid index `g`.
+    pub fn reset_at(&mut self, g: i64) {
+        self.base = g;
+        self.head = 0;
+        self.len = 0;
+    }
+    /// Lower the cap of interval `g` to `c`.
+    #[inline]
+    pub fn lower_cap(&mut self, g: i64, c: f64) {
+        if g >= self.base && g < self.end() {
+            let k = self.slot(g);
+            if c < self.cap[k] {
+                self.cap[k] = c;
+            }
+        }
+    }
+    /// Set node `g`'s limit.
+    #[inline]
+    pub fn set_node(&mut self, g: i64, v: f64) {
+        if g >= self.base && g < self.end() {
+            let k = self.slot(g);
+            self.v[k] = v;
+        }
+    }
+    /// A node's limit before look-ahead: the smaller cap of its two intervals.
+    #[inline]
+    pub fn raw_node(&self, g: i64) -> f64 {
+        let left = if g > self.base {
+            self.cap(g - 1)
+        } else {
+            f64::INFINITY
+        };
+        left.min(self.cap(g))
+    }
+    /// Drop intervals before `g` (the RT has passed them). O(1) per interval.
+    #[inline]
+    pub fn drop_before(&mut self, g: i64) {
+        while self.len > 0 && self.base < g {
+            self.head = (self.head + 1) % MAX_PROFILE;
+            self.base += 1;
+            self.len -= 1;
+        }
+    }
+}
+
+/// Discrete braking: the largest step `Δ` (mm per tick) such that stepping
+/// `Δ, Δ−a, Δ−2a, …`, every step longer than `w` ends within `r` of here.
+///
+/// This is the exact discrete form of `v² ≤ w² + 2·A·r`: a continuous braking
+/// curve sampled once per tick would brake harder than `A`. The feasible set
+/// is `[0, Δ*]`, and once `Δ` was feasible, `Δ − a` is feasible one tick
+/// later, which is why the tick never needs to decelerate harder than `a`.
+#[inline]
+pub fn brake_step(r: f64, w: f64, a: f64) -> f64 {
+    if r <= w {
+        // Not even one step longer than w fits before the node.
+        return w;
+    }
+    // Largest n with n·w + a·n(n−1)/2 < r (the distance at which n steps
+    // just above w end).
+    let b = w - 0.5 * a;
+    let root = (-b + libm::sqrt(b * b + 2.0 * a * r)) / a;
+    let mut n = libm::ceil(root) - 1.0;
+    if n < 1.0 {
+        n = 1.0;
+    }
+    let band_start = |n: f64| n * w + 0.5 * a * n * (n - 1.0);
+    // Guard against round-off in the root.
+    while n > 1.0 && band_start(n) >= r {
+        n -= 1.0;
+    }
+    while band_start(n + 1.0) < r {
+        n += 1.0;
+    }
+    (w + n * a).min((r + 0.5 * a * n * (n - 1.0)) / n)
+}
+
+/// Distance needed to come to rest from step `d` braking by `a` per tick
+/// (all steps, including this one): `n·d − a·n(n−1)/2` with `n = ⌈d/a⌉`.
+#[inline]
+pub fn stop_distance(d: f64, a: f64) -> f64 {
+    if d <= 0.0 {
+        return 0.0;
+    }
+    let n = libm::ceil(d / a);
+    n * d - 0.5 * a * n * (n - 1.0)
+}
+
+/// Classic two-pass trapezoidal profile over node limits spaced `step`
+/// apart, from rest to rest: the time-optimal speed at each node under
+/// acceleration `accel`. Used for reporting planned durations.
+pub fn two_pass_profile(limits: &mut [f64], step: f64, accel: f64) {
+    let n = limits.len();
+    if n == 0 {
+        return;
+    }
+    limits[0] = 0.0;
+    limits[n - 1] = 0.0;
+    for j in 1..n {
+        limits[j] = limits[j].min(libm::sqrt(
+            limits[j - 1] * limits[j - 1] + 2.0 * accel * step,
+        ));
+    }
+    for j in (0..n - 1).rev() {
+        limits[j] = limits[j].min(libm::sqrt(
+            limits[j + 1] * limits[j + 1] + 2.0 * accel * step,
+        ));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Distance covered by the steps longer than `w` when braking from `d`.
+    fn braking_distance(mut d: f64, w: f64, a: f64) -> f64 {
+        let mut pos = 0.0;
+        while d > w {
+            pos += d;
+            d -= a;
+        }
+        pos
+    }
+
+    #[test]
+    fn brake_step_is_the_largest_feasible_step() {
+        for &(r, w, a) in &[
+            (10.0, 0.0, 0.002),
+            (1.0, 0.05, 0.002),
+            (0.003, 0.0, 0.002),
+            (0.0005, 0.0, 0.002),
+            (5.0, 0.1, 0.01),
+            (0.25, 0.01, 0.001),
+        ] {
+            let d = brake_step(r, w, a);
+            assert!(
+                braking_distance(d, w, a) <= r * (1.0 + 1e-12),
+                "r={r} w={w} d={d}"
+            );
+            let more = d * (1.0 + 1e-9) + 1e-15;
+            assert!(
+                braking_distance(more, w, a) > r,
+                "not maximal: r={r} w={w} d={d}"
+            );
+        }
+    }
+
+    #[test]
+    fn brake_step_then_minus_a_stays_feasible() {
+        // The invariant the tick relies on.
+        let a = 0.002;
+        for i in 1..400 {
+            let r = i as f64 * 0.0137;
+            for &w in &[0.0, 0.01, 0.05] {
+                let d = brake_step(r, w, a);
+                if d > w {
+                    let d2 = brake_step(r - d, w, a);
+                    assert!(d2 >= d - a - 1e-15, "r={r} w={w} d={d} d2={d2}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn stop_distance_matches_brake_step() {
+        let a = 0.003;
+        for i in 1..100 {
+            let r = i as f64 * 0.05;
+            let d = brake_step(r, 0.0, a);
+            assert!(stop_distance(d, a) <= r * (1.0 + 1e-12));
+            assert!((stop_distance(d, a) - braking_distance(d, 0.0, a)).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn two_pass_profile_is_symmetric_and_bounded() {
+        let mut lim = [10.0, 10.0, 3.0, 10.0, 10.0, 10.0, 10.0];
+        two_pass_profile(&mut lim, 0.5, 20.0);
+        assert_eq!(lim[0], 0.0);
+        assert_eq!(lim[6], 0.0);
+        assert!(lim[2] <= 3.0);
+        for w in lim.windows(2) {
+            assert!((w[1] * w[1] - w[0] * w[0]).abs() <= 2.0 * 20.0 * 0.5 + 1e-9);
+        }
+    }
+
+    #[test]
+    fn profile_ring_wraps_and_refuses_overflow() {
+        let mut p = Profile::new(0.5);
+        assert!(p.extend_to(10));
+        p.lower_cap(3, 7.0);
+        assert_eq!(p.cap(3), 7.0);
+        assert_eq!(p.cap(4), f64::INFINITY);
+        p.drop_before(5);
+        assert_eq!(p.base(), 5);
+        assert!(!p.can_extend_to(5 + MAX_PROFILE as i64));
+        assert!(p.extend_to(4 + MAX_PROFILE as i64));
+        p.lower_cap(4 + MAX_PROFILE as i64, 1.0);
+        assert_eq!(p.cap(4 + MAX_PROFILE as i64), 1.0);
+        assert!(!p.extend_to(5 + MAX_PROFILE as i64));
+    }
+}
