@@ -32,10 +32,23 @@ fn main() {
             let ab = 2000.0e-6 * 0.95;
             let mut best = (f64::INFINITY, 0i64);
             for k in g + 1..g + 30 {
-                let b = interp_core::plan::brake_step(k as f64 * pr.h() - last.s, pr.node(k) * 1e-3, ab);
-                if b < best.0 { best = (b, k); }
+                let b = interp_core::plan::brake_step(
+                    k as f64 * pr.h() - last.s,
+                    pr.node(k) * 1e-3,
+                    ab,
+                );
+                if b < best.0 {
+                    best = (b, k);
+                }
             }
-            println!("tick {n} s {:.4} feed {:.3} best brake {:.5} at node {} (v {:.3})", last.s, last.feed, best.0, best.1, pr.node(best.1));
+            println!(
+                "tick {n} s {:.4} feed {:.3} best brake {:.5} at node {} (v {:.3})",
+                last.s,
+                last.feed,
+                best.0,
+                best.1,
+                pr.node(best.1)
+            );
         }
         let sp = ip.tick();
         n += 1;
@@ -65,10 +78,18 @@ fn main() {
         }
         if (2515..2522).contains(&n) {
             let seg = &segs[sp.block_id as usize - 1];
-            let chord = ((sp.axes[0]-last.axes[0]).powi(2) + (sp.axes[1]-last.axes[1]).powi(2)).sqrt();
+            let chord =
+                ((sp.axes[0] - last.axes[0]).powi(2) + (sp.axes[1] - last.axes[1]).powi(2)).sqrt();
             let arc = seg.arc_length(last.u, sp.u, 1e-13);
             let p = interp_core::Curve::eval(seg, sp.u, 0).p;
-            println!("  chk {n} u {:.9} chord {:.9} arc {:.9} ds {:.9} onc {:.2e}", sp.u, chord, arc, sp.s - last.s, (p.x - sp.axes[0]).abs());
+            println!(
+                "  chk {n} u {:.9} chord {:.9} arc {:.9} ds {:.9} onc {:.2e}",
+                sp.u,
+                chord,
+                arc,
+                sp.s - last.s,
+                (p.x - sp.axes[0]).abs()
+            );
         }
         maxa = maxa.max((sp.feed - prevf).abs() / cfg.period);
         maxf = maxf.max(sp.feed);

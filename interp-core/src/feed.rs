@@ -98,11 +98,9 @@ pub fn speed_limit(d: &Derivs, feed: f64, mrr: Option<&MrrParams>, cfg: &InterpC
             cfg.period,
         ));
     }
-    if cfg.mrr_law {
-        if let Some(m) = mrr {
-            let ks = signed_curvature(d, m.tool_side);
-            v = v.min(mrr_speed(feed, ks, m.tool_radius, m.depth_of_cut));
-        }
+    if let (true, Some(m)) = (cfg.mrr_law, mrr) {
+        let ks = signed_curvature(d, m.tool_side);
+        v = v.min(mrr_speed(feed, ks, m.tool_radius, m.depth_of_cut));
     }
     v
 }

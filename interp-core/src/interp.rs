@@ -299,10 +299,8 @@ impl<const Q: usize> Interpolator<Q> {
         self.tail = block.path.end_point();
         self.tail_tangent = Some(block.path.end_tangent());
         self.backward_pass(old_tail_s);
-        if was_empty {
-            if let Some(front) = self.queue.front() {
-                self.u = front.path.u_start();
-            }
+        if let (true, Some(front)) = (was_empty, self.queue.front()) {
+            self.u = front.path.u_start();
         }
         if matches!(self.state, RunState::Idle) {
             self.state = RunState::Running;
@@ -514,7 +512,11 @@ impl<const Q: usize> Interpolator<Q> {
         // curve comes back within Δ of this point (loops, cusps), so never
         // search the whole segment. Widen from twice the estimate until the
         // chord exceeds Δ.
-        let est = if guess > 0.0 { guess } else { (u_end - u_lo) * 1e-9 };
+        let est = if guess > 0.0 {
+            guess
+        } else {
+            (u_end - u_lo) * 1e-9
+        };
         let mut hi = u_end;
         let mut width = 2.0 * est;
         let mut iters = 0;

@@ -14,9 +14,11 @@ pub mod config;
 pub mod feed;
 pub mod geom;
 pub mod interp;
+pub mod metrics;
 pub mod nurbs;
 pub mod path;
 pub mod plan;
+pub mod samples;
 
 pub use config::{InterpConfig, ParamUpdate};
 pub use geom::{Curve, Derivs, Vec3};

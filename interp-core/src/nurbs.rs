@@ -276,6 +276,15 @@ fn basis_ders<const P: usize>(
         left[j] = u - kn[P - j];
         right[j] = kn[P - 1 + j] - u;
     }
+    // inv[j][r] = 1 / (right[r + 1] + left[j - r]), taken as a knot difference: it
+    // does not wait for u, so the divisions overlap with the rest. Both paths below
+    // use the same reciprocals and products, so p and C' do not depend on `n`.
+    let mut inv = [[0.0f64; D1]; D1];
+    for j in 1..=P {
+        for r in 0..j {
+            inv[j][r] = 1.0 / (kn[P + r] - kn[P - j + r]);
+        }
+    }
     if n <= 1 {
         // Hot path (position and tangent): the first derivative falls out of the
         // last level of the triangle, N'_r = P·(t_{r-1} - t_r).
@@ -284,9 +293,7 @@ fn basis_ders<const P: usize>(
         for j in 1..P {
             let mut saved = 0.0;
             for r in 0..j {
-                // Reciprocal then product, exactly as the general path below, so
-                // that p and C' do not depend on the order asked for.
-                let temp = nb[r] * (1.0 / (right[r + 1] + left[j - r]));
+                let temp = nb[r] * inv[j][r];
                 nb[r] = saved + right[r + 1] * temp;
                 saved = left[j - r] * temp;
             }
@@ -295,7 +302,7 @@ fn basis_ders<const P: usize>(
         let mut t = [0.0f64; D1];
         let mut saved = 0.0;
         for r in 0..P {
-            let temp = nb[r] * (1.0 / (right[r + 1] + left[P - r]));
+            let temp = nb[r] * inv[P][r];
             t[r] = temp;
             ders[0][r] = saved + right[r + 1] * temp;
             saved = left[P - r] * temp;
@@ -313,15 +320,14 @@ fn basis_ders<const P: usize>(
         return;
     }
     // Upper triangle (incl. diagonal): basis values of rising degree;
-    // lower triangle: reciprocal knot differences, so each is divided only once.
+    // lower triangle: the reciprocal knot differences.
     let mut ndu = [[0.0f64; D1]; D1];
     ndu[0][0] = 1.0;
     for j in 1..=P {
         let mut saved = 0.0;
         for r in 0..j {
-            let inv = 1.0 / (right[r + 1] + left[j - r]);
-            ndu[j][r] = inv;
-            let temp = ndu[r][j - 1] * inv;
+            ndu[j][r] = inv[j][r];
+            let temp = ndu[r][j - 1] * inv[j][r];
             ndu[r][j] = saved + right[r + 1] * temp;
             saved = left[j - r] * temp;
         }

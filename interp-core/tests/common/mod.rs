@@ -1,7 +1,7 @@
 //! Shared data and helpers for interp-core's integration tests and benches.
 #![allow(dead_code)]
 
-pub mod butterfly;
+pub use interp_core::samples::butterfly;
 
 use interp_core::nurbs::{Nurbs, split_program_curve};
 

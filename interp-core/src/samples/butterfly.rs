@@ -6,8 +6,11 @@
 //! programmed at F290 (mm/min; G21 G94) at Z-1. The program's knots are
 //! 0×5, 1, 2, …, 46, 47×5; z is 0 here (the block moves in XY only).
 //!
-//! 51 control points: more than [`interp_core::nurbs::MAX_CTRL`], so the curve has
-//! to go through `split_program_curve` (see `super::butterfly_segments`).
+//! 51 control points: more than [`crate::nurbs::MAX_CTRL`], so the curve has
+//! to go through `split_program_curve` (see [`for_each_block`]).
+
+use crate::nurbs::{SplitError, split_program_curve};
+use crate::path::{Block, Path};
 
 /// Degree (G6.2 `P5` is the order, degree + 1).
 pub const BUTTERFLY_DEGREE: usize = 4;
@@ -81,3 +84,32 @@ pub const BUTTERFLY_KNOTS: [f64; 56] = [
     30.0, 31.0, 32.0, 33.0, 34.0, 35.0, 36.0, 37.0, 38.0, 39.0, 40.0, 41.0, 42.0, 43.0, 44.0, 45.0,
     46.0, 47.0, 47.0, 47.0, 47.0, 47.0,
 ];
+
+/// Programmed feed of the LinuxCNC program, mm/min (`F290`).
+pub const PROGRAM_FEED_MM_PER_MIN: f64 = 290.0;
+
+/// Start point of the curve (its first control point), mm.
+pub const START: [f64; 3] = BUTTERFLY_POINTS[0];
+
+/// Hands the butterfly to `sink` as consecutive NURBS blocks (ids from
+/// `first_id`) of at most `max_ctrl` control points, at feed `feed` (mm/s).
+pub fn for_each_block<E>(
+    feed: f64,
+    first_id: u32,
+    max_ctrl: usize,
+    mut sink: impl FnMut(Block) -> Result<(), E>,
+) -> Result<(), SplitError<E>> {
+    let mut id = first_id;
+    split_program_curve(
+        BUTTERFLY_DEGREE,
+        &BUTTERFLY_POINTS,
+        &BUTTERFLY_WEIGHTS,
+        &BUTTERFLY_KNOTS,
+        max_ctrl,
+        |n| {
+            let b = Block::new(id, Path::Nurbs(n), feed);
+            id += 1;
+            sink(b)
+        },
+    )
+}
