@@ -56,7 +56,8 @@ pub struct InterpConfig {
     pub param_update: ParamUpdate,
     /// Newton (corrected update) stops when `|chord − Δ| ≤ newton_rel_tol · Δ`. Default 1e-13.
     pub newton_rel_tol: f64,
-    /// Newton iteration cap (then it keeps its best iterate). Default 6.
+    /// Newton iteration cap (then it keeps its best iterate). Default 10;
+    /// two or three are typical.
     pub newton_max_iter: u32,
 }
 
@@ -75,7 +76,7 @@ impl Default for InterpConfig {
             tangent_tolerance: 1e-6,
             param_update: ParamUpdate::Corrected,
             newton_rel_tol: 1e-13,
-            newton_max_iter: 6,
+            newton_max_iter: 10,
         }
     }
 }

@@ -20,6 +20,10 @@ use crate::plan::{Profile, Segment, brake_step, stop_distance};
 /// Default segment-queue capacity.
 pub const DEFAULT_QUEUE: usize = 64;
 
+/// At rest this close to a stop (mm), the point is set on the stop exactly:
+/// arc length and parameter reach the end together only up to round-off.
+pub const END_SNAP_TOL: f64 = 1e-9;
+
 /// Largest gap accepted between one block's end and the next block's start, mm.
 pub const JOIN_TOLERANCE: f64 = 1e-6;
 
@@ -123,10 +127,13 @@ pub struct Stats {
     pub brake_overruns: u64,
     /// Largest Newton iteration count used in one tick.
     pub max_newton_iters: u32,
+    /// Ticks whose chord missed `Δ` by more than the Newton tolerance (the
+    /// best iterate was used).
+    pub newton_unconverged: u64,
 }
 
 /// Upper bound on the pieces one block is cut into at tangent breaks.
-pub const MAX_PIECES: usize = 16;
+pub const MAX_PIECES: usize = crate::nurbs::MAX_CTRL;
 
 /// The interpolator with a segment queue of capacity `Q`.
 #[derive(Debug)]
@@ -360,8 +367,9 @@ impl<const Q: usize> Interpolator<Q> {
         } else {
             0.0
         };
+        let mut delta = delta;
         if delta > 0.0 {
-            self.advance(delta);
+            delta = self.advance(delta);
         } else if self.state == RunState::Running {
             // At rest with nothing reachable: a corner or the end of the queue.
             self.settle_at_end();
@@ -435,26 +443,32 @@ impl<const Q: usize> Interpolator<Q> {
         cand.max(0.0)
     }
 
-    /// Move the point by `delta` along the path, across segment ends.
-    fn advance(&mut self, mut delta: f64) {
+    /// Move the point by `delta` along the path, across segment ends. Returns
+    /// the displacement actually made: `delta`, or less when landing on a stop
+    /// (the chord to a stop can be shorter than the arc the schedule counted).
+    fn advance(&mut self, mut delta: f64) -> f64 {
         let from = self.point;
+        let commanded = delta;
         let update = self.cfg.param_update;
         loop {
             let Some(seg) = self.queue.front() else {
-                return;
+                return 0.0;
             };
             let end = seg.path.end_point();
             let to_end = match update {
                 ParamUpdate::Corrected => (end - from).norm(),
                 _ => seg.s1() - self.s,
             };
-            if to_end <= delta {
+            // A stop within reach (by the chord, or by the arc the schedule
+            // counts, with the resolution of the coordinates) is landed on exactly.
+            let lands = seg.stop_at_end && seg.s1() - self.s <= delta + END_SNAP_TOL;
+            if to_end <= delta || lands {
                 if seg.stop_at_end {
                     // Land exactly on the end point.
                     self.u = seg.path.u_end();
                     self.s = seg.s1();
                     self.point = end;
-                    return;
+                    return (end - from).norm();
                 }
                 // Carry the rest into the next segment in this tick.
                 if update != ParamUpdate::Corrected {
@@ -463,7 +477,7 @@ impl<const Q: usize> Interpolator<Q> {
                 let _ = self.queue.pop_front();
                 self.stats.segments_done += 1;
                 let Some(next) = self.queue.front() else {
-                    return;
+                    return commanded;
                 };
                 self.u = next.path.u_start();
                 self.s = next.s0;
@@ -498,7 +512,7 @@ impl<const Q: usize> Interpolator<Q> {
             };
             self.u = u_new;
             self.point = path.eval(u_new, 0).p;
-            return;
+            return commanded;
         }
     }
 
@@ -506,8 +520,13 @@ impl<const Q: usize> Interpolator<Q> {
     #[inline]
     fn newton_chord(&mut self, path: &Path, from: Vec3, delta: f64, u_lo: f64, guess: f64) -> f64 {
         let u_end = path.u_end();
-        // The chord cannot be resolved below the round-off of the coordinates.
-        let tol = (self.cfg.newton_rel_tol * delta).max(8.0 * f64::EPSILON * (from.amax() + delta));
+        // The chord cannot be resolved below the round-off of the coordinates,
+        // nor below what one ulp of u moves the point (|C'|·ulp(u)).
+        let resolution = |u: f64, speed: f64| {
+            8.0 * f64::EPSILON * (from.amax() + delta)
+                + 4.0 * speed * f64::EPSILON * libm::fabs(u).max(1.0)
+        };
+        let mut tol = self.cfg.newton_rel_tol * delta;
         // A local bracket: the chord equation has other roots wherever the
         // curve comes back within Δ of this point (loops, cusps), so never
         // search the whole segment. Widen from twice the estimate until the
@@ -521,7 +540,6 @@ impl<const Q: usize> Interpolator<Q> {
         let mut width = 2.0 * est;
         let mut iters = 0;
         while u_lo + width < u_end {
-            iters += 1;
             if (path.eval(u_lo + width, 0).p - from).norm() > delta {
                 hi = u_lo + width;
                 break;
@@ -537,6 +555,7 @@ impl<const Q: usize> Interpolator<Q> {
             let v = d.p - from;
             let chord = v.norm();
             let f = chord - delta;
+            tol = tol.max(resolution(u, d.d1.norm()));
             if libm::fabs(f) < best_f {
                 best_f = libm::fabs(f);
                 best_u = u;
@@ -568,6 +587,9 @@ impl<const Q: usize> Interpolator<Q> {
         if iters > self.stats.max_newton_iters {
             self.stats.max_newton_iters = iters;
         }
+        if best_f > tol {
+            self.stats.newton_unconverged += 1;
+        }
         best_u
     }
 
@@ -582,7 +604,15 @@ impl<const Q: usize> Interpolator<Q> {
             return;
         };
         if self.u < seg.path.u_end() {
-            return; // not at the end yet (waiting on the schedule)
+            // Arc length says the stop is reached; the parameter may trail by
+            // round-off. Land on the exact end point.
+            let left = (seg.path.end_point() - self.point).norm();
+            if seg.s1() - self.s > END_SNAP_TOL || left > END_SNAP_TOL {
+                return; // not at the end yet (waiting on the schedule)
+            }
+            self.u = seg.path.u_end();
+            self.s = seg.s1();
+            self.point = seg.path.end_point();
         }
         if seg.stop_at_end {
             let _ = self.queue.pop_front();
@@ -612,29 +642,77 @@ fn taylor2(path: &Path, u: f64, delta: f64) -> f64 {
 
 /// Sample the feed laws of `seg` onto the global grid: sample `k` sits at
 /// arc length `k·h/M` and feeds interval `⌊k/M⌋` (and the one before when it
-/// is on a node).
+/// is on a node). A curvature peak can fall between samples, so every local
+/// minimum of the sampled law is refined by a golden-section search between
+/// its neighbours, and the refined value lowers the intervals it may lie in.
 fn sample_laws(seg: &Segment, cfg: &InterpConfig, profile: &mut Profile) {
     let m = cfg.law_samples_per_interval as i64;
     let hs = profile.h() / m as f64;
     let path = &seg.path;
+    // Lines and arcs have constant curvature: nothing to refine.
+    let refine = matches!(path, Path::Nurbs(_));
+    let law = |u: f64| speed_limit(&path.eval(u, 2), seg.feed, seg.mrr.as_ref(), cfg);
     let k0 = libm::ceil(seg.s0 / hs) as i64;
     let k1 = libm::floor(seg.s1() / hs) as i64;
     let (mut u_prev, mut x_prev) = (path.u_start(), seg.s0);
     let u_end = path.u_end();
+    // Window of the last two samples: (k, u, law).
+    let mut w1: Option<(i64, f64, f64)> = None;
+    let mut w2: Option<(i64, f64, f64)> = None;
     for k in k0..=k1 {
         let x = k as f64 * hs;
         let u = invert_arc_length(path, u_prev, x - x_prev, u_end);
-        let d = path.eval(u, 2);
-        let v = speed_limit(&d, seg.feed, seg.mrr.as_ref(), cfg);
+        let v = law(u);
         let g = k.div_euclid(m);
         profile.lower_cap(g, v);
         if k.rem_euclid(m) == 0 {
             profile.lower_cap(g - 1, v);
         }
+        // w2, w1, this: a local minimum at w1 is refined between w2 and this sample.
+        if let (true, Some((ka, ua, va)), Some((_, _, vb))) = (refine, w2, w1)
+            && vb < va
+            && vb <= v
+        {
+            let vmin = golden_min(&law, ua, u, vb);
+            for gi in ka.div_euclid(m)..=k.div_euclid(m) {
+                profile.lower_cap(gi, vmin);
+            }
+        }
+        w2 = w1;
+        w1 = Some((k, u, v));
         u_prev = u;
         x_prev = x;
     }
 }
+
+/// Minimum of `f` on `[a, b]` by golden-section search (`f_start` is a known value inside).
+fn golden_min(f: &impl Fn(f64) -> f64, mut a: f64, mut b: f64, f_start: f64) -> f64 {
+    const G: f64 = 0.618_033_988_749_894_9;
+    let mut x1 = b - G * (b - a);
+    let mut x2 = a + G * (b - a);
+    let (mut f1, mut f2) = (f(x1), f(x2));
+    let mut best = f_start.min(f1).min(f2);
+    for _ in 0..GOLDEN_ITERS {
+        if f1 < f2 {
+            b = x2;
+            x2 = x1;
+            f2 = f1;
+            x1 = b - G * (b - a);
+            f1 = f(x1);
+        } else {
+            a = x1;
+            x1 = x2;
+            f1 = f2;
+            x2 = a + G * (b - a);
+            f2 = f(x2);
+        }
+        best = best.min(f1).min(f2);
+    }
+    best
+}
+
+/// Golden-section steps refining a sampled law minimum (bracket shrinks by 0.618 each).
+const GOLDEN_ITERS: usize = 40;
 
 /// The parameter `u ≥ u0` at arc length `ds` past `u0` (Newton with a bracket).
 fn invert_arc_length(path: &Path, u0: f64, ds: f64, u_end: f64) -> f64 {

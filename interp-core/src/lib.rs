@@ -9,6 +9,8 @@
 //! growing. Same blocks + same config give bit-identical setpoints.
 #![no_std]
 #![warn(missing_docs)]
+// iceoryx2's habit: the no_std core must not reach for std/alloc by accident.
+#![warn(clippy::std_instead_of_core, clippy::alloc_instead_of_core)]
 
 pub mod config;
 pub mod feed;

@@ -102,7 +102,10 @@ mod tests {
         for &dth in &[1e-3, 1e-2, 0.1, 0.5] {
             let e = chord_error(&arc, 0.3, 0.3 + dth, 16);
             let sagitta = 10.0 * (1.0 - libm::cos(dth / 2.0));
-            assert!((e - sagitta).abs() <= 1e-12 * 10.0, "dth={dth} e={e} s={sagitta}");
+            assert!(
+                (e - sagitta).abs() <= 1e-12 * 10.0,
+                "dth={dth} e={e} s={sagitta}"
+            );
         }
     }
 

@@ -1,9 +1,10 @@
 //! Rational B-spline curves (NURBS) of degree 1..=5 in fixed-capacity storage.
 //!
-//! Evaluation follows Piegl & Tiller, *The NURBS Book*: A2.1 (span), A2.3
-//! (basis derivatives), A3.2 on the homogeneous curve and A4.2 for the
-//! rational derivatives. Long program curves are cut into bounded segments
-//! that are the same curve (knot insertion), outside the real-time path.
+//! Evaluation follows Piegl & Tiller, *The NURBS Book*: A2.1 (span), A2.2
+//! with the derivative recurrence (eq. 2.9, as A2.3), A3.2 on the homogeneous
+//! curve and A4.2 for the rational derivatives. Long program curves are cut
+//! into bounded segments that are the same curve (knot insertion), outside the
+//! real-time path.
 
 use crate::geom::{Curve, Derivs, Vec3};
 
@@ -126,7 +127,8 @@ impl core::fmt::Display for NurbsError {
             ),
             NurbsError::TooManyControlPoints { count, capacity } => write!(
                 f,
-                "{count} control points exceed the segment capacity of {capacity}; split the curve first"
+                "{count} control points exceed the segment capacity of {capacity}; \
+                 split the curve first"
             ),
             NurbsError::WeightCount { expected, found } => write!(
                 f,
@@ -253,123 +255,111 @@ fn cartesian(h: &[f64; 4]) -> Vec3 {
     Vec3::new(h[0] / h[3], h[1] / h[3], h[2] / h[3])
 }
 
-/// Non-zero basis functions of `span` and their derivatives up to `n` at `u`
-/// (Piegl & Tiller A2.3) for degree `P`. `ders[k][j]` is the k-th derivative of
-/// `N_{span-P+j,P}`.
+/// Non-zero basis functions of degree `P` and their first derivatives at `u`: the hot
+/// path (position and tangent), with small arrays that stay in registers.
 ///
-/// Needs `knots[span] < knots[span + 1]` and `n <= P`; `u` may lie outside the span
-/// (the span's polynomial is extended), which the one-sided checks use. The degree is
-/// a const parameter so that the loops unroll and lose their bounds checks.
+/// `kn` holds `knots[span + 1 - P..span + 1 + P]`, so `kn[P - 1] < kn[P]` bound the span;
+/// `u` may lie outside it (the span's polynomial is extended), which the one-sided
+/// checks use. The triangle is A2.2; the derivative falls out of its last level as
+/// `N'_r = P·(t_{r-1} - t_r)`. Reciprocal-then-product as in [`basis_ders`], so both
+/// give bit-identical values and first derivatives.
 #[inline(always)]
-fn basis_ders<const P: usize>(
-    knots: &[f64],
-    span: usize,
-    u: f64,
-    n: usize,
-    ders: &mut [[f64; D1]; 4],
-) {
-    // kn[P - 1] = knots[span], kn[P] = knots[span + 1].
-    let kn = &knots[span + 1 - P..span + 1 + P];
-    let mut left = [0.0f64; D1];
-    let mut right = [0.0f64; D1];
-    for j in 1..=P {
-        left[j] = u - kn[P - j];
-        right[j] = kn[P - 1 + j] - u;
+fn basis_d1<const P: usize>(kn: &[f64], u: f64) -> ([f64; D1], [f64; D1]) {
+    let kn = &kn[..2 * P];
+    // left[j] = u - U[span - j], right[j] = U[span + 1 + j] - u (the book's j + 1).
+    let mut left = [0.0f64; P];
+    let mut right = [0.0f64; P];
+    for j in 0..P {
+        left[j] = u - kn[P - 1 - j];
+        right[j] = kn[P + j] - u;
     }
-    // inv[j][r] = 1 / (right[r + 1] + left[j - r]), taken as a knot difference: it
-    // does not wait for u, so the divisions overlap with the rest. Both paths below
-    // use the same reciprocals and products, so p and C' do not depend on `n`.
+    // Degree P - 1 basis.
+    let mut nb = [0.0f64; P];
+    nb[0] = 1.0;
+    for j in 1..P {
+        let mut saved = 0.0;
+        for r in 0..j {
+            // The denominator is a knot difference: it does not wait for u.
+            let temp = nb[r] * (1.0 / (kn[P + r] - kn[P - j + r]));
+            nb[r] = saved + right[r] * temp;
+            saved = left[j - r - 1] * temp;
+        }
+        nb[j] = saved;
+    }
+    let mut n0 = [0.0f64; D1];
+    let mut n1 = [0.0f64; D1];
+    let pf = P as f64;
+    let mut saved = 0.0;
+    let mut prev = 0.0;
+    for r in 0..P {
+        let temp = nb[r] * (1.0 / (kn[P + r] - kn[r]));
+        n0[r] = saved + right[r] * temp;
+        saved = left[P - r - 1] * temp;
+        n1[r] = pf * (prev - temp);
+        prev = temp;
+    }
+    n0[P] = saved;
+    n1[P] = pf * prev;
+    (n0, n1)
+}
+
+/// Non-zero basis functions of degree `P` and their derivatives up to `n` (<= P, <= 3)
+/// at `u`; `ders[k][j]` is the k-th derivative of `N_{span-P+j,P}`. `kn` as in
+/// [`basis_d1`].
+///
+/// Keeps every level of the A2.2 triangle and differentiates upwards with
+/// `N'_{i,j} = j·(N_{i,j-1}/(U_{i+j}-U_i) - N_{i+1,j-1}/(U_{i+j+1}-U_{i+1}))` (the book's
+/// eq. 2.9, which A2.3 rearranges). The triangle and the last level's first derivative
+/// use exactly the operations of [`basis_d1`].
+#[inline(always)]
+fn basis_ders<const P: usize>(kn: &[f64], u: f64, n: usize) -> [[f64; D1]; 4] {
+    let kn = &kn[..2 * P];
+    let mut left = [0.0f64; P];
+    let mut right = [0.0f64; P];
+    for j in 0..P {
+        left[j] = u - kn[P - 1 - j];
+        right[j] = kn[P + j] - u;
+    }
+    // inv[j][r] = 1 / (U_{span+1+r} - U_{span+1-j+r}): the denominators of level j.
     let mut inv = [[0.0f64; D1]; D1];
+    // tri[j][r] = N_{span-j+r, j}.
+    let mut tri = [[0.0f64; D1]; D1];
+    tri[0][0] = 1.0;
     for j in 1..=P {
-        for r in 0..j {
-            inv[j][r] = 1.0 / (kn[P + r] - kn[P - j + r]);
-        }
-    }
-    if n <= 1 {
-        // Hot path (position and tangent): the first derivative falls out of the
-        // last level of the triangle, N'_r = P·(t_{r-1} - t_r).
-        let mut nb = [0.0f64; D1];
-        nb[0] = 1.0;
-        for j in 1..P {
-            let mut saved = 0.0;
-            for r in 0..j {
-                let temp = nb[r] * inv[j][r];
-                nb[r] = saved + right[r + 1] * temp;
-                saved = left[j - r] * temp;
-            }
-            nb[j] = saved;
-        }
-        let mut t = [0.0f64; D1];
         let mut saved = 0.0;
-        for r in 0..P {
-            let temp = nb[r] * inv[P][r];
-            t[r] = temp;
-            ders[0][r] = saved + right[r + 1] * temp;
-            saved = left[P - r] * temp;
+        for r in 0..j {
+            let iv = 1.0 / (kn[P + r] - kn[P - j + r]);
+            inv[j][r] = iv;
+            let temp = tri[j - 1][r] * iv;
+            tri[j][r] = saved + right[r] * temp;
+            saved = left[j - r - 1] * temp;
         }
-        ders[0][P] = saved;
-        if n == 1 {
-            let pf = P as f64;
+        tri[j][j] = saved;
+    }
+    let mut ders = [[0.0f64; D1]; 4];
+    ders[0] = tri[P];
+    // Constant trip counts let the loops unroll; n <= P keeps P - k in range.
+    for k in 1..=3 {
+        if k > n {
+            break;
+        }
+        // k-th derivatives climb from level P - k, where they are the plain values.
+        let mut d = tri[P - k];
+        for j in P - k + 1..=P {
+            let jf = j as f64;
+            let mut next = [0.0f64; D1];
             let mut prev = 0.0;
-            for r in 0..P {
-                ders[1][r] = pf * (prev - t[r]);
-                prev = t[r];
+            for r in 0..j {
+                let cur = d[r] * inv[j][r];
+                next[r] = jf * (prev - cur);
+                prev = cur;
             }
-            ders[1][P] = pf * prev;
+            next[j] = jf * prev;
+            d = next;
         }
-        return;
+        ders[k] = d;
     }
-    // Upper triangle (incl. diagonal): basis values of rising degree;
-    // lower triangle: the reciprocal knot differences.
-    let mut ndu = [[0.0f64; D1]; D1];
-    ndu[0][0] = 1.0;
-    for j in 1..=P {
-        let mut saved = 0.0;
-        for r in 0..j {
-            ndu[j][r] = inv[j][r];
-            let temp = ndu[r][j - 1] * inv[j][r];
-            ndu[r][j] = saved + right[r + 1] * temp;
-            saved = left[j - r] * temp;
-        }
-        ndu[j][j] = saved;
-    }
-    for j in 0..=P {
-        ders[0][j] = ndu[j][P];
-    }
-    let mut a = [[0.0f64; D1]; 2];
-    for r in 0..=P {
-        let (mut s1, mut s2) = (0usize, 1usize);
-        a[0][0] = 1.0;
-        for k in 1..=n {
-            let mut d = 0.0;
-            let pk = P - k;
-            if r >= k {
-                let rk = r - k;
-                a[s2][0] = a[s1][0] * ndu[pk + 1][rk];
-                d = a[s2][0] * ndu[rk][pk];
-            }
-            let j1 = if r + 1 >= k { 1 } else { k - r };
-            let j2 = if r <= pk + 1 { k - 1 } else { P - r };
-            for j in j1..=j2 {
-                let rkj = r + j - k;
-                a[s2][j] = (a[s1][j] - a[s1][j - 1]) * ndu[pk + 1][rkj];
-                d += a[s2][j] * ndu[rkj][pk];
-            }
-            if r <= pk {
-                a[s2][k] = -a[s1][k - 1] * ndu[pk + 1][r];
-                d += a[s2][k] * ndu[r][pk];
-            }
-            ders[k][r] = d;
-            core::mem::swap(&mut s1, &mut s2);
-        }
-    }
-    let mut f = P as f64;
-    for k in 1..=n {
-        for v in ders[k].iter_mut().take(P + 1) {
-            *v *= f;
-        }
-        f *= (P - k) as f64;
-    }
+    ders
 }
 
 /// Rational derivatives up to `order` (capped at 3) of the span `span`, whose `p + 1`
@@ -403,25 +393,34 @@ fn eval_core_p<const P: usize>(
     order: usize,
 ) -> Derivs {
     let order = if order > 3 { 3 } else { order };
-    // Homogeneous derivatives above the degree vanish.
-    let nd = if order < P { order } else { P };
-    let mut ders = [[0.0f64; D1]; 4];
-    basis_ders::<P>(knots, span, u, nd, &mut ders);
-
-    // A^(k) = Σ_j N^(k)_j · P^w_j
     let cps = &cps[..=P];
+    let kn = &knots[span + 1 - P..span + 1 + P];
+    // A^(k) = Σ_j N^(k)_j · P^w_j, summed in the same order on both paths.
     let mut a = [[0.0f64; 4]; 4];
-    for k in 0..=nd {
-        let mut s = [0.0f64; 4];
+    if order <= 1 {
+        let (n0, n1) = basis_d1::<P>(kn, u);
         for j in 0..=P {
-            let nb = ders[k][j];
             let cp = &cps[j];
-            s[0] += nb * cp[0];
-            s[1] += nb * cp[1];
-            s[2] += nb * cp[2];
-            s[3] += nb * cp[3];
+            for c in 0..4 {
+                a[0][c] += n0[j] * cp[c];
+                a[1][c] += n1[j] * cp[c];
+            }
         }
-        a[k] = s;
+    } else {
+        // Homogeneous derivatives above the degree vanish.
+        let nd = if order < P { order } else { P };
+        let ders = basis_ders::<P>(kn, u, nd);
+        for k in 0..4 {
+            if k > nd {
+                break;
+            }
+            for j in 0..=P {
+                let cp = &cps[j];
+                for c in 0..4 {
+                    a[k][c] += ders[k][j] * cp[c];
+                }
+            }
+        }
     }
 
     let inv_w = 1.0 / a[0][3];
@@ -823,7 +822,6 @@ impl Nurbs {
         }
         let tol = if tol > 0.0 { tol } else { 0.0 };
         let total = hi - lo;
-        let p = self.degree();
         let n = self.control_count();
         let mut sum = 0.0;
         for span in self.span_of(lo)..n {
@@ -838,7 +836,6 @@ impl Nurbs {
             if a < b {
                 sum += self.arc_length_span(span, a, b, tol * ((b - a) / total));
             }
-            debug_assert!(span >= p);
         }
         sign * sum
     }
@@ -1306,6 +1303,10 @@ mod tests {
             self.0 ^= self.0 >> 27;
             self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
         }
+        /// True with probability 1/n.
+        fn one_in(&mut self, n: u64) -> bool {
+            self.next_u64().is_multiple_of(n)
+        }
         /// Uniform in [lo, hi).
         fn range(&mut self, lo: f64, hi: f64) -> f64 {
             lo + (hi - lo) * ((self.next_u64() >> 11) as f64 / (1u64 << 53) as f64)
@@ -1601,6 +1602,66 @@ mod tests {
     }
 
     #[test]
+    fn random_malformed_input_never_panics() {
+        let mut rng = Rng(0xDEAD_BEEF);
+        let palette = [
+            0.0,
+            1.0,
+            -1.0,
+            0.5,
+            f64::NAN,
+            f64::INFINITY,
+            1e308,
+            -1e-308,
+            1e-300,
+        ];
+        let pick = |rng: &mut Rng| {
+            if rng.one_in(4) {
+                palette[(rng.next_u64() % palette.len() as u64) as usize]
+            } else {
+                rng.range(-2.0, 2.0)
+            }
+        };
+        let mut accepted = 0;
+        for _ in 0..20_000 {
+            let degree = (rng.next_u64() % 7) as usize;
+            let count = (rng.next_u64() % 40) as usize;
+            let pts: Vec<[f64; 3]> = (0..count)
+                .map(|_| [pick(&mut rng), pick(&mut rng), 0.0])
+                .collect();
+            let wn = if rng.one_in(8) { count + 1 } else { count };
+            let w: Vec<f64> = (0..wn).map(|_| libm::fabs(pick(&mut rng))).collect();
+            // Mostly well-formed clamped knots, sometimes perturbed.
+            let kn = if rng.one_in(8) {
+                count + degree
+            } else {
+                count + degree + 1
+            };
+            let mut k: Vec<f64> = (0..kn).map(|_| rng.range(0.0, 1.0)).collect();
+            k.sort_by(|a, b| a.partial_cmp(b).unwrap());
+            if kn > 2 * degree + 2 && rng.one_in(2) {
+                for i in 0..=degree {
+                    k[i] = 0.0;
+                    k[kn - 1 - i] = 1.0;
+                }
+            }
+            if kn > 0 && rng.one_in(6) {
+                let i = (rng.next_u64() % kn as u64) as usize;
+                k[i] = pick(&mut rng);
+            }
+            if let Ok(c) = Nurbs::new(degree, &pts, &w, &k) {
+                accepted += 1;
+                let _ = c.eval(rng.range(-1.0, 2.0), 3);
+                let _ = c.split_at(rng.range(0.0, 1.0));
+                let _ = c.insert_knot(rng.range(0.0, 1.0), (rng.next_u64() % 4) as usize);
+                let _ = c.arc_length(0.0, 1.0, 1e-6);
+            }
+            let _ = split_program_curve::<()>(degree, &pts, &w, &k, 8, |_| Ok(()));
+        }
+        assert!(accepted > 20, "{accepted}");
+    }
+
+    #[test]
     fn derivatives_match_finite_differences() {
         let mut rng = Rng(0x1234_5678);
         let h = 1e-5;
@@ -1776,7 +1837,12 @@ mod tests {
     #[test]
     fn eval_is_deterministic_and_hint_independent() {
         let mut rng = Rng(5);
-        let c = random_curve(&mut rng, 3, 20);
+        for p in 1..=MAX_DEGREE {
+            eval_bits_agree(&random_curve(&mut rng, p, 20));
+        }
+    }
+
+    fn eval_bits_agree(c: &Nurbs) {
         let mut hint = 0;
         for i in 0..=500 {
             let u = i as f64 / 500.0;
@@ -1786,11 +1852,16 @@ mod tests {
             assert_eq!(d.p.map(f64::to_bits), e.p.map(f64::to_bits));
             assert_eq!(d.d1.map(f64::to_bits), e.d1.map(f64::to_bits));
             assert_eq!(d.d3.map(f64::to_bits), e.d3.map(f64::to_bits));
-            // Asking for less gives the same leading entries and zeros after.
+            // Asking for less gives the same leading entries (the order <= 1 fast
+            // path agrees with A2.3 to the bit) and zeros after.
             let lo = c.eval(u, 1);
-            assert_eq!(lo.p, e.p);
-            assert_eq!(lo.d1, e.d1);
+            assert_eq!(lo.p.map(f64::to_bits), e.p.map(f64::to_bits));
+            assert_eq!(lo.d1.map(f64::to_bits), e.d1.map(f64::to_bits));
             assert_eq!(lo.d2, Vec3::zeros());
+            let p0 = c.eval(u, 0);
+            assert_eq!(p0.p.map(f64::to_bits), e.p.map(f64::to_bits));
+            assert_eq!(p0.d1, Vec3::zeros());
+            assert_eq!(c.eval(u, 2).d2.map(f64::to_bits), e.d2.map(f64::to_bits));
         }
     }
 
