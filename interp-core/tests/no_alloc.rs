@@ -1,0 +1,148 @@
+//! The RT path never allocates, and the same blocks + config give
+//! bit-identical setpoints: 1,000,000 ticks, twice, with blocks pushed as the
+//! queue frees up (push is non-RT but allocation-free too).
+//!
+//! A counting global allocator counts allocations made on this test's thread
+//! while counting is switched on (copper-rs's habit). This file holds one
+//! test so no other test shares the counter.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use interp_core::geom::{Curve, Vec3};
+use interp_core::path::{Arc, Block, Path};
+use interp_core::samples::butterfly;
+use interp_core::{InterpConfig, Interpolator, RunState};
+
+struct Counting;
+
+static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
+thread_local! {
+    // const-initialised, no destructor: reading it never allocates.
+    static COUNTING: Cell<bool> = const { Cell::new(false) };
+}
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        if COUNTING.with(Cell::get) {
+            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        }
+        // SAFETY: forwarded unchanged to the system allocator.
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        // SAFETY: forwarded unchanged to the system allocator.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        if COUNTING.with(Cell::get) {
+            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        }
+        // SAFETY: forwarded unchanged to the system allocator.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+const TICKS: u64 = 1_000_000;
+
+/// The butterfly as blocks (one lap of the test program, followed by a helix turn).
+fn butterfly_blocks() -> Vec<Block> {
+    let mut blocks = Vec::new();
+    butterfly::for_each_block(100.0, 1, 20, |b| {
+        blocks.push(b);
+        Ok::<(), ()>(())
+    })
+    .unwrap();
+    blocks
+}
+
+/// FNV-1a over the bits of every field of every setpoint.
+fn fold(hash: &mut u64, words: &[u64]) {
+    for w in words {
+        for b in w.to_le_bytes() {
+            *hash ^= b as u64;
+            *hash = hash.wrapping_mul(0x100_0000_01b3);
+        }
+    }
+}
+
+/// Runs `TICKS` ticks; returns (hash of setpoints, allocations while ticking, ticks moving).
+fn run() -> (u64, u64, u64) {
+    let cfg = InterpConfig::default();
+    let lap = butterfly_blocks();
+    let lap_start = lap[0].path.start_point();
+    // Everything that may allocate happens before counting starts.
+    let mut ip: Box<Interpolator> = Box::new(
+        Interpolator::new(cfg, [lap_start.x, lap_start.y, lap_start.z, 0.0, 0.0, 0.0]).unwrap(),
+    );
+    let mut tail = lap_start;
+    let mut next = 0usize; // index into the lap; lap.len() means the helix
+    let mut shift = Vec3::zeros();
+    let mut hash = 0xcbf2_9ce4_8422_2325u64;
+    let mut moving = 0u64;
+    COUNTING.with(|c| c.set(true));
+    for _ in 0..TICKS {
+        // Refill (non-RT work, but allocation-free too).
+        while ip.free_segments() > 0 && ip.queued_length() < 500.0 {
+            if next == 0 {
+                shift = tail - lap_start;
+            }
+            let block = if next < lap.len() {
+                let mut b = lap[next];
+                if let Path::Nurbs(n) = b.path {
+                    b.path = Path::Nurbs(n.translated(shift));
+                }
+                b
+            } else {
+                // A full helix turn rising 2 mm (a corner at both ends).
+                let helix = Arc::from_centre(
+                    tail,
+                    tail + Vec3::new(0.0, 0.0, 2.0),
+                    tail + Vec3::new(-5.0, 0.0, 0.0),
+                    Vec3::z(),
+                    0,
+                )
+                .unwrap();
+                Block::new(99, Path::Arc(helix), 60.0)
+            };
+            ip.push(&block).unwrap();
+            tail = block.path.end_point();
+            next = (next + 1) % (lap.len() + 1);
+        }
+        let sp = ip.tick();
+        assert_ne!(sp.state, RunState::Fault);
+        if sp.feed > 0.0 {
+            moving += 1;
+        }
+        let mut words = [0u64; 12];
+        words[0] = sp.seq;
+        words[1] = sp.time.to_bits();
+        for (w, a) in words[2..8].iter_mut().zip(sp.axes) {
+            *w = a.to_bits();
+        }
+        words[8] = sp.feed.to_bits();
+        words[9] = sp.u.to_bits();
+        words[10] = sp.s.to_bits();
+        words[11] = ((sp.block_id as u64) << 8) | sp.state as u64;
+        fold(&mut hash, &words);
+    }
+    COUNTING.with(|c| c.set(false));
+    let allocations = ALLOCATIONS.swap(0, Ordering::Relaxed);
+    (hash, allocations, moving)
+}
+
+#[test]
+fn a_million_ticks_allocate_nothing_and_repeat_bit_for_bit() {
+    let (h1, a1, m1) = run();
+    let (h2, a2, m2) = run();
+    assert_eq!(a1, 0, "allocations during the first run");
+    assert_eq!(a2, 0, "allocations during the second run");
+    // The machine really moved for almost all of it (not a run stuck at rest).
+    assert!(m1 > TICKS * 9 / 10, "moving ticks {m1}");
+    assert_eq!(m1, m2);
+    assert_eq!(h1, h2, "two runs differ");
+}
