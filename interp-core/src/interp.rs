@@ -147,6 +147,9 @@ pub struct Interpolator<const Q: usize = DEFAULT_QUEUE> {
     u: f64,
     /// Arc length of the run at the current point, mm.
     s: f64,
+    /// Kahan compensation of `s`: thousands of ~0.1 mm steps added to ~100 mm
+    /// would otherwise drift by round-off from the exact segment starts.
+    s_comp: f64,
     /// Current position (X Y Z).
     point: Vec3,
     abc: [f64; 3],
@@ -176,6 +179,7 @@ impl<const Q: usize> Interpolator<Q> {
             step: 0.0,
             u: 0.0,
             s: 0.0,
+            s_comp: 0.0,
             point: p,
             abc: [position[3], position[4], position[5]],
             tail: p,
@@ -450,6 +454,7 @@ impl<const Q: usize> Interpolator<Q> {
         let from = self.point;
         let commanded = delta;
         let update = self.cfg.param_update;
+        let mut crossed = false;
         loop {
             let Some(seg) = self.queue.front() else {
                 return 0.0;
@@ -467,6 +472,7 @@ impl<const Q: usize> Interpolator<Q> {
                     // Land exactly on the end point.
                     self.u = seg.path.u_end();
                     self.s = seg.s1();
+                    self.s_comp = 0.0;
                     self.point = end;
                     return (end - from).norm();
                 }
@@ -485,112 +491,48 @@ impl<const Q: usize> Interpolator<Q> {
                 if update != ParamUpdate::Corrected {
                     self.point = next.path.start_point();
                 }
+                crossed = true;
                 continue;
             }
-            let path = seg.path;
-            let s0 = seg.s0;
+            // Borrow, never copy, the path: a NURBS segment is over a kilobyte.
+            let path = &seg.path;
             let u_end = path.u_end();
             let u_old = self.u;
-            let u_new = match update {
+            let (u_new, point) = match update {
                 ParamUpdate::FirstOrder => {
                     let d = path.eval(u_old, 1);
-                    (u_old + delta / d.d1.norm()).min(u_end)
+                    let u = (u_old + delta / d.d1.norm()).min(u_end);
+                    (u, path.eval(u, 0).p)
                 }
-                ParamUpdate::SecondOrder => (u_old + taylor2(&path, u_old, delta)).min(u_end),
+                ParamUpdate::SecondOrder => {
+                    let u = (u_old + taylor2(path, u_old, delta)).min(u_end);
+                    (u, path.eval(u, 0).p)
+                }
                 ParamUpdate::Corrected => {
-                    // Distance still to go from the start of this segment.
-                    let guess =
-                        taylor2(&path, u_old, delta - (path.eval(u_old, 0).p - from).norm());
-                    self.newton_chord(&path, from, delta, u_old, guess)
+                    // After a segment end, only part of Δ is left from this segment's start.
+                    let left = if crossed {
+                        delta - (path.start_point() - from).norm()
+                    } else {
+                        delta
+                    };
+                    let guess = taylor2(path, u_old, left);
+                    newton_chord(path, from, delta, u_old, guess, &self.cfg, &mut self.stats)
                 }
             };
             let travelled = path.short_arc_length(u_old, u_new);
-            self.s = if u_old == path.u_start() {
-                s0 + travelled
-            } else {
-                self.s + travelled
-            };
+            if crossed {
+                self.s = seg.s0;
+                self.s_comp = 0.0;
+            }
+            // Kahan summation.
+            let y = travelled - self.s_comp;
+            let t = self.s + y;
+            self.s_comp = (t - self.s) - y;
+            self.s = t;
             self.u = u_new;
-            self.point = path.eval(u_new, 0).p;
+            self.point = point;
             return commanded;
         }
-    }
-
-    /// Solve `|C(u) − from| = delta` for `u` in `(u_lo, u_end)` by Newton with a bracket.
-    #[inline]
-    fn newton_chord(&mut self, path: &Path, from: Vec3, delta: f64, u_lo: f64, guess: f64) -> f64 {
-        let u_end = path.u_end();
-        // The chord cannot be resolved below the round-off of the coordinates,
-        // nor below what one ulp of u moves the point (|C'|·ulp(u)).
-        let resolution = |u: f64, speed: f64| {
-            8.0 * f64::EPSILON * (from.amax() + delta)
-                + 4.0 * speed * f64::EPSILON * libm::fabs(u).max(1.0)
-        };
-        let mut tol = self.cfg.newton_rel_tol * delta;
-        // A local bracket: the chord equation has other roots wherever the
-        // curve comes back within Δ of this point (loops, cusps), so never
-        // search the whole segment. Widen from twice the estimate until the
-        // chord exceeds Δ.
-        let est = if guess > 0.0 {
-            guess
-        } else {
-            (u_end - u_lo) * 1e-9
-        };
-        let mut hi = u_end;
-        let mut width = 2.0 * est;
-        let mut iters = 0;
-        while u_lo + width < u_end {
-            if (path.eval(u_lo + width, 0).p - from).norm() > delta {
-                hi = u_lo + width;
-                break;
-            }
-            width *= 2.0;
-        }
-        let mut lo = u_lo;
-        let mut u = (u_lo + est).clamp(lo, hi);
-        let (mut best_u, mut best_f) = (u, f64::INFINITY);
-        for _ in 0..self.cfg.newton_max_iter {
-            iters += 1;
-            let d = path.eval(u, 1);
-            let v = d.p - from;
-            let chord = v.norm();
-            let f = chord - delta;
-            tol = tol.max(resolution(u, d.d1.norm()));
-            if libm::fabs(f) < best_f {
-                best_f = libm::fabs(f);
-                best_u = u;
-            }
-            if libm::fabs(f) <= tol {
-                break;
-            }
-            if f > 0.0 {
-                hi = u;
-            } else {
-                lo = u;
-            }
-            // d|v|/du = v·C'/|v|
-            let df = if chord > 0.0 {
-                v.dot(&d.d1) / chord
-            } else {
-                d.d1.norm()
-            };
-            let next = u - f / df;
-            if next == u {
-                break; // converged to the last bit
-            }
-            u = if next > lo && next < hi {
-                next
-            } else {
-                0.5 * (lo + hi)
-            };
-        }
-        if iters > self.stats.max_newton_iters {
-            self.stats.max_newton_iters = iters;
-        }
-        if best_f > tol {
-            self.stats.newton_unconverged += 1;
-        }
-        best_u
     }
 
     /// At rest at a stop: continue past a corner, or report the end of the queue.
@@ -612,6 +554,7 @@ impl<const Q: usize> Interpolator<Q> {
             }
             self.u = seg.path.u_end();
             self.s = seg.s1();
+            self.s_comp = 0.0;
             self.point = seg.path.end_point();
         }
         if seg.stop_at_end {
@@ -788,4 +731,90 @@ fn split_at_tangent_breaks(
         i += mult;
     }
     Ok(count)
+}
+
+/// Solve `|C(u) − from| = delta` for `u` in `(u_lo, u_end)` by Newton with a bracket.
+#[inline]
+fn newton_chord(
+    path: &Path,
+    from: Vec3,
+    delta: f64,
+    u_lo: f64,
+    guess: f64,
+    cfg: &InterpConfig,
+    stats: &mut Stats,
+) -> (f64, Vec3) {
+    let u_end = path.u_end();
+    // The chord cannot be resolved below the round-off of the coordinates,
+    // nor below what one ulp of u moves the point (|C'|·ulp(u)).
+    let resolution = |u: f64, speed: f64| {
+        8.0 * f64::EPSILON * (from.amax() + delta)
+            + 4.0 * speed * f64::EPSILON * libm::fabs(u).max(1.0)
+    };
+    let mut tol = cfg.newton_rel_tol * delta;
+    // A local bracket: the chord equation has other roots wherever the
+    // curve comes back within Δ of this point (loops, cusps), so never
+    // search the whole segment. Widen from twice the estimate until the
+    // chord exceeds Δ.
+    let est = if guess > 0.0 {
+        guess
+    } else {
+        (u_end - u_lo) * 1e-9
+    };
+    let mut hi = u_end;
+    let mut width = 2.0 * est;
+    let mut iters = 0;
+    while u_lo + width < u_end {
+        if (path.eval(u_lo + width, 0).p - from).norm() > delta {
+            hi = u_lo + width;
+            break;
+        }
+        width *= 2.0;
+    }
+    let mut lo = u_lo;
+    let mut u = (u_lo + est).clamp(lo, hi);
+    let (mut best_u, mut best_p, mut best_f) = (u, from, f64::INFINITY);
+    for _ in 0..cfg.newton_max_iter {
+        iters += 1;
+        let d = path.eval(u, 1);
+        let v = d.p - from;
+        let chord = v.norm();
+        let f = chord - delta;
+        tol = tol.max(resolution(u, d.d1.norm()));
+        if libm::fabs(f) < best_f {
+            best_f = libm::fabs(f);
+            best_u = u;
+            best_p = d.p;
+        }
+        if libm::fabs(f) <= tol {
+            break;
+        }
+        if f > 0.0 {
+            hi = u;
+        } else {
+            lo = u;
+        }
+        // d|v|/du = v·C'/|v|
+        let df = if chord > 0.0 {
+            v.dot(&d.d1) / chord
+        } else {
+            d.d1.norm()
+        };
+        let next = u - f / df;
+        if next == u {
+            break; // converged to the last bit
+        }
+        u = if next > lo && next < hi {
+            next
+        } else {
+            0.5 * (lo + hi)
+        };
+    }
+    if iters > stats.max_newton_iters {
+        stats.max_newton_iters = iters;
+    }
+    if best_f > tol {
+        stats.newton_unconverged += 1;
+    }
+    (best_u, best_p)
 }

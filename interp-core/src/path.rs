@@ -348,9 +348,12 @@ pub enum SplitAtError {
 /// Tolerance of the adaptive arc-length quadrature used for planning, mm.
 pub const ARC_LENGTH_TOL: f64 = 1e-12;
 
-/// Gauss–Legendre nodes and weights on [-1, 1], 5 points (exact for degree 9).
+/// Gauss–Legendre nodes and weights on [-1, 1], 5 points (exact for degree
+/// 9). Three points are not enough: on rational curves with uneven weights the
+/// speed varies fast, and a 3-point rule drifts by ~1e-11 mm a tick (measured),
+/// which the schedule would integrate.
 const GL5: [(f64, f64); 5] = [
-    (0.0, 0.568_888_888_888_888_9),
+    (0.0, 128.0 / 225.0),
     (-0.538_469_310_105_683_1, 0.478_628_670_499_366_47),
     (0.538_469_310_105_683_1, 0.478_628_670_499_366_47),
     (-0.906_179_845_938_664, 0.236_926_885_056_189_08),

@@ -1,0 +1,126 @@
+//! Programs and helpers shared by interp-core's benches and examples
+//! (`benches/tick.rs`, `benches/tick_latency.rs`, `examples/feed_fluctuation.rs`,
+//! `examples/seed_figures.rs`, which include this file with `#[path]`).
+//!
+//! Everything here is deterministic: no random numbers, no clock, so two runs
+//! on any machine drive the interpolator through exactly the same ticks.
+#![allow(dead_code)]
+
+use interp_core::nurbs::{MAX_CTRL, MAX_DEGREE, Nurbs};
+use interp_core::samples::butterfly;
+use interp_core::{Block, InterpConfig, Interpolator, ParamUpdate, Path, RunState};
+
+/// Control points of [`rational_cubic`].
+pub const CUBIC_CTRL: usize = 30;
+/// Degree of [`rational_cubic`].
+pub const CUBIC_DEGREE: usize = 3;
+
+/// A long 3-D rational cubic: 30 control points on a helix of varying radius
+/// (20 ± 6 mm, 0.55 rad and 1.5 mm of rise per control point, ≈ 2.5 turns),
+/// weights `1.25 + 0.75·sin(2.3·i + 0.4)` ∈ [0.5, 2], a clamped knot vector
+/// with non-uniform interior spacing. About 330 mm long; its curvature
+/// varies along it, and so does its parametric speed (weights and knots).
+pub fn rational_cubic() -> Nurbs {
+    let mut pts = [[0.0; 3]; CUBIC_CTRL];
+    let mut w = [0.0; CUBIC_CTRL];
+    for i in 0..CUBIC_CTRL {
+        let t = i as f64;
+        let th = 0.55 * t;
+        let r = 20.0 + 6.0 * libm::sin(0.9 * t);
+        pts[i] = [r * libm::cos(th), r * libm::sin(th), 1.5 * t];
+        w[i] = 1.25 + 0.75 * libm::sin(2.3 * t + 0.4);
+    }
+    let n_knots = CUBIC_CTRL + CUBIC_DEGREE + 1;
+    let mut knots = [0.0; CUBIC_CTRL + CUBIC_DEGREE + 1];
+    let interior = n_knots - 2 * (CUBIC_DEGREE + 1);
+    let mut acc = 0.0;
+    for j in 0..interior {
+        acc += 1.0 + 0.3 * libm::sin(1.3 * j as f64);
+        knots[CUBIC_DEGREE + 1 + j] = acc;
+    }
+    acc += 1.0;
+    for k in knots.iter_mut().skip(n_knots - CUBIC_DEGREE - 1) {
+        *k = acc;
+    }
+    Nurbs::new(CUBIC_DEGREE, &pts, &w, &knots).expect("rational cubic is valid")
+}
+
+/// The rational cubic as one block (id 1) at `feed` mm/s.
+pub fn cubic_blocks(feed: f64) -> Vec<Block> {
+    vec![Block::new(1, Path::Nurbs(rational_cubic()), feed)]
+}
+
+/// Largest segment handed to the interpolator when a program curve is split.
+pub const SPLIT_MAX_CTRL: usize = MAX_CTRL - MAX_DEGREE - 1;
+
+/// The LinuxCNC butterfly as consecutive NURBS blocks (ids from 1) at `feed` mm/s.
+pub fn butterfly_blocks(feed: f64) -> Vec<Block> {
+    let mut out = Vec::new();
+    butterfly::for_each_block::<core::convert::Infallible>(feed, 1, SPLIT_MAX_CTRL, |b| {
+        out.push(b);
+        Ok(())
+    })
+    .expect("butterfly splits");
+    out
+}
+
+/// Start position (X Y Z A B C) of a program.
+pub fn start_of(blocks: &[Block]) -> [f64; 6] {
+    use interp_core::Curve;
+    let p = blocks[0].path.start_point();
+    [p.x, p.y, p.z, 0.0, 0.0, 0.0]
+}
+
+/// The default configuration with `param_update` set.
+pub fn config_with(update: ParamUpdate) -> InterpConfig {
+    InterpConfig {
+        param_update: update,
+        ..InterpConfig::default()
+    }
+}
+
+/// A fresh interpolator with the whole program queued and finished
+/// (non-RT work: planning happens in `push`). Boxed: it is ~150 kB.
+pub fn loaded(cfg: InterpConfig, blocks: &[Block]) -> Box<Interpolator> {
+    let mut ip = Box::new(Interpolator::new(cfg, start_of(blocks)).expect("valid config"));
+    reload(&mut ip, cfg, blocks);
+    ip
+}
+
+/// Re-initialise `ip` in place with the whole program queued and finished.
+pub fn reload(ip: &mut Interpolator, cfg: InterpConfig, blocks: &[Block]) {
+    *ip = Interpolator::new(cfg, start_of(blocks)).expect("valid config");
+    for b in blocks {
+        ip.push(b)
+            .expect("program fits the queue and the look-ahead");
+    }
+    ip.finish();
+}
+
+/// Runs `ip` to the end and returns how many ticks that took.
+pub fn run_to_end(ip: &mut Interpolator) -> u64 {
+    let mut n = 0;
+    loop {
+        n += 1;
+        if ip.tick().state == RunState::Done {
+            return n;
+        }
+        assert!(n < 50_000_000, "run does not end");
+    }
+}
+
+/// Short human name of an update mode.
+pub fn mode_name(m: ParamUpdate) -> &'static str {
+    match m {
+        ParamUpdate::FirstOrder => "first-order",
+        ParamUpdate::SecondOrder => "second-order",
+        ParamUpdate::Corrected => "corrected",
+    }
+}
+
+/// All three update modes, in the order the seed presents them.
+pub const MODES: [ParamUpdate; 3] = [
+    ParamUpdate::FirstOrder,
+    ParamUpdate::SecondOrder,
+    ParamUpdate::Corrected,
+];

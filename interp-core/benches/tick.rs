@@ -1,0 +1,70 @@
+//! Criterion bench: the cost of one `Interpolator::tick()` in steady running.
+//!
+//! Curves: the 3-D rational cubic of `common::rational_cubic` (30 control
+//! points, weights in [0.5, 2], ≈ 330 mm) and the LinuxCNC butterfly, both at
+//! 100 mm/s with the default configuration, for each `ParamUpdate` mode.
+//! `iter_custom` times runs of ticks; when a run reaches `Done` the program is
+//! queued again (planning, non-RT) outside the timed region.
+//!
+//! ```text
+//! cargo bench -p interp-core --bench tick
+//! ```
+//!
+//! For the per-tick distribution (p99, max) see `benches/tick_latency.rs`.
+
+#[path = "common/mod.rs"]
+mod common;
+
+use core::hint::black_box;
+use core::time::Duration;
+use std::time::Instant;
+
+use common::{MODES, butterfly_blocks, config_with, cubic_blocks, loaded, mode_name, reload};
+use criterion::{Criterion, criterion_group, criterion_main};
+use interp_core::{Block, RunState};
+
+fn bench_curve(c: &mut Criterion, curve: &str, blocks: &[Block]) {
+    let mut group = c.benchmark_group(format!("tick/{curve}"));
+    for mode in MODES {
+        let cfg = config_with(mode);
+        let mut ip = loaded(cfg, blocks);
+        group.bench_function(mode_name(mode), |b| {
+            b.iter_custom(|iters| {
+                let mut total = Duration::ZERO;
+                let mut left = iters;
+                while left > 0 {
+                    let t0 = Instant::now();
+                    let mut done = false;
+                    while left > 0 {
+                        left -= 1;
+                        if black_box(ip.tick()).state == RunState::Done {
+                            done = true;
+                            break;
+                        }
+                    }
+                    total += t0.elapsed();
+                    if done {
+                        reload(&mut ip, cfg, blocks);
+                    }
+                }
+                total
+            })
+        });
+    }
+    group.finish();
+}
+
+fn ticks(c: &mut Criterion) {
+    bench_curve(c, "rational-cubic", &cubic_blocks(100.0));
+    bench_curve(c, "butterfly", &butterfly_blocks(100.0));
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default()
+        .warm_up_time(Duration::from_secs(1))
+        .measurement_time(Duration::from_secs(5))
+        .sample_size(50);
+    targets = ticks
+}
+criterion_main!(benches);
