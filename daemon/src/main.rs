@@ -5,8 +5,12 @@
 //! ticks the interpolator and publishes setpoints over iceoryx2, and the
 //! recorder thread, behind the subcommands `serve`, `send`, `simulate`,
 //! `replay`, `jitter`, `plan` and `trace`, each added by the issue that
-//! implements it. For now it only has `demo`, which issue 8 wires to the
-//! interpolator.
+//! implements it. For now it has `demo`: the bundled butterfly NURBS through
+//! the fixed-period interpolator loop (see [`demo`]).
+
+mod clock;
+mod demo;
+mod histogram;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -21,20 +25,14 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Run the interpolator on a built-in program and print what it did (not wired yet).
-    Demo,
+    /// Stream the bundled butterfly NURBS through the interpolator loop and print a summary.
+    Demo(demo::DemoArgs),
 }
 
 fn main() -> Result<()> {
     match Cli::parse().command {
-        Command::Demo => demo(),
+        Command::Demo(args) => demo::main(&args),
     }
-}
-
-fn demo() -> Result<()> {
-    // TODO(issue-8-demo): wire the interpolator
-    println!("demo: not wired yet");
-    Ok(())
 }
 
 #[cfg(test)]
@@ -50,6 +48,11 @@ mod tests {
     #[test]
     fn demo_subcommand_parses() {
         let cli = Cli::try_parse_from(["interpd", "demo"]).expect("demo parses");
-        assert!(matches!(cli.command, Command::Demo));
+        assert!(matches!(cli.command, Command::Demo(_)));
+        let cli = Cli::try_parse_from(["interpd", "demo", "--fast", "--json", "--feed", "3000"])
+            .expect("demo flags parse");
+        let Command::Demo(args) = cli.command;
+        assert!(args.fast && args.json);
+        assert_eq!(args.feed, 3000.0);
     }
 }

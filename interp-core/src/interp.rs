@@ -193,10 +193,11 @@ impl<const Q: usize> Interpolator<Q> {
         })
     }
 
-    /// Profile grid spacing: `profile_step`, but never less than one tick's
-    /// travel at the machine's top speed, so one step spans at most two intervals.
+    /// Profile grid spacing: the smallest whole multiple of `profile_step` not
+    /// below one tick's travel at the machine's top speed, so one step spans
+    /// at most two intervals.
     pub fn grid_step(cfg: &InterpConfig) -> f64 {
-        cfg.profile_step.max(cfg.max_path_speed * cfg.period)
+        cfg.profile_step * grid_multiple(cfg) as f64
     }
 
     /// The configuration in force.
@@ -589,7 +590,10 @@ fn taylor2(path: &Path, u: f64, delta: f64) -> f64 {
 /// minimum of the sampled law is refined by a golden-section search between
 /// its neighbours, and the refined value lowers the intervals it may lie in.
 fn sample_laws(seg: &Segment, cfg: &InterpConfig, profile: &mut Profile) {
-    let m = cfg.law_samples_per_interval as i64;
+    // Law samples stay `profile_step / law_samples_per_interval` apart however
+    // long the period (a long period only widens the grid), so no feature of
+    // the curve hides between samples.
+    let m = cfg.law_samples_per_interval as i64 * grid_multiple(cfg);
     let hs = profile.h() / m as f64;
     let path = &seg.path;
     // Lines and arcs have constant curvature: nothing to refine.
@@ -626,6 +630,11 @@ fn sample_laws(seg: &Segment, cfg: &InterpConfig, profile: &mut Profile) {
         u_prev = u;
         x_prev = x;
     }
+}
+
+/// Grid spacing in units of `profile_step`.
+fn grid_multiple(cfg: &InterpConfig) -> i64 {
+    libm::ceil(cfg.max_path_speed * cfg.period / cfg.profile_step).max(1.0) as i64
 }
 
 /// Minimum of `f` on `[a, b]` by golden-section search (`f_start` is a known value inside).

@@ -367,6 +367,26 @@ fn butterfly_respects_every_limit_for_each_update() {
 }
 
 #[test]
+fn long_periods_keep_the_chord_tolerance() {
+    // Regression: law samples used to thin out as the period (and so the grid) grew.
+    let segs = common::butterfly_segments(20);
+    for period in [0.004, 0.01, 0.05] {
+        let cfg = InterpConfig {
+            period,
+            ..InterpConfig::default()
+        };
+        let blocks: Vec<Block> = segs
+            .iter()
+            .enumerate()
+            .map(|(i, s)| Block::new(i as u32 + 1, Path::Nurbs(*s), 100.0))
+            .collect();
+        let (sps, stats) = run(cfg, &blocks);
+        check_properties(&cfg, &blocks, &sps);
+        assert_eq!(stats.brake_overruns, 0);
+    }
+}
+
+#[test]
 fn lines_arcs_and_helices_run_exactly() {
     use interp_core::path::{Arc, Line};
     let p0 = Vec3::new(0.0, 0.0, 0.0);
