@@ -76,3 +76,41 @@ pub trait Curve {
         self.eval(self.u_end(), 0).p
     }
 }
+
+/// Smallest value of `f` seen while narrowing `[a, b]` by golden-section
+/// search for `iters` steps (or until the bracket is below `min_width`).
+/// For a unimodal `f` that is its minimum on `[a, b]`; used to refine a
+/// sampled extremum (maximise by passing `−f`).
+pub fn golden_section_min(
+    f: impl Fn(f64) -> f64,
+    mut a: f64,
+    mut b: f64,
+    iters: usize,
+    min_width: f64,
+) -> f64 {
+    const G: f64 = 0.618_033_988_749_894_9;
+    let mut x1 = b - G * (b - a);
+    let mut x2 = a + G * (b - a);
+    let (mut f1, mut f2) = (f(x1), f(x2));
+    let mut best = f1.min(f2);
+    for _ in 0..iters {
+        if b - a <= min_width {
+            break;
+        }
+        if f1 < f2 {
+            b = x2;
+            x2 = x1;
+            f2 = f1;
+            x1 = b - G * (b - a);
+            f1 = f(x1);
+        } else {
+            a = x1;
+            x1 = x2;
+            f1 = f2;
+            x2 = a + G * (b - a);
+            f2 = f(x2);
+        }
+        best = best.min(f1).min(f2);
+    }
+    best
+}

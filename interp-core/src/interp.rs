@@ -13,7 +13,7 @@ use heapless::Deque;
 
 use crate::config::{ConfigError, InterpConfig, ParamUpdate};
 use crate::feed::speed_limit;
-use crate::geom::{Curve, Vec3};
+use crate::geom::{Curve, Vec3, golden_section_min};
 use crate::path::{Block, Path, SplitAtError};
 use crate::plan::{Profile, Segment, brake_step, stop_distance};
 
@@ -620,7 +620,7 @@ fn sample_laws(seg: &Segment, cfg: &InterpConfig, profile: &mut Profile) {
             && vb < va
             && vb <= v
         {
-            let vmin = golden_min(&law, ua, u, vb);
+            let vmin = golden_section_min(law, ua, u, GOLDEN_ITERS, 0.0).min(vb);
             for gi in ka.div_euclid(m)..=k.div_euclid(m) {
                 profile.lower_cap(gi, vmin);
             }
@@ -635,32 +635,6 @@ fn sample_laws(seg: &Segment, cfg: &InterpConfig, profile: &mut Profile) {
 /// Grid spacing in units of `profile_step`.
 fn grid_multiple(cfg: &InterpConfig) -> i64 {
     libm::ceil(cfg.max_path_speed * cfg.period / cfg.profile_step).max(1.0) as i64
-}
-
-/// Minimum of `f` on `[a, b]` by golden-section search (`f_start` is a known value inside).
-fn golden_min(f: &impl Fn(f64) -> f64, mut a: f64, mut b: f64, f_start: f64) -> f64 {
-    const G: f64 = 0.618_033_988_749_894_9;
-    let mut x1 = b - G * (b - a);
-    let mut x2 = a + G * (b - a);
-    let (mut f1, mut f2) = (f(x1), f(x2));
-    let mut best = f_start.min(f1).min(f2);
-    for _ in 0..GOLDEN_ITERS {
-        if f1 < f2 {
-            b = x2;
-            x2 = x1;
-            f2 = f1;
-            x1 = b - G * (b - a);
-            f1 = f(x1);
-        } else {
-            a = x1;
-            x1 = x2;
-            f1 = f2;
-            x2 = a + G * (b - a);
-            f2 = f(x2);
-        }
-        best = best.min(f1).min(f2);
-    }
-    best
 }
 
 /// Golden-section steps refining a sampled law minimum (bracket shrinks by 0.618 each).

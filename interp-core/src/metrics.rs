@@ -2,7 +2,7 @@
 //!
 //! These run outside the RT path; they are exact up to their stated search.
 
-use crate::geom::{Curve, Vec3};
+use crate::geom::{Curve, Vec3, golden_section_min};
 
 /// Distance from point `p` to the segment `[a, b]`.
 #[inline]
@@ -51,30 +51,9 @@ pub fn chord_error_between<C: Curve + ?Sized>(
     }
     // Golden-section refinement around the best sample.
     let h = (u1 - u0) / n as f64;
-    let (mut lo, mut hi) = ((best.1 - h).max(u0), (best.1 + h).min(u1));
-    const G: f64 = 0.618_033_988_749_894_9;
-    let mut x1 = hi - G * (hi - lo);
-    let mut x2 = lo + G * (hi - lo);
-    let (mut f1, mut f2) = (dist(x1), dist(x2));
-    for _ in 0..80 {
-        if hi - lo <= 1e-12 * (u1 - u0) {
-            break;
-        }
-        if f1 > f2 {
-            hi = x2;
-            x2 = x1;
-            f2 = f1;
-            x1 = hi - G * (hi - lo);
-            f1 = dist(x1);
-        } else {
-            lo = x1;
-            x1 = x2;
-            f1 = f2;
-            x2 = lo + G * (hi - lo);
-            f2 = dist(x2);
-        }
-    }
-    best.0.max(f1).max(f2)
+    let (lo, hi) = ((best.1 - h).max(u0), (best.1 + h).min(u1));
+    let refined = -golden_section_min(|u| -dist(u), lo, hi, 80, 1e-12 * (u1 - u0));
+    best.0.max(refined)
 }
 
 /// Feed fluctuation of one tick (seed 004): `|chord| / Δ − 1`, with `Δ` the
