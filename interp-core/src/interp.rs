@@ -95,6 +95,8 @@ pub enum PushError {
     Finished,
     /// Splitting the path at a tangent break failed.
     Split(SplitAtError),
+    /// A NURBS with more tangent breaks (C0 corners) than `MAX_PIECES − 1`.
+    TooManyCorners,
 }
 
 impl core::fmt::Display for PushError {
@@ -111,6 +113,9 @@ impl core::fmt::Display for PushError {
             PushError::Empty => write!(f, "path of zero length"),
             PushError::Finished => write!(f, "program already finished"),
             PushError::Split(e) => write!(f, "cannot split block: {e:?}"),
+            PushError::TooManyCorners => {
+                write!(f, "NURBS has more than {} corners", MAX_PIECES - 1)
+            }
         }
     }
 }
@@ -132,7 +137,9 @@ pub struct Stats {
     pub newton_unconverged: u64,
 }
 
-/// Upper bound on the pieces one block is cut into at tangent breaks.
+/// Upper bound on the pieces one block is cut into at tangent breaks (a
+/// degree-1 NURBS of `MAX_CTRL` points has `MAX_CTRL − 2` corners). `push`
+/// keeps this many paths on its stack (~45 KiB).
 pub const MAX_PIECES: usize = crate::nurbs::MAX_CTRL;
 
 /// The interpolator with a segment queue of capacity `Q`.
@@ -232,10 +239,6 @@ impl<const Q: usize> Interpolator<Q> {
         }
     }
 
-    /// The planned speed limit at grid node `g` (for plots and tests).
-    pub fn planned_node_limit(&self, g: i64) -> f64 {
-        self.profile.node(g)
-    }
     /// The profile (grid caps and node limits) ahead of the machine.
     pub fn profile(&self) -> &Profile {
         &self.profile
@@ -703,7 +706,7 @@ fn split_at_tangent_breaks(
             let cos = left.dot(&right) / (left.norm() * right.norm());
             if !(cos >= libm::cos(tol)) {
                 if count >= MAX_PIECES {
-                    return Err(PushError::Split(SplitAtError::NotInterior));
+                    return Err(PushError::TooManyCorners);
                 }
                 let (a, b) = out[count - 1].split_at(u).map_err(PushError::Split)?;
                 out[count - 1] = a;
