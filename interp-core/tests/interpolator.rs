@@ -487,19 +487,24 @@ fn starving_queue_stops_at_the_end_of_what_is_queued_and_resumes() {
         Box::new(Interpolator::new(cfg, [start.x, start.y, start.z, 0.0, 0.0, 0.0]).unwrap());
     ip.push(&Block::new(1, Path::Nurbs(segs[0]), 100.0))
         .unwrap();
+    // Ticks until `until`, checking the acceleration limit across calls.
     let mut prev = 0.0;
-    let mut sp = Setpoint::default();
-    for _ in 0..200_000 {
-        sp = ip.tick();
-        assert!(
-            (sp.feed - prev).abs() / cfg.period <= cfg.max_path_accel * (1.0 + ACCEL_REL_TOL),
-            "{sp:?} after feed {prev}"
-        );
-        prev = sp.feed;
-        if sp.state == RunState::Idle {
-            break;
+    let mut tick_until = |ip: &mut Interpolator, until: RunState| {
+        let mut sp = Setpoint::default();
+        for _ in 0..200_000 {
+            sp = ip.tick();
+            assert!(
+                (sp.feed - prev).abs() / cfg.period <= cfg.max_path_accel * (1.0 + ACCEL_REL_TOL),
+                "{sp:?} after feed {prev}"
+            );
+            prev = sp.feed;
+            if sp.state == until {
+                break;
+            }
         }
-    }
+        sp
+    };
+    let sp = tick_until(&mut ip, RunState::Idle);
     assert_eq!(sp.state, RunState::Idle, "starved at the end of the queue");
     assert_eq!(v3(&sp.axes), segs[0].end_point());
     // More arrives: it moves on and finishes at the true end.
@@ -508,17 +513,7 @@ fn starving_queue_stops_at_the_end_of_what_is_queued_and_resumes() {
             .unwrap();
     }
     ip.finish();
-    for _ in 0..200_000 {
-        sp = ip.tick();
-        assert!(
-            (sp.feed - prev).abs() / cfg.period <= cfg.max_path_accel * (1.0 + ACCEL_REL_TOL),
-            "{sp:?} after feed {prev}"
-        );
-        prev = sp.feed;
-        if sp.state == RunState::Done {
-            break;
-        }
-    }
+    let sp = tick_until(&mut ip, RunState::Done);
     assert_eq!(sp.state, RunState::Done);
     assert_eq!(v3(&sp.axes), segs.last().unwrap().end_point());
 }
