@@ -273,11 +273,7 @@ fn translated_curve_gives_translated_setpoints() {
     let segs = common::butterfly_segments(20);
     let cfg = InterpConfig::default();
     let shift = Vec3::new(-250.0, 13.25, 7.5);
-    let a: Vec<Block> = segs
-        .iter()
-        .enumerate()
-        .map(|(i, s)| Block::new(i as u32 + 1, Path::Nurbs(*s), 100.0))
-        .collect();
+    let a: Vec<Block> = common::butterfly_blocks(100.0);
     let b: Vec<Block> = segs
         .iter()
         .enumerate()
@@ -295,11 +291,7 @@ fn translated_curve_gives_translated_setpoints() {
 fn reversed_curve_traces_the_same_points_backwards() {
     let segs = common::butterfly_segments(20);
     let cfg = InterpConfig::default();
-    let fwd: Vec<Block> = segs
-        .iter()
-        .enumerate()
-        .map(|(i, s)| Block::new(i as u32 + 1, Path::Nurbs(*s), 100.0))
-        .collect();
+    let fwd: Vec<Block> = common::butterfly_blocks(100.0);
     let n = segs.len() as u32;
     let rev: Vec<Block> = segs
         .iter()
@@ -348,11 +340,7 @@ fn butterfly_respects_every_limit_for_each_update() {
             param_update: update,
             ..InterpConfig::default()
         };
-        let blocks: Vec<Block> = segs
-            .iter()
-            .enumerate()
-            .map(|(i, s)| Block::new(i as u32 + 1, Path::Nurbs(*s), 100.0))
-            .collect();
+        let blocks: Vec<Block> = common::butterfly_blocks(100.0);
         let (sps, stats) = run(cfg, &blocks);
         if update == ParamUpdate::Corrected {
             check_properties(&cfg, &blocks, &sps);
@@ -369,17 +357,12 @@ fn butterfly_respects_every_limit_for_each_update() {
 #[test]
 fn long_periods_keep_the_chord_tolerance() {
     // Regression: law samples used to thin out as the period (and so the grid) grew.
-    let segs = common::butterfly_segments(20);
     for period in [0.004, 0.01, 0.05] {
         let cfg = InterpConfig {
             period,
             ..InterpConfig::default()
         };
-        let blocks: Vec<Block> = segs
-            .iter()
-            .enumerate()
-            .map(|(i, s)| Block::new(i as u32 + 1, Path::Nurbs(*s), 100.0))
-            .collect();
+        let blocks: Vec<Block> = common::butterfly_blocks(100.0);
         let (sps, stats) = run(cfg, &blocks);
         check_properties(&cfg, &blocks, &sps);
         assert_eq!(stats.brake_overruns, 0);

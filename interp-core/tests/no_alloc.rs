@@ -6,13 +6,14 @@
 //! while counting is switched on (copper-rs's habit). This file holds one
 //! test so no other test shares the counter.
 
+mod common;
+
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use interp_core::geom::{Curve, Vec3};
 use interp_core::path::{Arc, Block, Path};
-use interp_core::samples::butterfly;
 use interp_core::{InterpConfig, Interpolator, RunState};
 
 struct Counting;
@@ -49,17 +50,6 @@ static GLOBAL: Counting = Counting;
 
 const TICKS: u64 = 1_000_000;
 
-/// The butterfly as blocks (one lap of the test program, followed by a helix turn).
-fn butterfly_blocks() -> Vec<Block> {
-    let mut blocks = Vec::new();
-    butterfly::for_each_block(100.0, 1, 20, |b| {
-        blocks.push(b);
-        Ok::<(), ()>(())
-    })
-    .unwrap();
-    blocks
-}
-
 /// FNV-1a over the bits of every field of every setpoint.
 fn fold(hash: &mut u64, words: &[u64]) {
     for w in words {
@@ -73,7 +63,7 @@ fn fold(hash: &mut u64, words: &[u64]) {
 /// Runs `TICKS` ticks; returns (hash of setpoints, allocations while ticking, ticks moving).
 fn run() -> (u64, u64, u64) {
     let cfg = InterpConfig::default();
-    let lap = butterfly_blocks();
+    let lap = common::butterfly_blocks(100.0);
     let lap_start = lap[0].path.start_point();
     // Everything that may allocate happens before counting starts.
     let mut ip: Box<Interpolator> = Box::new(

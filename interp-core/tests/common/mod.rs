@@ -4,6 +4,7 @@
 pub use interp_core::samples::butterfly;
 
 use interp_core::nurbs::{Nurbs, split_program_curve};
+use interp_core::path::Block;
 
 /// Cuts a program curve into segments of at most `max_ctrl` control points
 /// (`max_ctrl <= MAX_CTRL - 6`) with `split_program_curve` and collects them.
@@ -42,4 +43,16 @@ pub fn butterfly_segments(max_ctrl: usize) -> Vec<Nurbs> {
         &butterfly::BUTTERFLY_KNOTS,
         max_ctrl,
     )
+}
+
+/// The butterfly as consecutive NURBS blocks (ids from 1), cut like
+/// [`butterfly_segments`]`(20)`, at `feed` mm/s.
+pub fn butterfly_blocks(feed: f64) -> Vec<Block> {
+    let mut blocks = Vec::new();
+    butterfly::for_each_block::<core::convert::Infallible>(feed, 1, 20, |b| {
+        blocks.push(b);
+        Ok(())
+    })
+    .unwrap_or_else(|e| panic!("the butterfly did not split: {e:?}"));
+    blocks
 }
