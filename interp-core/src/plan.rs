@@ -217,28 +217,6 @@ pub fn stop_distance(d: f64, a: f64) -> f64 {
     n * d - 0.5 * a * n * (n - 1.0)
 }
 
-/// Classic two-pass trapezoidal profile over node limits spaced `step`
-/// apart, from rest to rest: the time-optimal speed at each node under
-/// acceleration `accel`. Used for reporting planned durations.
-pub fn two_pass_profile(limits: &mut [f64], step: f64, accel: f64) {
-    let n = limits.len();
-    if n == 0 {
-        return;
-    }
-    limits[0] = 0.0;
-    limits[n - 1] = 0.0;
-    for j in 1..n {
-        limits[j] = limits[j].min(libm::sqrt(
-            limits[j - 1] * limits[j - 1] + 2.0 * accel * step,
-        ));
-    }
-    for j in (0..n - 1).rev() {
-        limits[j] = limits[j].min(libm::sqrt(
-            limits[j + 1] * limits[j + 1] + 2.0 * accel * step,
-        ));
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -300,18 +278,6 @@ mod tests {
             let d = brake_step(r, 0.0, a);
             assert!(stop_distance(d, a) <= r * (1.0 + 1e-12));
             assert!((stop_distance(d, a) - braking_distance(d, 0.0, a)).abs() < 1e-12);
-        }
-    }
-
-    #[test]
-    fn two_pass_profile_is_symmetric_and_bounded() {
-        let mut lim = [10.0, 10.0, 3.0, 10.0, 10.0, 10.0, 10.0];
-        two_pass_profile(&mut lim, 0.5, 20.0);
-        assert_eq!(lim[0], 0.0);
-        assert_eq!(lim[6], 0.0);
-        assert!(lim[2] <= 3.0);
-        for w in lim.windows(2) {
-            assert!((w[1] * w[1] - w[0] * w[0]).abs() <= 2.0 * 20.0 * 0.5 + 1e-9);
         }
     }
 
