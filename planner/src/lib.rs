@@ -7,4 +7,5 @@
 //! written as G6.2, and 5-axis setup orientation (seed `000_…`). Unlike
 //! `interp-core`, it may allocate and use all cores.
 
+pub mod cutter;
 pub mod mesh;
