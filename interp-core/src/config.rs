@@ -21,6 +21,9 @@ pub enum ParamUpdate {
     Corrected,
 }
 
+/// Longest jerk filter (moving average) the interpolator holds, ticks.
+pub const MAX_FILTER: usize = 1024;
+
 /// Interpolator configuration (mm, s). `Default` gives the documented values.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -38,6 +41,35 @@ pub struct InterpConfig {
     pub max_path_speed: f64,
     /// Tangential acceleration limit, mm/s². Default 2000.
     pub max_path_accel: f64,
+    /// Tangential jerk limit, mm/s³. Default 100 000. The schedule passes its
+    /// step through a moving average of `ceil(2·A/(J·Ts))` ticks (a jerk
+    /// filter), which bounds the jerk by `J` even when the acceleration
+    /// reverses from `+A` to `−A`.
+    pub max_path_jerk: f64,
+    /// Centripetal acceleration limit `v²·|k| ≤ this`, mm/s². Default 2000.
+    pub max_centripetal_accel: f64,
+    /// Per-axis velocity limits X Y Z, mm/s. Default 250 each.
+    pub axis_max_velocity: [f64; 3],
+    /// Per-axis acceleration limits X Y Z, mm/s². Default 4000 each.
+    pub axis_max_accel: [f64; 3],
+    /// Per-axis jerk limits X Y Z, mm/s³. Default 200 000 each.
+    pub axis_max_jerk: [f64; 3],
+    /// Share of each axis's acceleration and jerk given to the path's own
+    /// tangential motion (the rest goes to curvature and corners), in (0, 1).
+    /// The path's effective limits are `min(A, share·A_axis)` and likewise for
+    /// jerk. Default 0.5.
+    pub axis_tangential_share: f64,
+    /// Every limit is planned at `(1 − planning_margin)` of its value, which
+    /// absorbs discrete-time effects (chord versus arc, law sampling). Default 0.02.
+    pub planning_margin: f64,
+    /// A junction (corner or curvature jump) whose limit-respecting speed is
+    /// below this is passed with a full stop instead, mm/s. Default 0.5.
+    pub junction_min_speed: f64,
+    /// Largest feed override accepted (1 = 100 %). Default 2.0.
+    pub max_feed_override: f64,
+    /// How fast the applied override follows a new command, per second
+    /// (1.0 = 100 % per second). Default 4.0.
+    pub override_rate: f64,
     /// Fraction of `max_path_accel` held back when planning braking, so that the
     /// chord-versus-arc difference of a tick never forces a harder stop.
     /// Default 0.05.
@@ -70,6 +102,16 @@ impl Default for InterpConfig {
             mrr_law: true,
             max_path_speed: 250.0,
             max_path_accel: 2000.0,
+            max_path_jerk: 100_000.0,
+            max_centripetal_accel: 2000.0,
+            axis_max_velocity: [250.0; 3],
+            axis_max_accel: [4000.0; 3],
+            axis_max_jerk: [200_000.0; 3],
+            axis_tangential_share: 0.5,
+            planning_margin: 0.02,
+            junction_min_speed: 0.5,
+            max_feed_override: 2.0,
+            override_rate: 4.0,
             brake_reserve: 0.05,
             profile_step: 0.25,
             law_samples_per_interval: 8,
@@ -98,6 +140,33 @@ impl core::fmt::Display for ConfigError {
 
 impl InterpConfig {
     /// Check every field.
+    /// Tangential acceleration the schedule plans with, mm/s²: the path limit,
+    /// the axes' tangential share, and the planning margin.
+    pub fn planned_accel(&self) -> f64 {
+        let axis = self.axis_max_accel.iter().fold(f64::INFINITY, |m, &a| m.min(a));
+        self.max_path_accel.min(self.axis_tangential_share * axis) * (1.0 - self.planning_margin)
+    }
+
+    /// Tangential jerk the schedule plans with, mm/s³ (as [`Self::planned_accel`]).
+    pub fn planned_jerk(&self) -> f64 {
+        let axis = self.axis_max_jerk.iter().fold(f64::INFINITY, |m, &a| m.min(a));
+        self.max_path_jerk.min(self.axis_tangential_share * axis) * (1.0 - self.planning_margin)
+    }
+
+    /// Length of the jerk filter's moving average, ticks: `ceil(2·A/(J·Ts))`
+    /// with the planned limits (1 means no filter).
+    pub fn filter_ticks(&self) -> usize {
+        // A ratio that is whole up to round-off (as in scaled units) is that whole number.
+        let x = 2.0 * self.planned_accel() / (self.planned_jerk() * self.period);
+        let n = libm::ceil(x * (1.0 - 1e-12));
+        if n.is_finite() && n >= 1.0 {
+            n.min(1e9) as usize
+        } else {
+            1
+        }
+    }
+
+    /// Checks every field; the error names the first one out of range.
     pub fn validate(&self) -> Result<(), ConfigError> {
         let pos = |v: f64| v.is_finite() && v > 0.0;
         if !pos(self.period) || self.period > 1.0 {
@@ -111,6 +180,39 @@ impl InterpConfig {
         }
         if !pos(self.max_path_accel) {
             return Err(ConfigError::OutOfRange("max-path-accel"));
+        }
+        if !pos(self.max_path_jerk) {
+            return Err(ConfigError::OutOfRange("max-path-jerk"));
+        }
+        if !pos(self.max_centripetal_accel) {
+            return Err(ConfigError::OutOfRange("max-centripetal-accel"));
+        }
+        if !self.axis_max_velocity.iter().all(|&v| pos(v)) {
+            return Err(ConfigError::OutOfRange("axis-max-velocity"));
+        }
+        if !self.axis_max_accel.iter().all(|&v| pos(v)) {
+            return Err(ConfigError::OutOfRange("axis-max-accel"));
+        }
+        if !self.axis_max_jerk.iter().all(|&v| pos(v)) {
+            return Err(ConfigError::OutOfRange("axis-max-jerk"));
+        }
+        if !(self.axis_tangential_share > 0.0 && self.axis_tangential_share < 1.0) {
+            return Err(ConfigError::OutOfRange("axis-tangential-share"));
+        }
+        if !(self.planning_margin >= 0.0 && self.planning_margin < 0.5) {
+            return Err(ConfigError::OutOfRange("planning-margin"));
+        }
+        if !(self.junction_min_speed >= 0.0 && self.junction_min_speed.is_finite()) {
+            return Err(ConfigError::OutOfRange("junction-min-speed"));
+        }
+        if !(self.max_feed_override >= 1.0 && self.max_feed_override <= 10.0) {
+            return Err(ConfigError::OutOfRange("max-feed-override"));
+        }
+        if !pos(self.override_rate) {
+            return Err(ConfigError::OutOfRange("override-rate"));
+        }
+        if self.filter_ticks() > MAX_FILTER {
+            return Err(ConfigError::OutOfRange("max-path-jerk"));
         }
         if !(self.brake_reserve >= 0.0 && self.brake_reserve < 0.5) {
             return Err(ConfigError::OutOfRange("brake-reserve"));

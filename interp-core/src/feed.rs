@@ -86,11 +86,29 @@ pub fn signed_curvature(d: &Derivs, side: ToolSide) -> f64 {
     }
 }
 
-/// The speed limit at one point of a block: the minimum of the programmed
-/// feed, the machine's path-speed limit and every law that is switched on.
-#[inline]
+/// The limit of every law at a point: [`feed_limit`] and [`machine_limit`].
 pub fn speed_limit(d: &Derivs, feed: f64, mrr: Option<&MrrParams>, cfg: &InterpConfig) -> f64 {
-    let mut v = feed.min(cfg.max_path_speed);
+    feed_limit(d, feed, mrr, cfg).min(machine_limit(d, cfg, 1.0))
+}
+
+/// The programmed feed and the constant-MRR law (eq. 23), mm/s: the part of
+/// the limit that the feed override scales.
+pub fn feed_limit(d: &Derivs, feed: f64, mrr: Option<&MrrParams>, cfg: &InterpConfig) -> f64 {
+    let mut v = feed;
+    if let (true, Some(m)) = (cfg.mrr_law, mrr) {
+        let ks = signed_curvature(d, m.tool_side);
+        v = v.min(mrr_speed(feed, ks, m.tool_radius, m.depth_of_cut));
+    }
+    v
+}
+
+/// The machine's limits at a point, mm/s: top path speed, the chord-error law
+/// (eq. 16–17), centripetal acceleration and the per-axis limits (see
+/// [`axis_limit`]). `budget` in (0, 1] is the share of the axes' curvature
+/// budget available here (1 on a smooth path, less next to a junction).
+/// Needs derivatives up to order 3.
+pub fn machine_limit(d: &Derivs, cfg: &InterpConfig, budget: f64) -> f64 {
+    let mut v = cfg.max_path_speed;
     if cfg.chord_error_law {
         v = v.min(chord_error_speed(
             d.curvature(),
@@ -98,12 +116,152 @@ pub fn speed_limit(d: &Derivs, feed: f64, mrr: Option<&MrrParams>, cfg: &InterpC
             cfg.period,
         ));
     }
-    if let (true, Some(m)) = (cfg.mrr_law, mrr) {
-        let ks = signed_curvature(d, m.tool_side);
-        v = v.min(mrr_speed(feed, ks, m.tool_radius, m.depth_of_cut));
+    if let Some(a) = ArcLengthDerivs::new(d) {
+        let keep = 1.0 - cfg.planning_margin;
+        let k = a.c_ss.norm();
+        if k > 0.0 {
+            v = v.min(libm::sqrt(budget * keep * cfg.max_centripetal_accel / k));
+        }
+        v = v.min(axis_limit(&a, cfg, budget));
     }
     v
 }
+
+/// Derivatives of a path with respect to arc length at one point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ArcLengthDerivs {
+    /// Unit tangent `dC/ds`.
+    pub t: Vec3,
+    /// Curvature vector `d²C/ds² = k·n`.
+    pub c_ss: Vec3,
+    /// `d³C/ds³`.
+    pub c_sss: Vec3,
+}
+
+impl ArcLengthDerivs {
+    /// From parametric derivatives up to order 3 (`None` where `|C'| = 0`).
+    pub fn new(d: &Derivs) -> Option<Self> {
+        let s1 = d.d1.norm();
+        if !(s1 > 0.0) {
+            return None;
+        }
+        // σ = |C'|, σ' = C'·C''/σ, σ'' = (|C''|² + C'·C''' − σ'²)/σ.
+        let sp = d.d1.dot(&d.d2) / s1;
+        let spp = (d.d2.norm_squared() + d.d1.dot(&d.d3) - sp * sp) / s1;
+        let (s2, s3) = (s1 * s1, s1 * s1 * s1);
+        let t = d.d1 / s1;
+        let c_ss = d.d2 / s2 - d.d1 * (sp / s3);
+        let c_sss = d.d3 / s3 - d.d2 * (3.0 * sp / (s3 * s1)) - d.d1 * (spp / (s3 * s1))
+            + d.d1 * (3.0 * sp * sp / (s3 * s2));
+        Some(ArcLengthDerivs { t, c_ss, c_sss })
+    }
+}
+
+/// Per-axis limit on the path speed, mm/s. With path speed `v`, tangential
+/// acceleration `a` and jerk `j`, axis `i` moves with velocity `t_i·v`,
+/// acceleration `C_ss,i·v² + t_i·a` and jerk `C_sss,i·v³ + 3·C_ss,i·v·a + t_i·j`.
+/// The schedule holds `|a|` and `|j|` to the planned (shared) path limits, so
+/// each axis keeps `budget` of what is left for the curvature terms.
+pub fn axis_limit(a: &ArcLengthDerivs, cfg: &InterpConfig, budget: f64) -> f64 {
+    let keep = 1.0 - cfg.planning_margin;
+    let (pa, pj) = (cfg.planned_accel(), cfg.planned_jerk());
+    let mut v = f64::INFINITY;
+    for i in 0..3 {
+        let t = libm::fabs(a.t[i]);
+        let css = libm::fabs(a.c_ss[i]);
+        let csss = libm::fabs(a.c_sss[i]);
+        if t > 0.0 {
+            v = v.min(keep * cfg.axis_max_velocity[i] / t);
+        }
+        let acc = budget * (keep * cfg.axis_max_accel[i] - t * pa);
+        if css > 0.0 {
+            v = v.min(libm::sqrt(acc.max(0.0) / css));
+        }
+        let jerk = budget * (keep * cfg.axis_max_jerk[i] - t * pj);
+        v = v.min(cubic_speed(csss, 3.0 * css * pa, jerk.max(0.0)));
+    }
+    v
+}
+
+/// Largest `v ≥ 0` with `c3·v³ + c1·v ≤ r` (`c3, c1, r ≥ 0`).
+fn cubic_speed(c3: f64, c1: f64, r: f64) -> f64 {
+    if c3 <= 0.0 && c1 <= 0.0 {
+        return f64::INFINITY;
+    }
+    // Each term alone bounds the root from above; Newton from above on this
+    // convex increasing function stays above the root and converges.
+    let mut v = f64::INFINITY;
+    if c3 > 0.0 {
+        v = v.min(libm::cbrt(r / c3));
+    }
+    if c1 > 0.0 {
+        v = v.min(r / c1);
+    }
+    for _ in 0..60 {
+        let f = c3 * v * v * v + c1 * v - r;
+        let df = 3.0 * c3 * v * v + c1;
+        if !(f > 0.0 && df > 0.0) {
+            break;
+        }
+        let next = v - f / df;
+        if !(next < v) {
+            break;
+        }
+        v = next;
+    }
+    // Newton stops at or just above the root: step below it.
+    (v * (1.0 - 1e-12)).max(0.0)
+}
+
+/// Speed at which the path may pass a junction between a piece ending with
+/// derivatives `left` and one starting with `right`, mm/s (infinity for a
+/// junction with no jump at all).
+///
+/// A tick that crosses the junction turns the direction by `Δt = t₂ − t₁` and
+/// changes the curvature vector by `Δ(k·n)` at once. In sampled setpoints
+/// that is an axis acceleration of up to `v·|Δt_i|/Ts` and a jerk of up to
+/// `v·|Δt_i|/Ts²` (a direction change) and `v²·|Δ(k·n)_i|/Ts` (a curvature
+/// change), and a centripetal acceleration `v·|Δt|/Ts`. Each gets half of the
+/// axis's curvature budget; the other half bounds the curvature terms of both
+/// pieces at the junction.
+pub fn junction_speed(left: &Derivs, right: &Derivs, cfg: &InterpConfig) -> f64 {
+    let (Some(l), Some(r)) = (ArcLengthDerivs::new(left), ArcLengthDerivs::new(right)) else {
+        return 0.0;
+    };
+    let keep = 1.0 - cfg.planning_margin;
+    let ts = cfg.period;
+    let share = 0.5 * (1.0 - cfg.axis_tangential_share);
+    let dt = r.t - l.t;
+    let dk = r.c_ss - l.c_ss;
+    let mut v = f64::INFINITY;
+    let dtn = dt.norm();
+    if dtn > 0.0 {
+        v = v.min(0.5 * keep * cfg.max_centripetal_accel * ts / dtn);
+    }
+    for i in 0..3 {
+        let a = libm::fabs(dt[i]);
+        if a > 0.0 {
+            v = v.min(share * keep * cfg.axis_max_accel[i] * ts / a);
+            v = v.min(share * keep * cfg.axis_max_jerk[i] * ts * ts / a);
+        }
+        let c = libm::fabs(dk[i]);
+        if c > 0.0 {
+            v = v.min(libm::sqrt(share * keep * cfg.axis_max_jerk[i] * ts / c));
+        }
+    }
+    // A jump too small to matter at any speed the machine can reach (split
+    // points of one smooth curve) leaves the curvature budget whole; the
+    // planning margin absorbs it.
+    if v >= NEGLIGIBLE_JUMP * cfg.max_path_speed {
+        return f64::INFINITY;
+    }
+    v.min(machine_limit(left, cfg, 0.5))
+        .min(machine_limit(right, cfg, 0.5))
+}
+
+/// A junction whose jump would limit the speed only above this many times the
+/// machine's top speed is no junction at all (it costs under 0.1 % of the budget).
+pub const NEGLIGIBLE_JUMP: f64 = 1e3;
 
 #[cfg(test)]
 mod tests {

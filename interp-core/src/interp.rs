@@ -2,20 +2,32 @@
 //! their planned profile into one setpoint per period. No allocation, lock or
 //! system call in `tick`.
 //!
-//! Per tick the path advances by a displacement `Δ` (mm) from the discrete
-//! schedule: `Δ = min(Δ_prev + a, cap·Ts, brake_step(node) for every node and
-//! stop within stopping distance)`, never below `Δ_prev − a`, where
-//! `a = A·Ts²`. The parameter update ([`ParamUpdate`]) then finds the next
-//! `u` whose chord from the last point is `Δ`; a segment end inside the tick
-//! carries the rest of `Δ` into the next segment in the same tick.
+//! Two layers run each tick:
+//!
+//! 1. **Reference schedule** (one dimension, arc length). The step is
+//!    `Δ = min(Δ_prev + a, limit·Ts, brake_step(node) for every node and stop
+//!    within stopping distance)`, never below `Δ_prev − a`, with
+//!    `a = A·Ts²`: acceleration-limited and always able to stop within what
+//!    is queued. Feed hold and abort lower it by `a` per tick to rest.
+//! 2. **Jerk filter**: the machine follows the mean of the last
+//!    `N = ceil(2·A/(J·Ts))` reference positions (a moving average, like the
+//!    jerk filters of industrial controllers). A mean of acceleration-limited
+//!    steps changes its acceleration by at most `2a/N ≤ J·Ts³` per tick, so
+//!    jerk is bounded however the reference accelerates or brakes. The limits
+//!    the reference follows are eroded ([`Profile::erode`]) so that the mean
+//!    still keeps every limit where the machine is.
+//!
+//! The parameter update ([`ParamUpdate`]) then finds the next `u` whose chord
+//! from the last point is the filtered step; a segment end inside the tick
+//! carries the rest of the step into the next segment in the same tick.
 
 use heapless::Deque;
 
-use crate::config::{ConfigError, InterpConfig, ParamUpdate};
-use crate::feed::speed_limit;
-use crate::geom::{Curve, Vec3, golden_section_min};
+use crate::config::{ConfigError, InterpConfig, MAX_FILTER, ParamUpdate};
+use crate::feed::{feed_limit, junction_speed, machine_limit};
+use crate::geom::{Curve, Derivs, Vec3, golden_section_min};
 use crate::path::{Block, Path, SplitAtError};
-use crate::plan::{Profile, Segment, brake_step, stop_distance};
+use crate::plan::{Erosion, Profile, Segment, brake_step, stop_distance};
 
 /// Default segment-queue capacity.
 pub const DEFAULT_QUEUE: usize = 64;
@@ -35,11 +47,11 @@ pub enum RunState {
     /// At rest with nothing (more) queued; the program is not marked finished.
     #[default]
     Idle = 0,
-    /// Moving along the path (or about to).
+    /// Moving along the path, or waiting on the path for more blocks.
     Running = 1,
-    /// Feed hold (look-ahead issue).
+    /// Feed hold: decelerating to rest on the path, or at rest until resumed.
     Holding = 2,
-    /// Stopping after an abort (look-ahead issue).
+    /// Abort: decelerating to rest on the path; then the queue is flushed.
     Stopping = 3,
     /// The program was marked finished and its last point reached.
     Done = 4,
@@ -97,6 +109,8 @@ pub enum PushError {
     Split(SplitAtError),
     /// A NURBS with more tangent breaks (C0 corners) than `MAX_PIECES − 1`.
     TooManyCorners,
+    /// An abort is under way; push again once the interpolator is idle.
+    Aborting,
 }
 
 impl core::fmt::Display for PushError {
@@ -116,7 +130,21 @@ impl core::fmt::Display for PushError {
             PushError::TooManyCorners => {
                 write!(f, "NURBS has more than {} corners", MAX_PIECES - 1)
             }
+            PushError::Aborting => write!(f, "abort under way"),
         }
+    }
+}
+
+/// Why a feed override was refused.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum OverrideError {
+    /// Not a finite number in `0 ..= max_feed_override`.
+    OutOfRange,
+}
+
+impl core::fmt::Display for OverrideError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "feed override must be between 0 and max-feed-override")
     }
 }
 
@@ -135,6 +163,10 @@ pub struct Stats {
     /// Ticks whose chord missed `Δ` by more than the Newton tolerance (the
     /// best iterate was used).
     pub newton_unconverged: u64,
+    /// Junctions passed without stopping (speed limited by [`junction_speed`]).
+    pub junctions_blended: u64,
+    /// Junctions that needed a full stop.
+    pub junctions_stopped: u64,
 }
 
 /// Upper bound on the pieces one block is cut into at tangent breaks (a
@@ -148,8 +180,15 @@ pub struct Interpolator<const Q: usize = DEFAULT_QUEUE> {
     cfg: InterpConfig,
     queue: Deque<Segment, Q>,
     profile: Profile,
-    /// Displacement of the last tick, mm.
+    /// Displacement of the last tick (the filtered step), mm.
     step: f64,
+    /// Reference schedule: arc length and step of the last tick.
+    s_ref: f64,
+    step_ref: f64,
+    /// Jerk filter: the last `filter_len` reference positions (a ring).
+    window: [f64; MAX_FILTER],
+    filter_len: usize,
+    window_head: usize,
     /// Parameter in the front segment.
     u: f64,
     /// Arc length of the run at the current point, mm.
@@ -163,10 +202,16 @@ pub struct Interpolator<const Q: usize = DEFAULT_QUEUE> {
     /// End of everything queued so far (where the next block must start).
     tail: Vec3,
     tail_s: f64,
-    tail_tangent: Option<Vec3>,
+    /// Derivatives (order 3) at the end of the last queued segment.
+    tail_derivs: Option<Derivs>,
     seq: u64,
     block_id: u32,
     finished: bool,
+    hold: bool,
+    abort: bool,
+    /// Feed override: commanded and applied (ramped) values.
+    override_cmd: f64,
+    override_now: f64,
     state: RunState,
     stats: Stats,
 }
@@ -184,6 +229,11 @@ impl<const Q: usize> Interpolator<Q> {
             queue: Deque::new(),
             profile: Profile::new(Self::grid_step(&cfg)),
             step: 0.0,
+            s_ref: 0.0,
+            step_ref: 0.0,
+            window: [0.0; MAX_FILTER],
+            filter_len: cfg.filter_ticks(),
+            window_head: 0,
             u: 0.0,
             s: 0.0,
             s_comp: 0.0,
@@ -191,10 +241,14 @@ impl<const Q: usize> Interpolator<Q> {
             abc: [position[3], position[4], position[5]],
             tail: p,
             tail_s: 0.0,
-            tail_tangent: None,
+            tail_derivs: None,
             seq: 0,
             block_id: 0,
             finished: false,
+            hold: false,
+            abort: false,
+            override_cmd: 1.0,
+            override_now: 1.0,
             state: RunState::Idle,
             stats: Stats::default(),
         })
@@ -231,12 +285,31 @@ impl<const Q: usize> Interpolator<Q> {
     pub fn queued_length(&self) -> f64 {
         self.tail_s - self.s
     }
-    /// Marks the end of the program: reaching the end of the queue then means `Done`.
+    /// Length of the jerk filter, ticks.
+    pub fn filter_ticks(&self) -> usize {
+        self.filter_len
+    }
+    /// The feed override applied in the last tick (1 = 100 %).
+    pub fn feed_override(&self) -> f64 {
+        self.override_now
+    }
+
+    /// Marks the end of the program: reaching the end of the queue then means
+    /// `Done`. The end of the queue stops being provisional, so the limits
+    /// near it rise (non-RT work, like `push`).
     pub fn finish(&mut self) {
-        self.finished = true;
-        if self.queue.is_empty() && self.state == RunState::Idle {
-            self.state = RunState::Done;
+        if self.finished {
+            return;
         }
+        self.finished = true;
+        if self.queue.is_empty() {
+            if self.state == RunState::Idle {
+                self.state = RunState::Done;
+            }
+            return;
+        }
+        let from = self.profile.index_of(self.tail_s) - 2;
+        self.replan(from, self.tail_s);
     }
 
     /// The profile (grid caps and node limits) ahead of the machine.
@@ -244,12 +317,67 @@ impl<const Q: usize> Interpolator<Q> {
         &self.profile
     }
 
+    /// Feed hold: decelerate to rest on the path (within the limits) and stay
+    /// there until [`resume`](Self::resume). Takes effect at the next tick.
+    pub fn feed_hold(&mut self) {
+        if matches!(self.state, RunState::Running | RunState::Idle) && !self.abort {
+            self.hold = true;
+            if self.state == RunState::Running {
+                self.state = RunState::Holding;
+            }
+        }
+    }
+
+    /// Leave a feed hold: accelerate again from where the machine is.
+    pub fn resume(&mut self) {
+        if self.hold && !self.abort {
+            self.hold = false;
+            if self.state == RunState::Holding {
+                self.state = RunState::Running;
+            }
+        }
+    }
+
+    /// Abort: the fastest stop on the path within the limits, then the queue
+    /// is flushed and the interpolator is idle where it stopped (the next
+    /// block must start there). A finished program may be followed by a new one.
+    pub fn abort(&mut self) {
+        if matches!(self.state, RunState::Running | RunState::Holding) {
+            self.abort = true;
+            self.state = RunState::Stopping;
+        } else if self.state == RunState::Done {
+            self.finished = false;
+            self.state = RunState::Idle;
+        }
+    }
+
+    /// Set the feed override (1 = 100 %, up to `max_feed_override`). It
+    /// scales the programmed feed and the MRR law, never the machine's
+    /// limits, and is applied as a ramp of `override_rate` per second.
+    pub fn set_feed_override(&mut self, value: f64) -> Result<(), OverrideError> {
+        if !(value >= 0.0 && value <= self.cfg.max_feed_override) {
+            return Err(OverrideError::OutOfRange);
+        }
+        self.override_cmd = value;
+        Ok(())
+    }
+
+    /// Arc length at which the machine would come to rest if a feed hold
+    /// were given now (the run's arc length, mm).
+    pub fn hold_stop_position(&self) -> f64 {
+        let a = self.cfg.planned_accel() * self.cfg.period * self.cfg.period;
+        self.s_ref + stop_distance(self.step_ref - a, a)
+    }
+
     /// Queue a block: cut at tangent breaks, sample the feed laws onto the
-    /// grid, run the backward pass (non-RT work). All or nothing: on error
-    /// nothing was queued.
+    /// grid, price the junctions, erode for the jerk filter and run the
+    /// backward pass (non-RT work). All or nothing: on error nothing was queued.
     pub fn push(&mut self, block: &Block) -> Result<(), PushError> {
         if self.finished {
             return Err(PushError::Finished);
+        }
+        if self.abort {
+            return Err(PushError::Aborting);
         }
         if !(block.feed.is_finite() && block.feed > 0.0) {
             return Err(PushError::Feed);
@@ -289,13 +417,15 @@ impl<const Q: usize> Interpolator<Q> {
         let cfg = self.cfg;
         let was_empty = self.queue.is_empty();
         let old_tail_s = self.tail_s;
-        if let Some(t) = self.tail_tangent {
-            let smooth = t.dot(&block.path.start_tangent()) >= libm::cos(cfg.tangent_tolerance);
+        self.profile.extend_to(g_last);
+        // The junction with what is queued (the old tail was a provisional stop).
+        if let (Some(left), false) = (self.tail_derivs, was_empty) {
+            let right = block.path.eval(block.path.u_start(), 3);
+            let stop = self.price_junction(&left, &right, old_tail_s);
             if let Some(last) = self.queue.back_mut() {
-                last.stop_at_end = !smooth;
+                last.stop_at_end = stop;
             }
         }
-        self.profile.extend_to(g_last);
         for (k, piece) in pieces[..n_pieces].iter().enumerate() {
             let seg = Segment {
                 path: *piece,
@@ -304,31 +434,95 @@ impl<const Q: usize> Interpolator<Q> {
                 mrr: block.mrr,
                 s0: self.tail_s,
                 length: lengths[k],
-                // Pieces of one block meet at tangent breaks: stop there.
+                // The end of the queue is a stop until more arrives.
                 stop_at_end: true,
             };
+            if k > 0 {
+                // A tangent break inside the block.
+                let left = pieces[k - 1].eval(pieces[k - 1].u_end(), 3);
+                let right = piece.eval(piece.u_start(), 3);
+                let stop = self.price_junction(&left, &right, seg.s0);
+                if let Some(last) = self.queue.back_mut() {
+                    last.stop_at_end = stop;
+                }
+            }
             sample_laws(&seg, &cfg, &mut self.profile);
             self.tail_s += seg.length;
             let _ = self.queue.push_back(seg); // room checked above
         }
         self.tail = block.path.end_point();
-        self.tail_tangent = Some(block.path.end_tangent());
-        self.backward_pass(old_tail_s);
+        let last = &pieces[n_pieces - 1];
+        self.tail_derivs = Some(last.eval(last.u_end(), 3));
+        let from = self.profile.index_of(old_tail_s) - 2;
+        self.replan(from, old_tail_s);
         if let (true, Some(front)) = (was_empty, self.queue.front()) {
             self.u = front.path.u_start();
         }
-        if matches!(self.state, RunState::Idle) {
-            self.state = RunState::Running;
+        match self.state {
+            RunState::Idle if self.hold => self.state = RunState::Holding,
+            RunState::Idle => self.state = RunState::Running,
+            _ => {}
         }
         Ok(())
+    }
+
+    /// Junction at arc length `s` between derivatives `left` and `right`:
+    /// lower the limits there, or mark a full stop. Returns whether it stops.
+    fn price_junction(&mut self, left: &Derivs, right: &Derivs, s: f64) -> bool {
+        let v = junction_speed(left, right, &self.cfg);
+        let g = self.profile.index_of(s);
+        if v < self.cfg.junction_min_speed {
+            self.stats.junctions_stopped += 1;
+            self.profile.mark_stop(g);
+            if g as f64 * self.profile.h() == s {
+                self.profile.mark_stop(g - 1);
+            }
+            true
+        } else {
+            if v.is_finite() {
+                self.stats.junctions_blended += 1;
+            }
+            self.profile.lower_cap(g, v);
+            self.profile.lower_cap(g - 1, v);
+            false
+        }
+    }
+
+    /// Erode the limits from interval `from` on and run the backward pass.
+    fn replan(&mut self, from: i64, changed_from: f64) {
+        let h = self.profile.h();
+        let window = self.filter_len as f64 * self.cfg.period;
+        let erosion = if self.filter_len > 1 {
+            Erosion {
+                slope: h / window,
+                feed_slope: h / (window * self.cfg.max_feed_override),
+                cone_from: (!self.finished).then(|| libm::ceil(self.tail_s / h) as i64 - 1),
+            }
+        } else {
+            Erosion {
+                slope: f64::INFINITY,
+                feed_slope: f64::INFINITY,
+                cone_from: None,
+            }
+        };
+        // Erosion reaches back as far as the cone of the highest limit.
+        let back = if self.filter_len > 1 {
+            let top = self.cfg.max_path_speed;
+            libm::ceil(top / erosion.feed_slope.min(erosion.slope)) as i64 + 2
+        } else {
+            0
+        };
+        self.profile.erode(from - back, erosion);
+        self.backward_pass(changed_from - back as f64 * h);
     }
 
     /// Backward pass over the grid nodes from the end of the queue. Stops
     /// early once it reaches nodes before `changed_from` whose limit did not change.
     fn backward_pass(&mut self, changed_from: f64) {
         let h = self.profile.h();
-        let accel = self.cfg.max_path_accel * (1.0 - self.cfg.brake_reserve);
+        let accel = self.cfg.planned_accel() * (1.0 - self.cfg.brake_reserve);
         let two_a_h = 2.0 * accel * h;
+        let ovr_max = self.cfg.max_feed_override;
         let last = self.profile.index_of(self.tail_s);
         let first = self.profile.base();
         let mut segs = self.queue.iter().rev().peekable();
@@ -349,7 +543,7 @@ impl<const Q: usize> Interpolator<Q> {
                     break;
                 }
             }
-            let mut v = self.profile.raw_node(g);
+            let mut v = self.profile.raw_node(g, ovr_max);
             v = v.min(libm::sqrt(2.0 * accel * (nearest_stop - x).max(0.0)));
             if let Some(vn) = next_v {
                 v = v.min(libm::sqrt(vn * vn + two_a_h));
@@ -370,17 +564,37 @@ impl<const Q: usize> Interpolator<Q> {
         self.stats.ticks += 1;
         self.seq += 1;
         let ts = self.cfg.period;
-        let delta = if self.state == RunState::Running {
-            self.schedule_step()
-        } else {
-            0.0
-        };
-        let mut delta = delta;
-        if delta > 0.0 {
-            delta = self.advance(delta);
-        } else if self.state == RunState::Running {
-            // At rest with nothing reachable: a corner or the end of the queue.
-            self.settle_at_end();
+        self.ramp_override();
+        let mut delta = 0.0;
+        let active = matches!(
+            self.state,
+            RunState::Running | RunState::Holding | RunState::Stopping
+        );
+        if active && !self.queue.is_empty() {
+            if let Some(front) = self.queue.front() {
+                self.block_id = front.block_id;
+            }
+            let d = self.reference_step();
+            self.step_ref = d;
+            self.push_window();
+            let target = self.filtered();
+            let c = target - self.s;
+            if c > 0.0 {
+                delta = self.advance(c);
+            }
+            if delta <= 0.0 {
+                // At rest on a stop: continue past a corner, or end.
+                self.settle_at_end();
+            }
+            if (self.hold || self.abort) && self.at_rest() {
+                if self.abort {
+                    self.flush();
+                } else {
+                    self.state = RunState::Holding;
+                }
+            }
+        } else if active && self.abort {
+            self.flush();
         }
         self.step = delta;
         Setpoint {
@@ -402,30 +616,82 @@ impl<const Q: usize> Interpolator<Q> {
         }
     }
 
-    /// The tick's displacement from the discrete schedule.
     #[inline]
-    fn schedule_step(&mut self) -> f64 {
-        let ts = self.cfg.period;
-        let a = self.cfg.max_path_accel * ts * ts;
-        let ab = a * (1.0 - self.cfg.brake_reserve);
-        let Some(front) = self.queue.front() else {
-            return 0.0;
+    fn ramp_override(&mut self) {
+        let step = self.cfg.override_rate * self.cfg.period;
+        let d = self.override_cmd - self.override_now;
+        self.override_now = if libm::fabs(d) <= step {
+            self.override_cmd
+        } else {
+            self.override_now + step.copysign(d)
         };
-        self.block_id = front.block_id;
-        let h = self.profile.h();
+    }
+
+    /// The reference has stopped and the filter has drained.
+    #[inline]
+    fn at_rest(&self) -> bool {
+        self.step_ref == 0.0 && self.window.iter().take(self.filter_len).all(|&x| x == self.s_ref)
+    }
+
+    /// Abort finished: drop everything queued; idle where the machine stands.
+    fn flush(&mut self) {
+        self.queue.clear();
+        self.abort = false;
+        self.hold = false;
+        self.finished = false;
+        self.tail = self.point;
+        self.tail_s = self.s;
+        self.tail_derivs = None;
+        self.s_ref = self.s;
+        self.step_ref = 0.0;
+        self.window = [self.s; MAX_FILTER];
         let g = self.profile.index_of(self.s);
-        self.profile.drop_before(g);
-        let mut cand = (self.step + a).min(self.profile.cap(g) * ts);
+        self.profile.reset_at(g);
+        self.state = RunState::Idle;
+    }
+
+    /// Record the new reference position in the filter window.
+    #[inline]
+    fn push_window(&mut self) {
+        self.window_head = (self.window_head + 1) % self.filter_len;
+        self.window[self.window_head] = self.s_ref;
+    }
+
+    /// Mean of the window, taken relative to the newest position so that a
+    /// window of equal positions gives that position exactly.
+    #[inline]
+    fn filtered(&self) -> f64 {
+        let n = self.filter_len;
+        let sum: f64 = self.window[..n].iter().map(|&x| x - self.s_ref).sum();
+        self.s_ref + sum / n as f64
+    }
+
+    /// The reference schedule's step for this tick; moves `s_ref`.
+    #[inline]
+    fn reference_step(&mut self) -> f64 {
+        let ts = self.cfg.period;
+        let a = self.cfg.planned_accel() * ts * ts;
+        let ab = a * (1.0 - self.cfg.brake_reserve);
+        let ovr = self.override_now;
+        let h = self.profile.h();
+        let g0 = self.profile.index_of(self.s);
+        self.profile.drop_before(g0);
+        let s = self.s_ref;
+        let g = self.profile.index_of(s);
+        let mut cand = (self.step_ref + a).min(self.profile.limit(g, ovr) * ts);
+        if self.hold || self.abort {
+            cand = cand.min(self.step_ref - a);
+        }
         let mut reach = stop_distance(cand, ab);
         // Grid nodes ahead within stopping distance.
         let last = self.profile.index_of(self.tail_s);
         let mut k = g + 1;
         while k <= last {
-            let r = k as f64 * h - self.s;
+            let r = k as f64 * h - s;
             if r >= reach {
                 break;
             }
-            let w = self.profile.node(k) * ts;
+            let w = self.profile.node(k).min(self.profile.raw_node(k, ovr)) * ts;
             if w < cand {
                 cand = cand.min(brake_step(r, w, ab));
                 reach = stop_distance(cand, ab);
@@ -433,22 +699,37 @@ impl<const Q: usize> Interpolator<Q> {
             k += 1;
         }
         // Stops (corners, end of queue) within stopping distance.
+        let mut stop_at = f64::INFINITY;
         for seg in self.queue.iter() {
-            let r = seg.s1() - self.s;
-            if seg.s0 - self.s >= reach {
+            let r = seg.s1() - s;
+            if r < 0.0 {
+                continue; // behind the reference
+            }
+            if seg.s0 - s >= reach {
                 break;
             }
-            if seg.stop_at_end && r >= 0.0 {
+            if seg.stop_at_end {
                 cand = cand.min(brake_step(r, 0.0, ab));
                 reach = stop_distance(cand, ab);
+                stop_at = stop_at.min(seg.s1());
             }
         }
-        let lower = self.step - a;
+        let lower = self.step_ref - a;
         if cand < lower {
-            self.stats.brake_overruns += 1;
+            if !(self.hold || self.abort) {
+                self.stats.brake_overruns += 1;
+            }
             cand = lower;
         }
-        cand.max(0.0)
+        let mut d = cand.max(0.0);
+        // Land exactly on a stop within reach of round-off.
+        if s + d + END_SNAP_TOL >= stop_at {
+            d = stop_at - s;
+            self.s_ref = stop_at;
+        } else {
+            self.s_ref = s + d;
+        }
+        d
     }
 
     /// Move the point by `delta` along the path, across segment ends. Returns
@@ -599,39 +880,90 @@ fn sample_laws(seg: &Segment, cfg: &InterpConfig, profile: &mut Profile) {
     let m = cfg.law_samples_per_interval as i64 * grid_multiple(cfg);
     let hs = profile.h() / m as f64;
     let path = &seg.path;
+    // The machine laws (index 0) and the override-scaled feed laws (index 1).
+    let law = |u: f64, which: usize| {
+        let d = path.eval(u, 3);
+        if which == 0 {
+            machine_limit(&d, cfg, 1.0)
+        } else {
+            feed_limit(&d, seg.feed, seg.mrr.as_ref(), cfg)
+        }
+    };
+    let lower = |profile: &mut Profile, g: i64, which: usize, v: f64| {
+        if which == 0 {
+            profile.lower_cap(g, v);
+        } else {
+            profile.lower_feed_cap(g, v);
+        }
+    };
     // Lines and arcs have constant curvature: nothing to refine.
     let refine = matches!(path, Path::Nurbs(_));
-    let law = |u: f64| speed_limit(&path.eval(u, 2), seg.feed, seg.mrr.as_ref(), cfg);
+    let (g_first, g_last) = (profile.index_of(seg.s0), profile.index_of(seg.s1()));
+    let feed_top = seg.feed.min(cfg.max_path_speed);
+    for g in g_first..=g_last {
+        profile.lower_feed_cap(g, feed_top);
+    }
     let k0 = libm::ceil(seg.s0 / hs) as i64;
     let k1 = libm::floor(seg.s1() / hs) as i64;
     let (mut u_prev, mut x_prev) = (path.u_start(), seg.s0);
     let u_end = path.u_end();
-    // Window of the last two samples: (k, u, law).
-    let mut w1: Option<(i64, f64, f64)> = None;
-    let mut w2: Option<(i64, f64, f64)> = None;
+    // Per law, the last two samples: (k, u, value).
+    let mut w1: [Option<(i64, f64, f64)>; 2] = [None; 2];
+    let mut w2: [Option<(i64, f64, f64)>; 2] = [None; 2];
     for k in k0..=k1 {
         let x = k as f64 * hs;
         let u = invert_arc_length(path, u_prev, x - x_prev, u_end);
-        let v = law(u);
         let g = k.div_euclid(m);
-        profile.lower_cap(g, v);
-        if k.rem_euclid(m) == 0 {
-            profile.lower_cap(g - 1, v);
-        }
-        // w2, w1, this: a local minimum at w1 is refined between w2 and this sample.
-        if let (true, Some((ka, ua, va)), Some((_, _, vb))) = (refine, w2, w1)
-            && vb < va
-            && vb <= v
-        {
-            let vmin = golden_section_min(law, ua, u, GOLDEN_ITERS, 0.0).min(vb);
-            for gi in ka.div_euclid(m)..=k.div_euclid(m) {
-                profile.lower_cap(gi, vmin);
+        for which in 0..2 {
+            let v = law(u, which);
+            lower(profile, g, which, v);
+            if k.rem_euclid(m) == 0 {
+                lower(profile, g - 1, which, v);
             }
+            // w2, w1, this: a local minimum at w1 is refined between w2 and this sample.
+            if let (true, Some((ka, ua, va)), Some((_, _, vb))) = (refine, w2[which], w1[which])
+                && vb < va
+                && vb <= v
+            {
+                let vmin = golden_section_min(|u| law(u, which), ua, u, GOLDEN_ITERS, 0.0).min(vb);
+                for gi in ka.div_euclid(m)..=k.div_euclid(m) {
+                    lower(profile, gi, which, vmin);
+                }
+            }
+            w2[which] = w1[which];
+            w1[which] = Some((k, u, v));
         }
-        w2 = w1;
-        w1 = Some((k, u, v));
         u_prev = u;
         x_prev = x;
+    }
+    // Knots where the curvature may jump (continuity C1 or less): price them
+    // as junctions. Tangent breaks were cut into separate segments already.
+    if let Path::Nurbs(n) = path {
+        let p = n.degree();
+        let knots = n.knots();
+        let (ua, ub) = (n.u_start(), n.u_end());
+        let mut i = p + 1;
+        let mut prev = ua;
+        while i < knots.len() - p - 1 {
+            let u = knots[i];
+            let mut mult = 1;
+            while i + mult < knots.len() && knots[i + mult] == u {
+                mult += 1;
+            }
+            if u > ua && u < ub && mult + 1 >= p {
+                let left = n.eval(u - (u - prev) * 1e-9, 3);
+                let right = n.eval(u, 3);
+                let v = junction_speed(&left, &right, cfg);
+                let g = profile.index_of(seg.s0 + path.arc_length(ua, u));
+                profile.lower_cap(g, v);
+                profile.lower_cap(g - 1, v);
+                profile.lower_cap(g + 1, v);
+            }
+            if u > ua {
+                prev = u;
+            }
+            i += mult;
+        }
     }
 }
 

@@ -44,7 +44,14 @@ impl Segment {
     }
 }
 
-/// Fixed-capacity ring of grid intervals: cap and node limit per interval.
+/// Fixed-capacity ring of grid intervals.
+///
+/// Per interval it holds the raw limits sampled from the feed laws (`raw`:
+/// machine, chord-error, centripetal and per-axis laws; `raw_feed`: the
+/// programmed feed and the MRR law, which the feed override scales), the same
+/// two limits eroded for the jerk filter (`cap`, `feed_cap`, see
+/// [`Profile::erode`]), the planned node limit at the interval's start (`v`,
+/// from the backward pass) and whether a full stop lies inside it.
 #[derive(Clone, Debug)]
 pub struct Profile {
     h: f64,
@@ -52,8 +59,25 @@ pub struct Profile {
     base: i64,
     head: usize,
     len: usize,
+    raw: [f64; MAX_PROFILE],
+    raw_feed: [f64; MAX_PROFILE],
     cap: [f64; MAX_PROFILE],
+    feed_cap: [f64; MAX_PROFILE],
     v: [f64; MAX_PROFILE],
+    stop: [bool; MAX_PROFILE],
+}
+
+/// How [`Profile::erode`] shapes the limits around each interval.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Erosion {
+    /// Speed allowed per interval of distance from a lower limit, mm/s: `h/T`
+    /// for a filter window `T` (infinite: no erosion).
+    pub slope: f64,
+    /// The same for the override-scaled feed limit: `h/(T·max_override)`.
+    pub feed_slope: f64,
+    /// Intervals from this one on are unknown yet (the queue may grow): they
+    /// count as a zero limit. `None` once the program is finished.
+    pub cone_from: Option<i64>,
 }
 
 impl Profile {
@@ -64,8 +88,12 @@ impl Profile {
             base: 0,
             head: 0,
             len: 0,
+            raw: [f64::INFINITY; MAX_PROFILE],
+            raw_feed: [f64::INFINITY; MAX_PROFILE],
             cap: [f64::INFINITY; MAX_PROFILE],
+            feed_cap: [f64::INFINITY; MAX_PROFILE],
             v: [0.0; MAX_PROFILE],
+            stop: [false; MAX_PROFILE],
         }
     }
     /// Grid spacing, mm.
@@ -89,27 +117,59 @@ impl Profile {
         self.base + self.len as i64
     }
     #[inline]
+    fn held(&self, g: i64) -> bool {
+        g >= self.base && g < self.end()
+    }
+    #[inline]
     fn slot(&self, g: i64) -> usize {
-        debug_assert!(g >= self.base && g < self.end());
+        debug_assert!(self.held(g));
         (self.head + (g - self.base) as usize) % MAX_PROFILE
     }
-    /// Cap of interval `g` (mm/s); infinity outside what is held.
+    /// Eroded machine-law limit of interval `g` (mm/s); infinity outside what is held.
     #[inline]
     pub fn cap(&self, g: i64) -> f64 {
-        if g < self.base || g >= self.end() {
-            f64::INFINITY
-        } else {
+        if self.held(g) {
             self.cap[self.slot(g)]
+        } else {
+            f64::INFINITY
         }
+    }
+    /// Eroded feed limit of interval `g` at 100 % override (mm/s).
+    #[inline]
+    pub fn feed_cap(&self, g: i64) -> f64 {
+        if self.held(g) {
+            self.feed_cap[self.slot(g)]
+        } else {
+            f64::INFINITY
+        }
+    }
+    /// Raw (sampled, not eroded) machine-law limit of interval `g`.
+    #[inline]
+    pub fn raw_cap(&self, g: i64) -> f64 {
+        if self.held(g) {
+            self.raw[self.slot(g)]
+        } else {
+            f64::INFINITY
+        }
+    }
+    /// The limit of interval `g` at feed override `ovr`.
+    #[inline]
+    pub fn limit(&self, g: i64, ovr: f64) -> f64 {
+        self.cap(g).min(ovr * self.feed_cap(g))
     }
     /// Planned limit at node `g` (mm/s); zero outside what is held.
     #[inline]
     pub fn node(&self, g: i64) -> f64 {
-        if g < self.base || g >= self.end() {
-            0.0
-        } else {
+        if self.held(g) {
             self.v[self.slot(g)]
+        } else {
+            0.0
         }
+    }
+    /// Does a full stop lie inside interval `g`?
+    #[inline]
+    pub fn has_stop(&self, g: i64) -> bool {
+        self.held(g) && self.stop[self.slot(g)]
     }
     /// Room to extend the ring up to and including interval `g`?
     pub fn can_extend_to(&self, g: i64) -> bool {
@@ -123,8 +183,12 @@ impl Profile {
         }
         while self.end() <= g {
             let slot = (self.head + self.len) % MAX_PROFILE;
+            self.raw[slot] = f64::INFINITY;
+            self.raw_feed[slot] = f64::INFINITY;
             self.cap[slot] = f64::INFINITY;
+            self.feed_cap[slot] = f64::INFINITY;
             self.v[slot] = 0.0;
+            self.stop[slot] = false;
             self.len += 1;
         }
         true
@@ -135,41 +199,112 @@ impl Profile {
         self.head = 0;
         self.len = 0;
     }
-    /// Lower the cap of interval `g` to `c`.
+    /// Lower the raw machine-law limit of interval `g` to `c`.
     #[inline]
     pub fn lower_cap(&mut self, g: i64, c: f64) {
-        if g >= self.base && g < self.end() {
+        if self.held(g) {
             let k = self.slot(g);
-            if c < self.cap[k] {
-                self.cap[k] = c;
+            if c < self.raw[k] {
+                self.raw[k] = c;
             }
+        }
+    }
+    /// Lower the raw feed limit (100 % override) of interval `g` to `c`.
+    #[inline]
+    pub fn lower_feed_cap(&mut self, g: i64, c: f64) {
+        if self.held(g) {
+            let k = self.slot(g);
+            if c < self.raw_feed[k] {
+                self.raw_feed[k] = c;
+            }
+        }
+    }
+    /// Mark a full stop inside interval `g`.
+    #[inline]
+    pub fn mark_stop(&mut self, g: i64) {
+        if self.held(g) {
+            let k = self.slot(g);
+            self.stop[k] = true;
         }
     }
     /// Set node `g`'s limit.
     #[inline]
     pub fn set_node(&mut self, g: i64, v: f64) {
-        if g >= self.base && g < self.end() {
+        if self.held(g) {
             let k = self.slot(g);
             self.v[k] = v;
         }
     }
-    /// A node's limit before look-ahead: the smaller cap of its two intervals.
+    /// A node's limit before look-ahead: the smaller limit of its two
+    /// intervals, with the feed limit at override `ovr`.
     #[inline]
-    pub fn raw_node(&self, g: i64) -> f64 {
+    pub fn raw_node(&self, g: i64, ovr: f64) -> f64 {
         let left = if g > self.base {
-            self.cap(g - 1)
+            self.limit(g - 1, ovr)
         } else {
             f64::INFINITY
         };
-        left.min(self.cap(g))
+        left.min(self.limit(g, ovr))
     }
-    /// Drop intervals before `g` (the RT has passed them). O(1) per interval.
+    /// Drop intervals before `g` (the machine has passed them). O(1) per interval.
     #[inline]
     pub fn drop_before(&mut self, g: i64) {
         while self.len > 0 && self.base < g {
             self.head = (self.head + 1) % MAX_PROFILE;
             self.base += 1;
             self.len -= 1;
+        }
+    }
+
+    /// Recompute the eroded limits of intervals `from..end()`.
+    ///
+    /// The jerk filter outputs the mean of the last `N` reference positions,
+    /// so its speed is the mean reference speed over a window `T = N·Ts` that
+    /// reaches both sides of where the machine is. With the reference held to
+    /// `e(x) = min_y max(c(y), |y − x|/T)`, the filtered speed never exceeds
+    /// `c` where the machine is: a window longer than `T·c(x)` would take the
+    /// reference longer than `T` to cross. On the grid, distance counts whole
+    /// intervals between (`(|g − g'| − 1)·h`, one interval of slack). Full
+    /// stops bound the window (the reference waits at a stop until the filter
+    /// has drained), and intervals from `cone_from` on count as zero so that
+    /// blocks arriving later can only raise limits already in use.
+    pub fn erode(&mut self, from: i64, e: Erosion) {
+        let from = from.max(self.base);
+        let end = self.end();
+        let erode = e.slope.is_finite() && e.feed_slope.is_finite();
+        for g in from..end {
+            let k = self.slot(g);
+            let (mut best, mut best_f) = (self.raw[k], self.raw_feed[k]);
+            if e.cone_from.is_some_and(|c| g >= c) {
+                (best, best_f) = (0.0, 0.0);
+            }
+            if erode {
+                // Look both ways until the cone is above what is found, not past a stop.
+                for dir in [-1i64, 1] {
+                    for d in 1..MAX_PROFILE as i64 {
+                        let q = g + dir * d;
+                        let steps = (d - 1) as f64;
+                        if steps * e.slope >= best && steps * e.feed_slope >= best_f {
+                            break;
+                        }
+                        let (c, cf) = if e.cone_from.is_some_and(|c| q >= c) {
+                            (0.0, 0.0)
+                        } else if self.held(q) {
+                            let kq = self.slot(q);
+                            (self.raw[kq], self.raw_feed[kq])
+                        } else {
+                            break;
+                        };
+                        best = best.min(c.max(steps * e.slope));
+                        best_f = best_f.min(cf.max(steps * e.feed_slope));
+                        if self.has_stop(q) {
+                            break;
+                        }
+                    }
+                }
+            }
+            self.cap[k] = best;
+            self.feed_cap[k] = best_f;
         }
     }
 }
@@ -219,7 +354,9 @@ pub fn stop_distance(d: f64, a: f64) -> f64 {
 
 #[cfg(test)]
 mod tests {
+    extern crate alloc;
     use super::*;
+    use alloc::vec::Vec;
 
     /// Distance covered by the steps longer than `w` when braking from `d`.
     fn braking_distance(mut d: f64, w: f64, a: f64) -> f64 {
@@ -286,14 +423,73 @@ mod tests {
         let mut p = Profile::new(0.5);
         assert!(p.extend_to(10));
         p.lower_cap(3, 7.0);
-        assert_eq!(p.cap(3), 7.0);
-        assert_eq!(p.cap(4), f64::INFINITY);
+        assert_eq!(p.raw_cap(3), 7.0);
+        assert_eq!(p.raw_cap(4), f64::INFINITY);
         p.drop_before(5);
         assert_eq!(p.base(), 5);
         assert!(!p.can_extend_to(5 + MAX_PROFILE as i64));
         assert!(p.extend_to(4 + MAX_PROFILE as i64));
         p.lower_cap(4 + MAX_PROFILE as i64, 1.0);
-        assert_eq!(p.cap(4 + MAX_PROFILE as i64), 1.0);
+        assert_eq!(p.raw_cap(4 + MAX_PROFILE as i64), 1.0);
         assert!(!p.extend_to(5 + MAX_PROFILE as i64));
+    }
+
+    /// Brute force of `e(g) = min over g' of max(c(g'), slope·(|g − g'| − 1)⁺)`.
+    fn eroded(raw: &[f64], g: usize, slope: f64, stops: &[usize]) -> f64 {
+        let mut best = f64::INFINITY;
+        for (q, &c) in raw.iter().enumerate() {
+            let (lo, hi) = (g.min(q), g.max(q));
+            // A stop strictly between g and q (or at q's far side) bounds the window.
+            if stops.iter().any(|&st| st >= lo && st <= hi && st != g && st != q) {
+                continue;
+            }
+            let d = (hi - lo) as f64;
+            best = best.min(c.max(slope * (d - 1.0).max(0.0)));
+        }
+        best
+    }
+
+    #[test]
+    fn erosion_matches_brute_force_and_respects_stops_and_the_cone() {
+        let raw: Vec<f64> = (0..60)
+            .map(|i| if i == 25 { 1.0 } else { 20.0 + 15.0 * ((i as f64) * 0.37).sin() })
+            .collect();
+        for &(slope, stop) in &[(2.0, None), (0.7, Some(30usize)), (5.0, Some(10))] {
+            let mut p = Profile::new(0.5);
+            p.extend_to(raw.len() as i64 - 1);
+            for (g, &c) in raw.iter().enumerate() {
+                p.lower_cap(g as i64, c);
+                p.lower_feed_cap(g as i64, c * 2.0);
+            }
+            if let Some(st) = stop {
+                p.mark_stop(st as i64);
+            }
+            let e = Erosion {
+                slope,
+                feed_slope: slope,
+                cone_from: None,
+            };
+            p.erode(0, e);
+            let stops: Vec<usize> = stop.into_iter().collect();
+            for g in 0..raw.len() {
+                let want = eroded(&raw, g, slope, &stops);
+                assert_eq!(p.cap(g as i64), want, "g={g} slope={slope}");
+                let raw2: Vec<f64> = raw.iter().map(|c| c * 2.0).collect();
+                assert_eq!(p.feed_cap(g as i64), eroded(&raw2, g, slope, &stops));
+                assert!(p.cap(g as i64) <= raw[g]);
+            }
+            // With the cone, limits fall to zero towards it and are never
+            // above the finished profile's.
+            let finished: Vec<f64> = (0..raw.len() as i64).map(|g| p.cap(g)).collect();
+            p.erode(0, Erosion { cone_from: Some(50), ..e });
+            for g in 0..raw.len() as i64 {
+                assert!(p.cap(g) <= finished[g as usize]);
+                if g >= 50 {
+                    assert_eq!(p.cap(g), 0.0);
+                } else if stop.is_none_or(|st| st as i64 <= g) {
+                    assert!(p.cap(g) <= slope * (50 - g - 1) as f64, "g={g}");
+                }
+            }
+        }
     }
 }
