@@ -483,7 +483,11 @@ impl<const Q: usize> Interpolator<Q> {
                 self.stats.junctions_blended += 1;
             }
             self.profile.lower_cap(g, v);
-            self.profile.lower_cap(g - 1, v);
+            // Only the interval holding the junction: the one before it is in
+            // use already and may only be lowered when the junction is its end.
+            if g as f64 * self.profile.h() == s {
+                self.profile.lower_cap(g - 1, v);
+            }
             false
         }
     }

@@ -5,6 +5,8 @@
 
 mod common;
 
+use common::{LIMIT_REL_TOL, check_kinematics};
+
 use interp_core::feed::{junction_speed, speed_limit};
 use interp_core::geom::{Curve, Vec3};
 use interp_core::metrics::chord_error_between;
@@ -15,8 +17,6 @@ use proptest::prelude::*;
 
 /// Setpoints lie on the exact curve within this, mm.
 const ON_CURVE_TOL: f64 = 1e-9;
-/// Relative slack on every limit (issue: +1e-6).
-const LIMIT_REL_TOL: f64 = 1e-6;
 /// Relative slack on the chord tolerance.
 const CHORD_REL_TOL: f64 = 1e-6;
 /// Corrected update: |chord − Δ| ≤ this · Δ (+ round-off floor below).
@@ -79,68 +79,6 @@ fn run(cfg: InterpConfig, blocks: &[Block]) -> (Vec<Setpoint>, interp_core::inte
 }
 
 /// Checks every per-tick property against the original blocks.
-/// Kinematics measured from the setpoints alone (finite differences), as a
-/// drive would see them.
-#[derive(Default, Debug, Clone, Copy)]
-struct Measured {
-    max_accel: f64,
-    max_jerk: f64,
-    max_centripetal: f64,
-    axis_vel: [f64; 3],
-    axis_acc: [f64; 3],
-    axis_jerk: [f64; 3],
-}
-
-fn measure(ts: f64, start: Vec3, sps: &[Setpoint]) -> Measured {
-    let mut m = Measured::default();
-    // Positions with two copies of the start before (at rest before tick 1).
-    let mut pts = vec![start, start, start];
-    pts.extend(sps.iter().map(|s| v3(&s.axes)));
-    let mut feeds = vec![0.0, 0.0];
-    feeds.extend(sps.iter().map(|s| s.feed));
-    for i in 2..feeds.len() {
-        let a = (feeds[i] - feeds[i - 1]) / ts;
-        let a0 = (feeds[i - 1] - feeds[i - 2]) / ts;
-        m.max_accel = m.max_accel.max(a.abs());
-        m.max_jerk = m.max_jerk.max(((a - a0) / ts).abs());
-    }
-    for i in 3..pts.len() {
-        let v = (pts[i] - pts[i - 1]) / ts;
-        let acc = (pts[i] - 2.0 * pts[i - 1] + pts[i - 2]) / (ts * ts);
-        let acc0 = (pts[i - 1] - 2.0 * pts[i - 2] + pts[i - 3]) / (ts * ts);
-        let jerk = (acc - acc0) / ts;
-        for k in 0..3 {
-            m.axis_vel[k] = m.axis_vel[k].max(v[k].abs());
-            m.axis_acc[k] = m.axis_acc[k].max(acc[k].abs());
-            m.axis_jerk[k] = m.axis_jerk[k].max(jerk[k].abs());
-        }
-        let chord = pts[i] - pts[i - 2];
-        if chord.norm() > 0.0 {
-            let t = chord / chord.norm();
-            m.max_centripetal = m.max_centripetal.max((acc - t * acc.dot(&t)).norm());
-        }
-    }
-    m
-}
-
-/// Every limit of the configuration holds on the measured kinematics (+1e-6 relative).
-fn check_kinematics(cfg: &InterpConfig, start: Vec3, sps: &[Setpoint]) -> Measured {
-    let m = measure(cfg.period, start, sps);
-    let ok = |v: f64, lim: f64| v <= lim * (1.0 + LIMIT_REL_TOL);
-    assert!(ok(m.max_accel, cfg.max_path_accel), "tangential accel {m:?}");
-    assert!(ok(m.max_jerk, cfg.max_path_jerk), "tangential jerk {m:?}");
-    assert!(
-        ok(m.max_centripetal, cfg.max_centripetal_accel),
-        "centripetal accel {m:?}"
-    );
-    for k in 0..3 {
-        assert!(ok(m.axis_vel[k], cfg.axis_max_velocity[k]), "axis {k} velocity {m:?}");
-        assert!(ok(m.axis_acc[k], cfg.axis_max_accel[k]), "axis {k} accel {m:?}");
-        assert!(ok(m.axis_jerk[k], cfg.axis_max_jerk[k]), "axis {k} jerk {m:?}");
-    }
-    m
-}
-
 fn check_properties(cfg: &InterpConfig, blocks: &[Block], sps: &[Setpoint]) {
     let ts = cfg.period;
     let block = |id: u32| blocks.iter().find(|b| b.id == id).unwrap();
