@@ -918,8 +918,14 @@ fn sample_laws(seg: &Segment, cfg: &InterpConfig, profile: &mut Profile) {
         let x = k as f64 * hs;
         let u = invert_arc_length(path, u_prev, x - x_prev, u_end);
         let g = k.div_euclid(m);
+        // One evaluation for both laws at the sample.
+        let d = path.eval(u, 3);
+        let both = [
+            machine_limit(&d, cfg, 1.0),
+            feed_limit(&d, seg.feed, seg.mrr.as_ref(), cfg),
+        ];
         for which in 0..2 {
-            let v = law(u, which);
+            let v = both[which];
             lower(profile, g, which, v);
             if k.rem_euclid(m) == 0 {
                 lower(profile, g - 1, which, v);

@@ -75,7 +75,16 @@ fn run() -> (u64, u64, u64) {
     let mut hash = 0xcbf2_9ce4_8422_2325u64;
     let mut moving = 0u64;
     COUNTING.with(|c| c.set(true));
-    for _ in 0..TICKS {
+    for t in 0..TICKS {
+        // Operator commands through the schedule (RT-side calls, allocation-free).
+        match t % 200_000 {
+            50_000 => ip.set_feed_override(1.6).unwrap(),
+            90_000 => ip.feed_hold(),
+            91_000 => ip.resume(),
+            120_000 => ip.set_feed_override(0.5).unwrap(),
+            150_000 => ip.set_feed_override(1.0).unwrap(),
+            _ => {}
+        }
         // Refill (non-RT work, but allocation-free too).
         while ip.free_segments() > 0 && ip.queued_length() < 500.0 {
             if next == 0 {
@@ -132,7 +141,7 @@ fn a_million_ticks_allocate_nothing_and_repeat_bit_for_bit() {
     assert_eq!(a1, 0, "allocations during the first run");
     assert_eq!(a2, 0, "allocations during the second run");
     // The machine really moved for almost all of it (not a run stuck at rest).
-    assert!(m1 > TICKS * 9 / 10, "moving ticks {m1}");
+    assert!(m1 > TICKS * 8 / 10, "moving ticks {m1}");
     assert_eq!(m1, m2);
     assert_eq!(h1, h2, "two runs differ");
 }

@@ -2,6 +2,6 @@
 //!
 //! Per `DESIGN.md`, the tests themselves live in `tests/tests/` (one file per
 //! end-to-end scenario, with golden traces beside them) and run with
-//! `cargo test --workspace`. This library will hold only helpers they share;
-//! the first end-to-end tests arrive with the issues that wire the
-//! interpolator and the traces.
+//! `cargo test --workspace`. This library holds the helpers they share.
+
+pub mod path_time;

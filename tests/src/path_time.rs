@@ -1,0 +1,145 @@
+//! Path time of a program against the acceleration-only optimum (issue 9).
+//!
+//! Under acceleration-only limits the minimum path time is the classic
+//! forward/backward integration on a fine arc-length grid: the speed limit
+//! `V(s)` of every pointwise law, then `v² ≤ v_prev² + 2·A·Δs` forwards and
+//! backwards, time `Σ 2Δs/(v_i + v_{i+1})`. Jerk limits can only lengthen it,
+//! so `ours / optimum ≥ 1` and the issue's target is `≤ 1.10`.
+//!
+//! The optimum uses the same laws as the interpolator (programmed feed,
+//! chord error, MRR, centripetal acceleration, per-axis velocity and
+//! acceleration with the same tangential/curvature shares) at the machine's
+//! real limits (no planning margin), with jerk switched off.
+
+use interp_core::feed::{junction_speed, speed_limit};
+use interp_core::geom::Curve;
+use interp_core::path::Block;
+use interp_core::{InterpConfig, Interpolator, RunState};
+
+/// Grid spacing of the reference integration, mm.
+pub const REFERENCE_STEP: f64 = 0.005;
+
+/// The configuration with jerk limits switched off (acceleration only).
+pub fn without_jerk(cfg: &InterpConfig) -> InterpConfig {
+    InterpConfig {
+        max_path_jerk: 1e18,
+        axis_max_jerk: [1e18; 3],
+        ..*cfg
+    }
+}
+
+/// Minimum path time (s) of `blocks` under the acceleration-only limits of
+/// `cfg` (jerk ignored, no planning margin).
+pub fn accel_only_optimum(blocks: &[Block], cfg: &InterpConfig) -> f64 {
+    let laws = InterpConfig {
+        planning_margin: 0.0,
+        ..without_jerk(cfg)
+    };
+    // (Δs from the previous point, speed limit) along the whole program.
+    let mut grid: Vec<(f64, f64)> = vec![(0.0, 0.0)];
+    for (i, b) in blocks.iter().enumerate() {
+        let path = &b.path;
+        if i > 0 {
+            let prev = &blocks[i - 1].path;
+            let v = junction_speed(
+                &prev.eval(prev.u_end(), 3),
+                &path.eval(path.u_start(), 3),
+                &laws,
+            );
+            let v = if v < laws.junction_min_speed { 0.0 } else { v };
+            let last = grid.last_mut().unwrap();
+            last.1 = last.1.min(v);
+        }
+        let len = path.length();
+        let n = (len / REFERENCE_STEP).ceil().max(1.0) as usize;
+        let (ua, ub) = (path.u_start(), path.u_end());
+        let mut u_prev = ua;
+        for k in 1..=n {
+            // Uniform in u is fine: the grid only needs to be fine, and Δs is exact.
+            let u = ua + (ub - ua) * k as f64 / n as f64;
+            let ds = path.arc_length(u_prev, u);
+            let v = speed_limit(&path.eval(u, 3), b.feed, b.mrr.as_ref(), &laws);
+            grid.push((ds, v));
+            u_prev = u;
+        }
+    }
+    let last = grid.len() - 1;
+    grid[last].1 = 0.0;
+    let a = cfg.max_path_accel;
+    let mut v: Vec<f64> = grid.iter().map(|g| g.1).collect();
+    v[0] = 0.0;
+    for i in 1..v.len() {
+        v[i] = v[i].min((v[i - 1] * v[i - 1] + 2.0 * a * grid[i].0).sqrt());
+    }
+    for i in (0..v.len() - 1).rev() {
+        v[i] = v[i].min((v[i + 1] * v[i + 1] + 2.0 * a * grid[i + 1].0).sqrt());
+    }
+    (1..v.len())
+        .map(|i| {
+            let s = v[i - 1] + v[i];
+            if s > 0.0 { 2.0 * grid[i].0 / s } else { 0.0 }
+        })
+        .sum()
+}
+
+/// Path time (s) of `blocks` through the interpolator with `cfg`: ticks from
+/// the first setpoint until the program is done.
+pub fn interpolated_time(blocks: &[Block], cfg: &InterpConfig) -> Result<f64, String> {
+    // An Interpolator<1024> is about 1.6 MB: build it on a thread with room for it.
+    let (blocks, cfg) = (blocks.to_vec(), *cfg);
+    std::thread::Builder::new()
+        .stack_size(INTERPOLATOR_STACK)
+        .spawn(move || run_to_done(&blocks, &cfg))
+        .map_err(|e| e.to_string())?
+        .join()
+        .map_err(|_| "interpolator thread panicked".to_string())?
+}
+
+/// Stack for a thread that owns an `Interpolator<1024>`, bytes.
+pub const INTERPOLATOR_STACK: usize = 64 << 20;
+
+fn run_to_done(blocks: &[Block], cfg: &InterpConfig) -> Result<f64, String> {
+    let p = blocks[0].path.start_point();
+    let mut ip: Box<Interpolator<1024>> = Box::new(
+        Interpolator::new(*cfg, [p.x, p.y, p.z, 0.0, 0.0, 0.0]).map_err(|e| format!("{e:?}"))?,
+    );
+    let mut next = 0;
+    let mut ticks = 0u64;
+    loop {
+        while next < blocks.len() && ip.push(&blocks[next]).is_ok() {
+            next += 1;
+        }
+        if next == blocks.len() {
+            ip.finish();
+        }
+        let sp = ip.tick();
+        ticks += 1;
+        if sp.state == RunState::Done {
+            return Ok(ticks as f64 * cfg.period);
+        }
+        if ticks > 100_000_000 {
+            return Err("did not finish".into());
+        }
+    }
+}
+
+/// Our time, the trapezoidal (jerk-free) schedule's time and the optimum, s.
+#[derive(Debug, Clone, Copy)]
+pub struct PathTimes {
+    /// The interpolator with every limit (jerk filter on).
+    pub ours: f64,
+    /// The same interpolator with jerk switched off: the core issue's
+    /// acceleration-limited (trapezoidal) schedule.
+    pub trapezoid: f64,
+    /// Acceleration-only optimum.
+    pub optimum: f64,
+}
+
+/// All three path times of a program.
+pub fn path_times(blocks: &[Block], cfg: &InterpConfig) -> Result<PathTimes, String> {
+    Ok(PathTimes {
+        ours: interpolated_time(blocks, cfg)?,
+        trapezoid: interpolated_time(blocks, &without_jerk(cfg))?,
+        optimum: accel_only_optimum(blocks, cfg),
+    })
+}
