@@ -29,7 +29,11 @@ fn polyline(n: usize) -> Vec<Block> {
     for i in 0..n {
         let a: f64 = if i % 2 == 0 { 0.0175 } else { -0.0175 };
         let q = p + Vec3::new(a.cos(), a.sin(), 0.0) * 0.5;
-        out.push(Block::new(i as u32 + 1, Path::Line(Line::new(p, q).unwrap()), 100.0));
+        out.push(Block::new(
+            i as u32 + 1,
+            Path::Line(Line::new(p, q).unwrap()),
+            100.0,
+        ));
         p = q;
     }
     out
@@ -39,7 +43,8 @@ fn polyline(n: usize) -> Vec<Block> {
 fn motion_seconds(blocks: &[Block]) -> f64 {
     let cfg = InterpConfig::default();
     let s = blocks[0].path.start_point();
-    let mut ip: Box<Interpolator> = Box::new(Interpolator::new(cfg, [s.x, s.y, s.z, 0.0, 0.0, 0.0]).unwrap());
+    let mut ip: Box<Interpolator> =
+        Box::new(Interpolator::new(cfg, [s.x, s.y, s.z, 0.0, 0.0, 0.0]).unwrap());
     for b in blocks {
         ip.push(b).unwrap();
     }

@@ -80,9 +80,9 @@ pub struct InterpConfig {
     /// Samples of the feed laws per profile interval (the interval's limit is
     /// their minimum). Default 8.
     pub law_samples_per_interval: u32,
-    /// Blocks meeting at a tangent angle up to this are passed without stopping,
-    /// rad. Default 1e-6 (numerically tangent). Larger corners stop (junction
-    /// speeds are the look-ahead issue's).
+    /// A NURBS is cut into separate segments at C0 knots whose tangents turn
+    /// by more than this, rad. Default 1e-6 (numerically tangent). Every joint
+    /// then gets a junction speed (`feed::junction_speed`).
     pub tangent_tolerance: f64,
     /// How `u` advances.
     pub param_update: ParamUpdate,
@@ -143,13 +143,19 @@ impl InterpConfig {
     /// Tangential acceleration the schedule plans with, mm/s²: the path limit,
     /// the axes' tangential share, and the planning margin.
     pub fn planned_accel(&self) -> f64 {
-        let axis = self.axis_max_accel.iter().fold(f64::INFINITY, |m, &a| m.min(a));
+        let axis = self
+            .axis_max_accel
+            .iter()
+            .fold(f64::INFINITY, |m, &a| m.min(a));
         self.max_path_accel.min(self.axis_tangential_share * axis) * (1.0 - self.planning_margin)
     }
 
     /// Tangential jerk the schedule plans with, mm/s³ (as [`Self::planned_accel`]).
     pub fn planned_jerk(&self) -> f64 {
-        let axis = self.axis_max_jerk.iter().fold(f64::INFINITY, |m, &a| m.min(a));
+        let axis = self
+            .axis_max_jerk
+            .iter()
+            .fold(f64::INFINITY, |m, &a| m.min(a));
         self.max_path_jerk.min(self.axis_tangential_share * axis) * (1.0 - self.planning_margin)
     }
 

@@ -634,7 +634,12 @@ impl<const Q: usize> Interpolator<Q> {
     /// The reference has stopped and the filter has drained.
     #[inline]
     fn at_rest(&self) -> bool {
-        self.step_ref == 0.0 && self.window.iter().take(self.filter_len).all(|&x| x == self.s_ref)
+        self.step_ref == 0.0
+            && self
+                .window
+                .iter()
+                .take(self.filter_len)
+                .all(|&x| x == self.s_ref)
     }
 
     /// Abort finished: drop everything queued; idle where the machine stands.

@@ -440,7 +440,10 @@ mod tests {
         for (q, &c) in raw.iter().enumerate() {
             let (lo, hi) = (g.min(q), g.max(q));
             // A stop strictly between g and q (or at q's far side) bounds the window.
-            if stops.iter().any(|&st| st >= lo && st <= hi && st != g && st != q) {
+            if stops
+                .iter()
+                .any(|&st| st >= lo && st <= hi && st != g && st != q)
+            {
                 continue;
             }
             let d = (hi - lo) as f64;
@@ -452,7 +455,13 @@ mod tests {
     #[test]
     fn erosion_matches_brute_force_and_respects_stops_and_the_cone() {
         let raw: Vec<f64> = (0..60)
-            .map(|i| if i == 25 { 1.0 } else { 20.0 + 15.0 * ((i as f64) * 0.37).sin() })
+            .map(|i| {
+                if i == 25 {
+                    1.0
+                } else {
+                    20.0 + 15.0 * ((i as f64) * 0.37).sin()
+                }
+            })
             .collect();
         for &(slope, stop) in &[(2.0, None), (0.7, Some(30usize)), (5.0, Some(10))] {
             let mut p = Profile::new(0.5);
@@ -481,7 +490,13 @@ mod tests {
             // With the cone, limits fall to zero towards it and are never
             // above the finished profile's.
             let finished: Vec<f64> = (0..raw.len() as i64).map(|g| p.cap(g)).collect();
-            p.erode(0, Erosion { cone_from: Some(50), ..e });
+            p.erode(
+                0,
+                Erosion {
+                    cone_from: Some(50),
+                    ..e
+                },
+            );
             for g in 0..raw.len() as i64 {
                 assert!(p.cap(g) <= finished[g as usize]);
                 if g >= 50 {

@@ -66,7 +66,14 @@ fn run(cfg: InterpConfig, blocks: &[Block]) -> (Vec<Setpoint>, interp_core::inte
             let pr = ip.profile();
             let g = pr.index_of(sp.s);
             for k in g - 3..g + 4 {
-                eprintln!("g {k}: raw {} cap {} feed {} node {} stop {}", pr.raw_cap(k), pr.cap(k), pr.feed_cap(k), pr.node(k), pr.has_stop(k));
+                eprintln!(
+                    "g {k}: raw {} cap {} feed {} node {} stop {}",
+                    pr.raw_cap(k),
+                    pr.cap(k),
+                    pr.feed_cap(k),
+                    pr.node(k),
+                    pr.has_stop(k)
+                );
             }
             panic!(
                 "did not finish in {limit} ticks: last {sp:?}, queued {} mm, stats {:?}",
@@ -159,7 +166,6 @@ fn check_properties(cfg: &InterpConfig, blocks: &[Block], sps: &[Setpoint]) {
         end,
         "last setpoint is the curve end exactly"
     );
-
 }
 
 prop_compose! {
@@ -429,14 +435,20 @@ fn lines_arcs_and_helices_run_exactly() {
         &helix.eval(helix.u_start(), 3),
         &cfg,
     );
-    assert!(vj > cfg.junction_min_speed && vj < 80.0, "junction speed {vj}");
+    assert!(
+        vj > cfg.junction_min_speed && vj < 80.0,
+        "junction speed {vj}"
+    );
     let near: Vec<&Setpoint> = sps
         .iter()
         .filter(|s| (v3(&s.axes) - corner).norm() < 0.01)
         .collect();
     assert!(!near.is_empty());
     for s in &near {
-        assert!(s.feed > 0.0 && s.feed <= vj * (1.0 + LIMIT_REL_TOL), "{s:?} vs {vj}");
+        assert!(
+            s.feed > 0.0 && s.feed <= vj * (1.0 + LIMIT_REL_TOL),
+            "{s:?} vs {vj}"
+        );
     }
     // Only the helix-to-line reversal (the line runs back along −Y) stops.
     assert_eq!(stats.junctions_stopped, 1);
@@ -510,7 +522,11 @@ fn starving_queue_stops_at_the_end_of_what_is_queued_and_resumes() {
     while rest < 2 * ip.filter_ticks() + 10 {
         let sp = ip.tick();
         sps.push(sp);
-        rest = if sp.feed == 0.0 && sps.len() > 1 { rest + 1 } else { 0 };
+        rest = if sp.feed == 0.0 && sps.len() > 1 {
+            rest + 1
+        } else {
+            0
+        };
         assert!(sps.len() < 100_000, "never came to rest");
     }
     let sp = *sps.last().unwrap();
@@ -534,7 +550,10 @@ fn starving_queue_stops_at_the_end_of_what_is_queued_and_resumes() {
         assert!(sps.len() < 400_000, "never finished");
     }
     check_kinematics(&cfg, start, &sps);
-    assert_eq!(v3(&sps.last().unwrap().axes), segs.last().unwrap().end_point());
+    assert_eq!(
+        v3(&sps.last().unwrap().axes),
+        segs.last().unwrap().end_point()
+    );
     assert_eq!(ip.stats().brake_overruns, 0);
 }
 

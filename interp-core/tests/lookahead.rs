@@ -47,7 +47,11 @@ fn random_program(seed: u64, blocks: usize) -> Vec<Block> {
         if rng.next() < 0.5 {
             let turn = rng.range(-2.5, 2.5);
             let (c, s) = (turn.cos(), turn.sin());
-            dir = Vec3::new(c * dir.x - s * dir.y, s * dir.x + c * dir.y, rng.range(-0.3, 0.3));
+            dir = Vec3::new(
+                c * dir.x - s * dir.y,
+                s * dir.x + c * dir.y,
+                rng.range(-0.3, 0.3),
+            );
             dir /= dir.norm();
         }
         let path = if kind < 0.6 {
@@ -56,9 +60,17 @@ fn random_program(seed: u64, blocks: usize) -> Vec<Block> {
         } else {
             // Tangent arc in the XY plane, left or right, radius 1..15 mm.
             let flat = Vec3::new(dir.x, dir.y, 0.0);
-            let flat = if flat.norm() > 1e-3 { flat / flat.norm() } else { Vec3::x() };
+            let flat = if flat.norm() > 1e-3 {
+                flat / flat.norm()
+            } else {
+                Vec3::x()
+            };
             let left = rng.next() < 0.5;
-            let n = if left { Vec3::new(-flat.y, flat.x, 0.0) } else { Vec3::new(flat.y, -flat.x, 0.0) };
+            let n = if left {
+                Vec3::new(-flat.y, flat.x, 0.0)
+            } else {
+                Vec3::new(flat.y, -flat.x, 0.0)
+            };
             let r = rng.range(1.0, 15.0);
             let centre = p + n * r;
             let sweep = rng.range(0.2, 3.0);
@@ -66,7 +78,14 @@ fn random_program(seed: u64, blocks: usize) -> Vec<Block> {
             let a1 = if left { a0 + sweep } else { a0 - sweep };
             let end = centre + Vec3::new(r * a1.cos(), r * a1.sin(), 0.0);
             let axis = if left { Vec3::z() } else { -Vec3::z() };
-            let arc = Arc::from_centre(p, Vec3::new(end.x, end.y, p.z), Vec3::new(centre.x, centre.y, p.z), axis, 0).unwrap();
+            let arc = Arc::from_centre(
+                p,
+                Vec3::new(end.x, end.y, p.z),
+                Vec3::new(centre.x, centre.y, p.z),
+                axis,
+                0,
+            )
+            .unwrap();
             Path::Arc(arc)
         };
         dir = path.end_tangent();
@@ -112,7 +131,10 @@ fn run_with(
 
 /// The setpoint lies on the block it names.
 fn assert_on_path(blocks: &[Block], sp: &Setpoint) {
-    let b = blocks.iter().find(|b| b.id == sp.block_id).expect("known block");
+    let b = blocks
+        .iter()
+        .find(|b| b.id == sp.block_id)
+        .expect("known block");
     let d = (b.path.eval(sp.u, 0).p - v3(&sp.axes)).norm();
     assert!(d <= ON_PATH_TOL, "seq {} off the path by {d}", sp.seq);
 }
@@ -129,7 +151,12 @@ fn assert_program_properties(cfg: &InterpConfig, blocks: &[Block], run: &Run) {
             .filter(|x| x.id + 1 >= b.id && x.id <= b.id + 1)
             .map(|x| x.feed)
             .fold(0.0, f64::max);
-        assert!(sp.feed <= f * (1.0 + LIMIT_REL_TOL), "seq {} feed {} > {f}", sp.seq, sp.feed);
+        assert!(
+            sp.feed <= f * (1.0 + LIMIT_REL_TOL),
+            "seq {} feed {} > {f}",
+            sp.seq,
+            sp.feed
+        );
     }
     let last = run.sps.last().unwrap();
     assert_eq!(last.state, RunState::Done);
@@ -288,7 +315,12 @@ proptest! {
 
 /// As [`assert_program_properties`], with the feed bound scaled by the
 /// largest override applied over the filter window.
-fn assert_program_properties_with_override(cfg: &InterpConfig, blocks: &[Block], run: &Run, applied: &[f64]) {
+fn assert_program_properties_with_override(
+    cfg: &InterpConfig,
+    blocks: &[Block],
+    run: &Run,
+    applied: &[f64],
+) {
     let start = blocks[0].path.start_point();
     check_kinematics(cfg, start, &run.sps);
     let n = run.ip.filter_ticks();
@@ -296,8 +328,16 @@ fn assert_program_properties_with_override(cfg: &InterpConfig, blocks: &[Block],
     for (i, sp) in run.sps.iter().enumerate() {
         assert_on_path(blocks, sp);
         let lo = i.saturating_sub(n + 1);
-        let ovr = applied[lo..=i.min(applied.len() - 1)].iter().copied().fold(0.0, f64::max);
-        assert!(sp.feed <= fmax * ovr * (1.0 + LIMIT_REL_TOL) + 1e-9, "seq {} feed {} ovr {ovr}", sp.seq, sp.feed);
+        let ovr = applied[lo..=i.min(applied.len() - 1)]
+            .iter()
+            .copied()
+            .fold(0.0, f64::max);
+        assert!(
+            sp.feed <= fmax * ovr * (1.0 + LIMIT_REL_TOL) + 1e-9,
+            "seq {} feed {} ovr {ovr}",
+            sp.seq,
+            sp.feed
+        );
     }
     let last = run.sps.last().unwrap();
     assert_eq!(last.state, RunState::Done);
@@ -319,7 +359,12 @@ fn same_commands_at_the_same_ticks_give_identical_setpoints() {
     let b = run_with(cfg, &blocks, script);
     assert_eq!(a.sps.len(), b.sps.len());
     for (x, y) in a.sps.iter().zip(&b.sps) {
-        assert_eq!(x.axes.map(f64::to_bits), y.axes.map(f64::to_bits), "seq {}", x.seq);
+        assert_eq!(
+            x.axes.map(f64::to_bits),
+            y.axes.map(f64::to_bits),
+            "seq {}",
+            x.seq
+        );
         assert_eq!(x.feed.to_bits(), y.feed.to_bits());
     }
     assert_program_properties_with_override(&cfg, &blocks, &a, &vec![1.7; a.sps.len()]);
@@ -339,7 +384,10 @@ fn a_right_angle_corner_stops_and_a_shallow_one_is_blended() {
     assert!(run.sps.iter().any(|s| s.feed == 0.0 && v3(&s.axes) == p1));
     // 0.1°: blended, never at rest at the joint.
     let a = 0.1f64.to_radians();
-    let shallow = [l(p0, p1, 1), l(p1, p1 + Vec3::new(a.cos(), a.sin(), 0.0) * 20.0, 2)];
+    let shallow = [
+        l(p0, p1, 1),
+        l(p1, p1 + Vec3::new(a.cos(), a.sin(), 0.0) * 20.0, 2),
+    ];
     let run = run_with(cfg, &shallow, |_, _| {});
     assert_program_properties(&cfg, &shallow, &run);
     assert_eq!(run.ip.stats().junctions_stopped, 0);
@@ -350,5 +398,8 @@ fn a_right_angle_corner_stops_and_a_shallow_one_is_blended() {
         .filter(|s| (v3(&s.axes) - p1).norm() < 0.5)
         .map(|s| s.feed)
         .fold(f64::INFINITY, f64::min);
-    assert!(slowest > cfg.junction_min_speed, "slowest near the joint {slowest}");
+    assert!(
+        slowest > cfg.junction_min_speed,
+        "slowest near the joint {slowest}"
+    );
 }

@@ -32,10 +32,17 @@ fn butterfly_at_its_program_feed_is_within_the_target_of_the_optimum() {
     let feed = butterfly::PROGRAM_FEED_MM_PER_MIN / 60.0;
     let blocks = butterfly_blocks(feed);
     let t = path_times(&blocks, &cfg).unwrap();
-    eprintln!("butterfly F={feed:.2} mm/s: {t:?} ratio {:.4}", t.ours / t.optimum);
+    eprintln!(
+        "butterfly F={feed:.2} mm/s: {t:?} ratio {:.4}",
+        t.ours / t.optimum
+    );
     assert!(t.optimum <= t.ours, "the optimum is a lower bound: {t:?}");
     assert!(t.optimum <= t.trapezoid, "{t:?}");
-    assert!(t.ours <= TARGET_RATIO * t.optimum, "ratio {} {t:?}", t.ours / t.optimum);
+    assert!(
+        t.ours <= TARGET_RATIO * t.optimum,
+        "ratio {} {t:?}",
+        t.ours / t.optimum
+    );
 }
 
 #[test]
@@ -46,7 +53,10 @@ fn at_high_feed_jerk_limits_cost_time_but_the_order_holds() {
     let cfg = InterpConfig::default();
     let blocks = butterfly_blocks(100.0);
     let t = path_times(&blocks, &cfg).unwrap();
-    eprintln!("butterfly F=100 mm/s: {t:?} ratio {:.4}", t.ours / t.optimum);
+    eprintln!(
+        "butterfly F=100 mm/s: {t:?} ratio {:.4}",
+        t.ours / t.optimum
+    );
     assert!(t.optimum <= t.trapezoid && t.trapezoid <= t.ours, "{t:?}");
     // The trapezoidal schedule of the core issue is near the optimum.
     assert!(t.trapezoid <= TARGET_RATIO * t.optimum, "{t:?}");

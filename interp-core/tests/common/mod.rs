@@ -3,8 +3,8 @@
 
 pub use interp_core::samples::butterfly;
 
-use interp_core::nurbs::{Nurbs, split_program_curve};
 use interp_core::geom::Vec3;
+use interp_core::nurbs::{Nurbs, split_program_curve};
 use interp_core::path::Block;
 use interp_core::{InterpConfig, Setpoint};
 
@@ -14,7 +14,6 @@ pub const LIMIT_REL_TOL: f64 = 1e-6;
 fn v3(p: &[f64; 6]) -> Vec3 {
     Vec3::new(p[0], p[1], p[2])
 }
-
 
 /// Cuts a program curve into segments of at most `max_ctrl` control points
 /// (`max_ctrl <= MAX_CTRL - 6`) with `split_program_curve` and collects them.
@@ -115,17 +114,28 @@ pub fn measure(ts: f64, start: Vec3, sps: &[Setpoint]) -> Measured {
 pub fn check_kinematics(cfg: &InterpConfig, start: Vec3, sps: &[Setpoint]) -> Measured {
     let m = measure(cfg.period, start, sps);
     let ok = |v: f64, lim: f64| v <= lim * (1.0 + LIMIT_REL_TOL);
-    assert!(ok(m.max_accel, cfg.max_path_accel), "tangential accel {m:?}");
+    assert!(
+        ok(m.max_accel, cfg.max_path_accel),
+        "tangential accel {m:?}"
+    );
     assert!(ok(m.max_jerk, cfg.max_path_jerk), "tangential jerk {m:?}");
     assert!(
         ok(m.max_centripetal, cfg.max_centripetal_accel),
         "centripetal accel {m:?}"
     );
     for k in 0..3 {
-        assert!(ok(m.axis_vel[k], cfg.axis_max_velocity[k]), "axis {k} velocity {m:?}");
-        assert!(ok(m.axis_acc[k], cfg.axis_max_accel[k]), "axis {k} accel {m:?}");
-        assert!(ok(m.axis_jerk[k], cfg.axis_max_jerk[k]), "axis {k} jerk {m:?}");
+        assert!(
+            ok(m.axis_vel[k], cfg.axis_max_velocity[k]),
+            "axis {k} velocity {m:?}"
+        );
+        assert!(
+            ok(m.axis_acc[k], cfg.axis_max_accel[k]),
+            "axis {k} accel {m:?}"
+        );
+        assert!(
+            ok(m.axis_jerk[k], cfg.axis_max_jerk[k]),
+            "axis {k} jerk {m:?}"
+        );
     }
     m
 }
-
