@@ -65,6 +65,10 @@ pub struct Profile {
     feed_cap: [f64; MAX_PROFILE],
     v: [f64; MAX_PROFILE],
     stop: [bool; MAX_PROFILE],
+    /// Scratch space of `erode`: candidate indices and values, right-side results.
+    scratch_q: [i64; MAX_PROFILE + 1],
+    scratch_c: [f64; MAX_PROFILE + 1],
+    scratch_val: [f64; MAX_PROFILE],
 }
 
 /// How [`Profile::erode`] shapes the limits around each interval.
@@ -94,6 +98,9 @@ impl Profile {
             feed_cap: [f64::INFINITY; MAX_PROFILE],
             v: [0.0; MAX_PROFILE],
             stop: [false; MAX_PROFILE],
+            scratch_q: [0; MAX_PROFILE + 1],
+            scratch_c: [0.0; MAX_PROFILE + 1],
+            scratch_val: [0.0; MAX_PROFILE],
         }
     }
     /// Grid spacing, mm.
@@ -271,41 +278,142 @@ impl Profile {
     pub fn erode(&mut self, from: i64, e: Erosion) {
         let from = from.max(self.base);
         let end = self.end();
-        let erode = e.slope.is_finite() && e.feed_slope.is_finite();
-        for g in from..end {
-            let k = self.slot(g);
-            let (mut best, mut best_f) = (self.raw[k], self.raw_feed[k]);
-            if e.cone_from.is_some_and(|c| g >= c) {
-                (best, best_f) = (0.0, 0.0);
+        if from >= end {
+            return;
+        }
+        for which in 0..2 {
+            let slope = if which == 0 { e.slope } else { e.feed_slope };
+            let val = |p: &Profile, q: i64| -> f64 {
+                if e.cone_from.is_some_and(|c| q >= c) {
+                    0.0
+                } else if which == 0 {
+                    p.raw[p.slot(q)]
+                } else {
+                    p.raw_feed[p.slot(q)]
+                }
+            };
+            if !(slope.is_finite() && slope > 0.0) {
+                for g in from..end {
+                    let v = val(self, g);
+                    self.store(which, g, v);
+                }
+                continue;
             }
-            if erode {
-                // Look both ways until the cone is above what is found, not past a stop.
-                for dir in [-1i64, 1] {
-                    for d in 1..MAX_PROFILE as i64 {
-                        let q = g + dir * d;
-                        let steps = (d - 1) as f64;
-                        if steps * e.slope >= best && steps * e.feed_slope >= best_f {
-                            break;
-                        }
-                        let (c, cf) = if e.cone_from.is_some_and(|c| q >= c) {
-                            (0.0, 0.0)
-                        } else if self.held(q) {
-                            let kq = self.slot(q);
-                            (self.raw[kq], self.raw_feed[kq])
-                        } else {
-                            break;
-                        };
-                        best = best.min(c.max(steps * e.slope));
-                        best_f = best_f.min(cf.max(steps * e.feed_slope));
-                        if self.has_stop(q) {
-                            break;
-                        }
-                    }
+            // Right side (candidates q > g), g from the end down; results in `scratch_val`.
+            let mut stack = Hull::new();
+            for g in (from..end).rev() {
+                let q = g + 1;
+                if q < end {
+                    stack.insert(self, q, val(self, q), self.has_stop(q));
+                } else if e.cone_from.is_some() {
+                    // Unknown intervals past the end: only the nearest zero matters.
+                    stack.insert(self, q, 0.0, false);
+                }
+                self.scratch_val[(g - from) as usize] = stack.best(self, g, slope, 1);
+            }
+            // Left side (candidates q < g), g upwards from where the cone of the
+            // highest limit can still reach `from`.
+            let top = self.raw_top(which);
+            let reach = if top.is_finite() {
+                (libm::ceil(top / slope) as i64).saturating_add(2)
+            } else {
+                MAX_PROFILE as i64
+            };
+            let lo = (from - reach).max(self.base);
+            let mut stack = Hull::new();
+            for g in lo..end {
+                let q = g - 1;
+                if q >= self.base {
+                    stack.insert(self, q, val(self, q), self.has_stop(q));
+                }
+                if g >= from {
+                    let left = stack.best(self, g, slope, -1);
+                    let right = self.scratch_val[(g - from) as usize];
+                    let v = val(self, g).min(left).min(right);
+                    self.store(which, g, v);
                 }
             }
-            self.cap[k] = best;
-            self.feed_cap[k] = best_f;
         }
+    }
+
+    #[inline]
+    fn store(&mut self, which: usize, g: i64, v: f64) {
+        let k = self.slot(g);
+        if which == 0 {
+            self.cap[k] = v;
+        } else {
+            self.feed_cap[k] = v;
+        }
+    }
+
+    /// Highest finite raw limit held (bounds how far erosion reaches).
+    fn raw_top(&self, which: usize) -> f64 {
+        let mut top: f64 = 0.0;
+        for g in self.base..self.end() {
+            let k = self.slot(g);
+            let v = if which == 0 {
+                self.raw[k]
+            } else {
+                self.raw_feed[k]
+            };
+            if v.is_finite() {
+                top = top.max(v);
+            } else {
+                return f64::INFINITY;
+            }
+        }
+        top
+    }
+}
+
+/// Candidates for `min_q max(c_q, slope·(|q − g| − 1))` on one side of `g`,
+/// as `g` moves away from them: a stack, nearest on top, whose values rise
+/// towards the top (a nearer candidate with a value no higher hides every
+/// farther one for good). Along the stack `max(c, slope·d)` falls and then
+/// rises, and its minimum only moves towards the top as `g` moves on, so one
+/// pointer finds it in amortised O(1) per interval.
+struct Hull {
+    len: usize,
+    ptr: usize,
+}
+
+impl Hull {
+    fn new() -> Self {
+        Hull { len: 0, ptr: 0 }
+    }
+
+    /// Add the new nearest candidate `q` with value `c`; a stop drops every
+    /// farther candidate (the window does not reach past a stop).
+    #[inline]
+    fn insert(&mut self, p: &mut Profile, q: i64, c: f64, stop: bool) {
+        if stop {
+            self.len = 0;
+        }
+        while self.len > 0 && p.scratch_c[self.len - 1] >= c {
+            self.len -= 1;
+        }
+        p.scratch_q[self.len] = q;
+        p.scratch_c[self.len] = c;
+        self.len += 1;
+        if self.ptr >= self.len {
+            self.ptr = self.len - 1;
+        }
+    }
+
+    /// The minimum for interval `g` (`side` = +1: candidates after `g`, −1: before).
+    #[inline]
+    fn best(&mut self, p: &Profile, g: i64, slope: f64, side: i64) -> f64 {
+        if self.len == 0 {
+            return f64::INFINITY;
+        }
+        let f = |i: usize| {
+            let d = ((p.scratch_q[i] - g) * side - 1).max(0) as f64;
+            p.scratch_c[i].max(slope * d)
+        };
+        while self.ptr + 1 < self.len && f(self.ptr + 1) <= f(self.ptr) {
+            self.ptr += 1;
+        }
+        f(self.ptr)
     }
 }
 
@@ -434,22 +542,91 @@ mod tests {
         assert!(!p.extend_to(5 + MAX_PROFILE as i64));
     }
 
-    /// Brute force of `e(g) = min over g' of max(c(g'), slope·(|g − g'| − 1)⁺)`.
-    fn eroded(raw: &[f64], g: usize, slope: f64, stops: &[usize]) -> f64 {
+    /// Brute force of `e(g) = min over g' of max(c(g'), slope·(|g − g'| − 1)⁺)`,
+    /// not past a stop, intervals from `cone` on (and one past the end) zero.
+    fn eroded(raw: &[f64], g: usize, slope: f64, stops: &[usize], cone: Option<usize>) -> f64 {
+        let val = |q: usize| {
+            if cone.is_some_and(|c| q >= c) {
+                0.0
+            } else {
+                raw[q]
+            }
+        };
+        let n = raw.len() + usize::from(cone.is_some());
         let mut best = f64::INFINITY;
-        for (q, &c) in raw.iter().enumerate() {
+        for q in 0..n {
+            let c = if q == raw.len() { 0.0 } else { val(q) };
             let (lo, hi) = (g.min(q), g.max(q));
-            // A stop strictly between g and q (or at q's far side) bounds the window.
-            if stops
-                .iter()
-                .any(|&st| st >= lo && st <= hi && st != g && st != q)
-            {
+            // A stop strictly between g and q bounds the window.
+            if stops.iter().any(|&st| st > lo && st < hi) {
                 continue;
             }
             let d = (hi - lo) as f64;
             best = best.min(c.max(slope * (d - 1.0).max(0.0)));
         }
         best
+    }
+
+    #[test]
+    fn erosion_matches_brute_force_on_random_profiles() {
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut rnd = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for case in 0..300 {
+            let n = 5 + (rnd() * 120.0) as usize;
+            let raw: Vec<f64> = (0..n)
+                .map(|_| {
+                    if rnd() < 0.2 {
+                        rnd() * 2.0
+                    } else {
+                        5.0 + rnd() * 60.0
+                    }
+                })
+                .collect();
+            let feed: Vec<f64> = (0..n).map(|_| 1.0 + rnd() * 80.0).collect();
+            let stops: Vec<usize> = (0..(rnd() * 4.0) as usize)
+                .map(|_| (rnd() * n as f64) as usize)
+                .collect();
+            let cone = (rnd() < 0.5).then(|| (rnd() * n as f64) as usize);
+            let (slope, feed_slope) = (0.3 + rnd() * 8.0, 0.3 + rnd() * 8.0);
+            let mut p = Profile::new(0.25);
+            // Start the ring at a random offset so it wraps.
+            p.reset_at(1000 + case);
+            p.head = (rnd() * MAX_PROFILE as f64) as usize;
+            let base = p.base();
+            p.extend_to(base + n as i64 - 1);
+            for g in 0..n {
+                p.lower_cap(base + g as i64, raw[g]);
+                p.lower_feed_cap(base + g as i64, feed[g]);
+            }
+            for &st in &stops {
+                p.mark_stop(base + st as i64);
+            }
+            let from = (rnd() * n as f64) as i64;
+            let e = Erosion {
+                slope,
+                feed_slope,
+                cone_from: cone.map(|c| base + c as i64),
+            };
+            p.erode(base + from, e);
+            for g in from as usize..n {
+                let gi = base + g as i64;
+                assert_eq!(
+                    p.cap(gi),
+                    eroded(&raw, g, slope, &stops, cone),
+                    "case {case} g={g}"
+                );
+                assert_eq!(
+                    p.feed_cap(gi),
+                    eroded(&feed, g, feed_slope, &stops, cone),
+                    "case {case} g={g} (feed)"
+                );
+            }
+        }
     }
 
     #[test]
@@ -481,10 +658,10 @@ mod tests {
             p.erode(0, e);
             let stops: Vec<usize> = stop.into_iter().collect();
             for g in 0..raw.len() {
-                let want = eroded(&raw, g, slope, &stops);
+                let want = eroded(&raw, g, slope, &stops, None);
                 assert_eq!(p.cap(g as i64), want, "g={g} slope={slope}");
                 let raw2: Vec<f64> = raw.iter().map(|c| c * 2.0).collect();
-                assert_eq!(p.feed_cap(g as i64), eroded(&raw2, g, slope, &stops));
+                assert_eq!(p.feed_cap(g as i64), eroded(&raw2, g, slope, &stops, None));
                 assert!(p.cap(g as i64) <= raw[g]);
             }
             // With the cone, limits fall to zero towards it and are never
