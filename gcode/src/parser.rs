@@ -206,6 +206,8 @@ struct Parser {
     /// Last G5 cubic's second control point offset (P, Q) from its end, for an I/J-less G5.
     last_cubic_pq: Option<[f64; 2]>,
     seen_percent: bool,
+    /// A non-blank line has been read (a '%' may only come before).
+    seen_content: bool,
     /// Normalised line and source byte offsets, reused.
     buf: Vec<u8>,
     cols: Vec<usize>,
@@ -232,6 +234,7 @@ impl Default for Parser {
             g6: None,
             last_cubic_pq: None,
             seen_percent: false,
+            seen_content: false,
             buf: Vec::with_capacity(128),
             cols: Vec::with_capacity(128),
         }
@@ -294,6 +297,10 @@ impl Parser {
 
     /// One source line; `Ok(false)` ends the program.
     fn line(&mut self, raw: &str, line_no: u32) -> LineResult<bool> {
+        let first_content = !self.seen_content;
+        if !raw.trim().is_empty() {
+            self.seen_content = true;
+        }
         if !self.normalise(raw)? || self.buf.is_empty() {
             return Ok(true);
         }
@@ -304,8 +311,13 @@ impl Parser {
                     ParseErrorKind::UnexpectedChar(self.buf[1] as char),
                 );
             }
-            if self.seen_percent || !self.blocks.is_empty() {
+            // As LinuxCNC: '%' may open the program on its first line and then
+            // ends it; anywhere else it is a bad character.
+            if self.seen_percent {
                 return Ok(false);
+            }
+            if !first_content {
+                return err(self.cols[0], ParseErrorKind::UnexpectedChar('%'));
             }
             self.seen_percent = true;
             return Ok(true);
@@ -574,11 +586,12 @@ impl Parser {
         if g(210).is_some() {
             self.units = Units::Millimetres;
         }
-        if g(930).is_some() {
-            self.inverse_time = true;
-        }
-        if g(940).is_some() {
-            self.inverse_time = false;
+        // LinuxCNC forgets the feed when the feed mode changes.
+        for (code, inverse) in [(930, true), (940, false)] {
+            if g(code).is_some() && self.inverse_time != inverse {
+                self.inverse_time = inverse;
+                self.feed = 0.0;
+            }
         }
         if let Some(f) = w.get(b'f') {
             if f < 0.0 {
@@ -780,7 +793,8 @@ impl Parser {
                             ),
                         );
                     }
-                    Some(Motion::Rapid) if axes => {
+                    // LinuxCNC moves (by zero) on an explicit G0/G1 without axis words.
+                    Some(Motion::Rapid) if axes || explicit => {
                         let end = self.target(w, self.pos);
                         self.push(
                             line,
@@ -791,7 +805,7 @@ impl Parser {
                         );
                         self.pos = end;
                     }
-                    Some(Motion::Linear) if axes => {
+                    Some(Motion::Linear) if axes || explicit => {
                         self.check_feed(w, motion_code.map_or(0, |m| m.1), "G1")?;
                         let end = self.target(w, self.pos);
                         self.push(
@@ -806,14 +820,6 @@ impl Parser {
                     }
                     Some(m @ (Motion::ArcCw | Motion::ArcCcw)) if axes || explicit => {
                         let col = motion_code.map_or(w.col(b'x'), |m| m.1);
-                        if !axes {
-                            return err(
-                                col,
-                                ParseErrorKind::MissingArgument(
-                                    "G2/G3 needs at least one axis word".into(),
-                                ),
-                            );
-                        }
                         self.check_feed(w, col, "G2/G3")?;
                         self.arc(w, line, col, m == Motion::ArcCw, &mut use_word)?;
                     }
