@@ -41,6 +41,12 @@ pub fn parse(text: &str) -> Result<Program, ParseError> {
             Ok(true) => {}
             Ok(false) => break,
             Err((byte, kind)) => {
+                // A NURBS defect is reported on the line of the offending point or knot.
+                let (line_no, raw) = match p.error_line.take() {
+                    Some(l) => (l, text.split('\n').nth(l as usize - 1).unwrap_or("")),
+                    None => (line_no, raw),
+                };
+                let raw = raw.strip_suffix('\r').unwrap_or(raw);
                 let byte = byte.min(raw.len());
                 // Columns count characters; `byte` may sit inside one.
                 let column = raw
@@ -169,6 +175,8 @@ struct G5Curve {
     start: Point,
     points: Vec<Point>,
     weights: Vec<f64>,
+    /// (line, column) of each control point.
+    sources: Vec<(u32, usize)>,
 }
 
 /// A G6.2 curve being collected: every line is an entry with a knot; all but
@@ -182,6 +190,8 @@ struct G6Curve {
     points: Vec<Point>,
     weights: Vec<f64>,
     knots: Vec<f64>,
+    /// (line, column) of each entry (control point and knot).
+    sources: Vec<(u32, usize)>,
 }
 
 #[derive(Debug)]
@@ -206,6 +216,8 @@ struct Parser {
     /// Last G5 cubic's second control point offset (P, Q) from its end, for an I/J-less G5.
     last_cubic_pq: Option<[f64; 2]>,
     seen_percent: bool,
+    /// Set with an error that belongs to an earlier line than the current one.
+    error_line: Option<u32>,
     /// A non-blank line has been read (a '%' may only come before).
     seen_content: bool,
     /// Normalised line and source byte offsets, reused.
@@ -234,6 +246,7 @@ impl Default for Parser {
             g6: None,
             last_cubic_pq: None,
             seen_percent: false,
+            error_line: None,
             seen_content: false,
             buf: Vec::with_capacity(128),
             cols: Vec::with_capacity(128),
@@ -1154,7 +1167,7 @@ impl Parser {
         let mut knots = vec![0.0; degree + 1];
         knots.extend(std::iter::repeat_n(1.0, degree + 1));
         let weights = vec![1.0; points.len()];
-        self.push_nurbs(line, col, line, degree, points, weights, knots)
+        self.push_nurbs(line, col, line, degree, points, weights, knots, &[])
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -1167,13 +1180,29 @@ impl Parser {
         points: Vec<Point>,
         weights: Vec<f64>,
         knots: Vec<f64>,
+        sources: &[(u32, usize)],
     ) -> LineResult<()> {
         match validate_program_curve(degree, &points, &weights, &knots) {
             // A curve that stops (e.g. a repeated first control point, common in
             // LinuxCNC's G5.2 examples) is still a valid program; whether the
             // interpolator can run it is the conversion's question.
             Ok(()) | Err(NurbsError::ZeroSpeed { .. }) => {}
-            Err(e) => return err(col, ParseErrorKind::InvalidNurbs(e)),
+            Err(e) => {
+                let index = match e {
+                    NurbsError::DecreasingKnot { index }
+                    | NurbsError::KnotMultiplicity { index }
+                    | NurbsError::NonPositiveWeight { index }
+                    | NurbsError::NonFinite { index, .. } => Some(index),
+                    _ => None,
+                };
+                let (l, c) = index
+                    .and_then(|i| sources.get(i).copied())
+                    .unwrap_or((first_line, col));
+                if l != line {
+                    self.error_line = Some(l);
+                }
+                return err(c, ParseErrorKind::InvalidNurbs(e));
+            }
         }
         let start = points[0];
         if start != self.pos {
@@ -1254,6 +1283,7 @@ impl Parser {
                 start: self.pos,
                 points: vec![self.pos],
                 weights: vec![w0],
+                sources: vec![(line, col)],
             });
         } else if !has_pair && p.is_some() {
             return err(
@@ -1290,6 +1320,7 @@ impl Parser {
             if let Some(c) = self.g5.as_mut() {
                 c.points.push(pt);
                 c.weights.push(p);
+                c.sources.push((line, col));
             }
         }
         Ok(())
@@ -1323,6 +1354,7 @@ impl Parser {
             c.points,
             c.weights,
             knots,
+            &c.sources,
         )
     }
 
@@ -1360,6 +1392,7 @@ impl Parser {
                     points: Vec::new(),
                     weights: Vec::new(),
                     knots: Vec::new(),
+                    sources: Vec::new(),
                 });
             }
         } else if first {
@@ -1428,6 +1461,7 @@ impl Parser {
         c.points.push(point);
         c.weights.push(r.unwrap_or(1.0));
         c.knots.push(k);
+        c.sources.push((line, col));
         let n = c.knots.len();
         // LinuxCNC ends the curve once the last `order` knots are equal.
         if n > c.order && c.knots[n - 1] == c.knots[n - c.order] {
@@ -1453,6 +1487,7 @@ impl Parser {
                 c.points,
                 c.weights,
                 c.knots,
+                &c.sources,
             )?;
         }
         Ok(())
