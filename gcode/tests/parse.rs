@@ -358,7 +358,8 @@ fn g6_2_with_real_knots_and_start_away_from_the_curve() {
 #[test]
 fn every_error_class_names_line_and_column() {
     use ParseErrorKind as K;
-    let cases: Vec<(&str, u32, u32, fn(&K) -> bool)> = vec![
+    type Case = (&'static str, u32, u32, fn(&K) -> bool);
+    let cases: Vec<Case> = vec![
         ("G1 X1 E5", 1, 7, |k| matches!(k, K::UnknownWord('E'))),
         ("G0 X1\nG7 X2", 2, 1, |k| matches!(k, K::UnknownCode(_))),
         ("M123", 1, 1, |k| matches!(k, K::UnknownCode(_))),
