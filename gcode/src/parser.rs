@@ -617,7 +617,7 @@ impl Parser {
         } else if self.inverse_time
             && matches!(
                 motion_code.map(|m| m.0).or(self.motion_code_if_moving(w)),
-                Some(10 | 20 | 22 | 30 | 50 | 51 | 52 | 62)
+                Some(10 | 20 | 30)
             )
         {
             return err(
@@ -912,7 +912,7 @@ impl Parser {
             Motion::ArcCcw => 30,
             Motion::Cubic => 50,
             Motion::Quadratic => 51,
-            Motion::G5_2 | Motion::G6_2 => return None, // F is checked on the curve's first line
+            Motion::G5_2 | Motion::G6_2 => return None,
         })
     }
 
