@@ -131,6 +131,10 @@ impl<'a> Cursor<'a> {
         if body.is_empty() || body == b"." {
             return Err((start, ParseErrorKind::BadNumber));
         }
+        if let Some(v) = fast_decimal(body) {
+            self.pos = i;
+            return Ok(if self.buf[start] == b'-' { -v } else { v });
+        }
         let text = match core::str::from_utf8(&self.buf[start..i]) {
             Ok(t) => t,
             Err(_) => return Err((start, ParseErrorKind::BadNumber)),
@@ -360,4 +364,37 @@ fn apply(op: Op, a: f64, b: f64) -> Result<f64, &'static str> {
         Op::Or => truth(a != 0.0 || b != 0.0),
         Op::Xor => truth((a != 0.0) != (b != 0.0)),
     })
+}
+
+/// Exact powers of ten up to 10^22 (all representable in an f64).
+const POW10: [f64; 23] = [
+    1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
+    1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
+];
+
+/// Largest integer below which every integer is exact in an f64 (2^53).
+const EXACT_INT_LIMIT: u64 = 1 << 53;
+
+/// Clinger's fast path: digits with at most one point, when the digits form an
+/// integer below 2^53 and there are at most 22 after the point, is `m / 10^k`
+/// with both exact, so one correctly rounded division gives the same f64 as a
+/// full decimal parser. Anything else returns `None` (the caller falls back).
+fn fast_decimal(body: &[u8]) -> Option<f64> {
+    let mut m: u64 = 0;
+    let mut frac: Option<usize> = None;
+    for &c in body {
+        if c == b'.' {
+            frac = Some(0);
+            continue;
+        }
+        m = m.checked_mul(10)?.checked_add(u64::from(c - b'0'))?;
+        if let Some(f) = frac.as_mut() {
+            *f += 1;
+        }
+    }
+    let k = frac.unwrap_or(0);
+    if m >= EXACT_INT_LIMIT || k >= POW10.len() {
+        return None;
+    }
+    Some(m as f64 / POW10[k])
 }

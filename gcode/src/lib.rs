@@ -13,6 +13,7 @@ mod convert;
 mod emit;
 mod error;
 mod expr;
+pub mod generate;
 mod parser;
 mod program;
 

@@ -28,11 +28,17 @@ pub const ARC_R_TINY: f64 = 1e-12;
 /// The smallest G5.2 order LinuxCNC accepts in `L` (smaller values keep order 3).
 pub const G5_2_DEFAULT_ORDER: usize = 3;
 
+/// Bytes per block assumed when reserving the block vector up front.
+const BYTES_PER_BLOCK_GUESS: usize = 32;
+
 /// Parses RS274/NGC text into a [`Program`] (mm, absolute coordinates).
 ///
 /// Stops at `M2`/`M30` or at a second `%` line. Never panics.
 pub fn parse(text: &str) -> Result<Program, ParseError> {
     let mut p = Parser::default();
+    // A G-code line is rarely shorter than this: one reservation instead of
+    // repeated growth (and copies) on large programs.
+    p.blocks.reserve(text.len() / BYTES_PER_BLOCK_GUESS);
     let mut line_no: u32 = 0;
     for raw in text.split('\n') {
         line_no = line_no.saturating_add(1);
@@ -125,6 +131,7 @@ enum Motion {
 }
 
 /// The words of one line.
+#[derive(Debug)]
 struct Words {
     values: [f64; LETTERS],
     cols: [usize; LETTERS],
@@ -134,6 +141,12 @@ struct Words {
     m: [(u32, usize); 8],
     m_len: usize,
     assignments: Vec<(Target, f64)>,
+}
+
+impl Default for Words {
+    fn default() -> Self {
+        Self::new()
+    }
 }
 
 impl Words {
@@ -155,8 +168,9 @@ impl Words {
     fn get(&self, c: u8) -> Option<f64> {
         self.has(c).then(|| self.values[idx(c)])
     }
+    /// Column of word `c`, or 0 (the line's start) when it is absent.
     fn col(&self, c: u8) -> usize {
-        self.cols[idx(c)]
+        if self.has(c) { self.cols[idx(c)] } else { 0 }
     }
     fn gs(&self) -> &[(u32, usize)] {
         &self.g[..self.g_len]
@@ -216,6 +230,8 @@ struct Parser {
     /// Last G5 cubic's second control point offset (P, Q) from its end, for an I/J-less G5.
     last_cubic_pq: Option<[f64; 2]>,
     seen_percent: bool,
+    /// The word table of the previous line, reused.
+    spare_words: Option<Box<Words>>,
     /// Set with an error that belongs to an earlier line than the current one.
     error_line: Option<u32>,
     /// A non-blank line has been read (a '%' may only come before).
@@ -246,6 +262,7 @@ impl Default for Parser {
             g6: None,
             last_cubic_pq: None,
             seen_percent: false,
+            spare_words: None,
             error_line: None,
             seen_content: false,
             buf: Vec::with_capacity(128),
@@ -272,6 +289,18 @@ impl Parser {
         let mut i = 0;
         while i < bytes.len() {
             let c = bytes[i];
+            // Fast path for what most of a program is: letters, digits, signs,
+            // points and blanks.
+            if c.is_ascii_alphanumeric() || c == b'.' || c == b'-' {
+                self.buf.push(c | ((c.is_ascii_uppercase() as u8) << 5));
+                self.cols.push(i);
+                i += 1;
+                continue;
+            }
+            if c == b' ' {
+                i += 1;
+                continue;
+            }
             match c {
                 b' ' | b'\t' => {}
                 b';' => break,
@@ -335,11 +364,15 @@ impl Parser {
             self.seen_percent = true;
             return Ok(true);
         }
-        let words = self.read_words().map_err(|(i, k)| (self.src_col(i), k))?;
+        // The word table is reused from line to line (it is large to copy).
+        let mut words = self.spare_words.take().unwrap_or_default();
+        self.read_words(&mut words)
+            .map_err(|(i, k)| (self.src_col(i), k))?;
         let go_on = self.execute(&words, line_no)?;
-        for (t, v) in words.assignments {
+        for (t, v) in words.assignments.drain(..) {
             self.params.set(t, v);
         }
+        self.spare_words = Some(words);
         Ok(go_on)
     }
 
@@ -350,8 +383,11 @@ impl Parser {
             .unwrap_or_else(|| self.cols.last().map_or(0, |c| c + 1))
     }
 
-    fn read_words(&self) -> LineResult<Words> {
-        let mut w = Words::new();
+    fn read_words(&self, w: &mut Words) -> LineResult<()> {
+        w.present = 0;
+        w.g_len = 0;
+        w.m_len = 0;
+        w.assignments.clear();
         let mut cur = Cursor {
             buf: &self.buf,
             pos: 0,
@@ -462,8 +498,10 @@ impl Parser {
             }
         }
         // Word columns refer to the source line from here on.
-        for c in w.cols.iter_mut() {
-            *c = self.src_col(*c);
+        for (i, c) in w.cols.iter_mut().enumerate() {
+            if w.present & (1 << i) != 0 {
+                *c = self.src_col(*c);
+            }
         }
         for g in w.g[..w.g_len].iter_mut() {
             g.1 = self.src_col(g.1);
@@ -471,7 +509,7 @@ impl Parser {
         for m in w.m[..w.m_len].iter_mut() {
             m.1 = self.src_col(m.1);
         }
-        Ok(w)
+        Ok(())
     }
 
     fn finish(self, line_no: u32) -> Result<Program, ParseError> {

@@ -125,3 +125,12 @@ fn streaming_conversion_stops_when_the_sink_refuses() {
     assert_eq!(r, Err(gcode::ConvertOrSinkError::Sink("full")));
     assert_eq!(seen, 2);
 }
+
+#[test]
+fn the_benchmark_program_parses_and_converts() {
+    let text = gcode::generate::g1_heavy_program(300_000);
+    let p = parse(&text).unwrap_or_else(|e| panic!("{e}"));
+    assert!(p.blocks.len() > 5000);
+    let b = p.to_core_blocks(&CoreOptions::default()).unwrap();
+    assert!(b.len() > 5000);
+}

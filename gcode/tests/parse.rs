@@ -485,3 +485,28 @@ fn hostile_inputs_are_errors_not_panics() {
     assert!(parse("G99999999999999999999").is_err());
     assert_eq!(parse("").unwrap(), Program::default());
 }
+
+#[test]
+fn numbers_read_exactly_as_rusts_float_parser() {
+    // The fast path and the fallback must agree bit for bit.
+    for s in [
+        "0.1",
+        "1.",
+        ".5",
+        "123456.789",
+        "-0.000001",
+        "9007199254740991",
+        "9007199254740993",
+        "0.30000000000000004",
+        "1.0000000000000000000000001",
+        "123456789012345678901234567890",
+        "-.75",
+        "+2.5",
+        "00001.2500",
+        "0.0000000000000000000000123",
+    ] {
+        let want: f64 = s.parse().unwrap();
+        let got = ends(&format!("G0 X{s}"))[0][0];
+        assert_eq!(got.to_bits(), want.to_bits(), "{s}");
+    }
+}
