@@ -223,6 +223,33 @@ impl BlockKind {
 }
 
 impl Program {
+    /// The path tolerance (G64 `P`, mm) in force at the first motion block,
+    /// or, if none is set there, the first one the program sets. interp-core
+    /// takes a chord tolerance per run (`InterpConfig::chord_tolerance`), not
+    /// per block, so this is the figure to give it; `None` when the program
+    /// never gives G64 P (keep the configured default).
+    pub fn path_tolerance(&self) -> Option<f64> {
+        let mut current = None;
+        for b in &self.blocks {
+            match &b.kind {
+                BlockKind::PathControl(PathControl::Blend { path_tolerance, .. }) => {
+                    current = *path_tolerance;
+                }
+                BlockKind::PathControl(_) => current = None,
+                k if k.end_point().is_some() => {
+                    if current.is_some() {
+                        return current;
+                    }
+                }
+                _ => {}
+            }
+        }
+        self.blocks.iter().find_map(|b| match &b.kind {
+            BlockKind::PathControl(PathControl::Blend { path_tolerance, .. }) => *path_tolerance,
+            _ => None,
+        })
+    }
+
     /// The motion blocks' end points in order (a quick summary for tests and tools).
     pub fn end_points(&self) -> impl Iterator<Item = Point> + '_ {
         self.blocks.iter().filter_map(|b| b.kind.end_point())

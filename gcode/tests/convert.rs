@@ -134,3 +134,13 @@ fn the_benchmark_program_parses_and_converts() {
     let b = p.to_core_blocks(&CoreOptions::default()).unwrap();
     assert!(b.len() > 5000);
 }
+
+#[test]
+fn g64_p_is_the_programs_path_tolerance_in_mm() {
+    let tol = |t: &str| parse(t).unwrap().path_tolerance();
+    assert_eq!(tol("G64 P0.01\nG1 X1 F1\nG64 P0.5\nG1 X2\n"), Some(0.01));
+    assert_eq!(tol("G20 G64 P0.001\nG1 X1 F1\n"), Some(0.0254));
+    assert_eq!(tol("G1 X1 F1\nG64 P0.02\nG1 X2\n"), Some(0.02));
+    assert_eq!(tol("G64\nG1 X1 F1\n"), None);
+    assert_eq!(tol("G1 X1 F1\n"), None);
+}
