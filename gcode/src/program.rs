@@ -236,11 +236,7 @@ impl Program {
                     current = *path_tolerance;
                 }
                 BlockKind::PathControl(_) => current = None,
-                k if k.end_point().is_some() => {
-                    if current.is_some() {
-                        return current;
-                    }
-                }
+                k if k.end_point().is_some() && current.is_some() => return current,
                 _ => {}
             }
         }
