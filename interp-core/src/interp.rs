@@ -36,6 +36,10 @@ pub const DEFAULT_QUEUE: usize = 64;
 /// arc length and parameter reach the end together only up to round-off.
 pub const END_SNAP_TOL: f64 = 1e-9;
 
+/// Arc left in a segment, in chords of the tick's step, within which its end
+/// point counts as reachable by the chord (π/2 is a half circle's arc per chord).
+const CHORD_ARC_REACH: f64 = 2.0;
+
 /// Largest gap accepted between one block's end and the next block's start, mm.
 pub const JOIN_TOLERANCE: f64 = 1e-6;
 
@@ -754,14 +758,20 @@ impl<const Q: usize> Interpolator<Q> {
                 return 0.0;
             };
             let end = seg.path.end_point();
+            let arc_left = seg.s1() - self.s;
             let to_end = match update {
                 ParamUpdate::Corrected => (end - from).norm(),
-                _ => seg.s1() - self.s,
+                _ => arc_left,
             };
+            // The chord to the end can be short while the arc is long (a
+            // closed curve starts at its end): the end counts as within reach
+            // only when the arc left is too (a chord of Δ spans an arc of at
+            // most πΔ/2 on any curve the chord law lets through).
+            let reachable = arc_left <= CHORD_ARC_REACH * delta + END_SNAP_TOL;
             // A stop within reach (by the chord, or by the arc the schedule
             // counts, with the resolution of the coordinates) is landed on exactly.
-            let lands = seg.stop_at_end && seg.s1() - self.s <= delta + END_SNAP_TOL;
-            if to_end <= delta || lands {
+            let lands = seg.stop_at_end && arc_left <= delta + END_SNAP_TOL;
+            if (to_end <= delta && reachable) || lands {
                 if seg.stop_at_end {
                     // Land exactly on the end point.
                     self.u = seg.path.u_end();

@@ -403,3 +403,48 @@ fn a_right_angle_corner_stops_and_a_shallow_one_is_blended() {
         "slowest near the joint {slowest}"
     );
 }
+
+#[test]
+fn a_closed_curve_in_one_block_is_traversed_whole() {
+    // Regression: the chord from a closed curve's start to its end is zero,
+    // which once made the interpolator skip the whole block.
+    use interp_core::nurbs::Nurbs;
+    let r = 10.0;
+    let w = core::f64::consts::FRAC_1_SQRT_2;
+    let pts = [
+        [r, 0.0, 0.0],
+        [r, r, 0.0],
+        [0.0, r, 0.0],
+        [-r, r, 0.0],
+        [-r, 0.0, 0.0],
+        [-r, -r, 0.0],
+        [0.0, -r, 0.0],
+        [r, -r, 0.0],
+        [r, 0.0, 0.0],
+    ];
+    let weights = [1.0, w, 1.0, w, 1.0, w, 1.0, w, 1.0];
+    let knots = [
+        0.0, 0.0, 0.0, 0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1.0, 1.0, 1.0,
+    ];
+    let circle = Nurbs::new(2, &pts, &weights, &knots).unwrap();
+    let feed = 20.0;
+    let blocks = [Block::new(1, Path::Nurbs(circle), feed)];
+    let cfg = InterpConfig::default();
+    let run = run_with(cfg, &blocks, |_, _| {});
+    assert_program_properties(&cfg, &blocks, &run);
+    let length = 2.0 * core::f64::consts::PI * r;
+    let time = run.sps.len() as f64 * cfg.period;
+    assert!(
+        time >= length / feed,
+        "{time} s for {length} mm at {feed} mm/s"
+    );
+    // Every quadrant is visited.
+    for q in 0..4 {
+        let a = q as f64 * core::f64::consts::FRAC_PI_2 + 0.3;
+        let p = Vec3::new(r * a.cos(), r * a.sin(), 0.0);
+        assert!(
+            run.sps.iter().any(|s| (v3(&s.axes) - p).norm() < 0.1),
+            "quadrant {q} skipped"
+        );
+    }
+}

@@ -1,0 +1,116 @@
+//! Path time of G-code programs against the acceleration-only optimum
+//! (issue 9), with the default configuration.
+//!
+//! ```text
+//! cargo run --release -p interpd-tests --example path_time -- [--feed MM_PER_MIN] FILE.ngc...
+//! cargo run --release -p interpd-tests --example path_time            # the corpus set below
+//! ```
+//!
+//! With no file it runs the butterfly and three other curves of
+//! `../shared/corpus/nurbs-linuxcnc/g6` (skipped with a note when the corpus
+//! is absent; the butterfly is also in `gcode/tests/programs`). `--feed`
+//! replaces every programmed feed (rapids stay at the machine's top speed).
+//! Prints two lines per program, times in s and the ratios to the optimum:
+//! `curve`, the program's first NURBS curve (its contiguous run of NURBS
+//! blocks, from rest to rest), and `program`, every motion block including
+//! the rapids and lead-ins.
+
+use std::path::{Path, PathBuf};
+
+use gcode::CoreOptions;
+use interp_core::InterpConfig;
+use interp_core::path::{Block, Path as CorePath};
+use interpd_tests::path_time::path_times;
+
+const CORPUS: &str = "../shared/corpus/nurbs-linuxcnc/g6";
+const DEFAULT_SET: [&str; 4] = [
+    "curva_farfalla-q1.ngc",
+    "curva_stella-q1.ngc",
+    "curva_delfino-q1.ngc",
+    "homer-q1.ngc",
+];
+
+fn load(path: &Path, feed: Option<f64>) -> Result<Vec<Block>, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let program = gcode::parse(&text).map_err(|e| format!("{}:{e}", path.display()))?;
+    let opts = CoreOptions::default();
+    let mut blocks = program
+        .to_core_blocks(&opts)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    if let Some(f) = feed {
+        for b in &mut blocks {
+            if b.feed < opts.rapid_speed {
+                b.feed = f / 60.0;
+            }
+        }
+    }
+    Ok(blocks)
+}
+
+fn main() {
+    let mut args: Vec<String> = std::env::args().skip(1).collect();
+    let mut feed = None;
+    if let Some(i) = args.iter().position(|a| a == "--feed") {
+        feed = args.get(i + 1).and_then(|v| v.parse::<f64>().ok());
+        args.drain(i..(i + 2).min(args.len()));
+    }
+    // Run from the workspace root or from tests/.
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let files: Vec<PathBuf> = if args.is_empty() {
+        let dir = root.join(CORPUS);
+        if !dir.is_dir() {
+            eprintln!("note: {} not found; pass files explicitly", dir.display());
+            return;
+        }
+        DEFAULT_SET.iter().map(|f| dir.join(f)).collect()
+    } else {
+        args.iter().map(PathBuf::from).collect()
+    };
+    let cfg = InterpConfig::default();
+    println!(
+        "program | part | blocks | length mm | ours s | trapezoid s | optimum s | ours/opt | trap/opt"
+    );
+    for f in files {
+        let blocks = match load(&f, feed) {
+            Ok(b) => b,
+            Err(e) => {
+                eprintln!("{e}");
+                std::process::exit(1);
+            }
+        };
+        let first = blocks
+            .iter()
+            .position(|b| matches!(b.path, CorePath::Nurbs(_)));
+        let curve: Vec<Block> = match first {
+            Some(i) => blocks[i..]
+                .iter()
+                .take_while(|b| matches!(b.path, CorePath::Nurbs(_)))
+                .copied()
+                .collect(),
+            None => Vec::new(),
+        };
+        let name = f.file_name().unwrap().to_string_lossy().to_string();
+        for (part, set) in [("curve", &curve), ("program", &blocks)] {
+            if set.is_empty() {
+                continue;
+            }
+            let length: f64 = set.iter().map(|b| b.path.length()).sum();
+            match path_times(set, &cfg) {
+                Ok(t) => println!(
+                    "{name} | {part} | {} | {:.1} | {:.3} | {:.3} | {:.3} | {:.4} | {:.4}",
+                    set.len(),
+                    length,
+                    t.ours,
+                    t.trapezoid,
+                    t.optimum,
+                    t.ours / t.optimum,
+                    t.trapezoid / t.optimum
+                ),
+                Err(e) => {
+                    eprintln!("{}: {e}", f.display());
+                    std::process::exit(1);
+                }
+            }
+        }
+    }
+}
