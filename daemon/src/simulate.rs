@@ -1,0 +1,262 @@
+//! `interpd simulate`: a program through the interpolator with no clock.
+//!
+//! The same `Interpolator` as the real-time loop, driven by
+//! `traces::sim::run` (the code `interpd replay` re-runs), writes an MCAP
+//! trace if asked and prints the run's summary.
+//!
+//! Configuration, lowest precedence first: `InterpConfig::default()` and
+//! `SimSettings::default()`, the TOML file of `--config` (tables `[interp]`
+//! and `[simulate]`, kebab-case keys as the structs serialise), every
+//! `--set KEY=VALUE` (any `[interp]` key, TOML value syntax), then the named
+//! flags. Unknown keys are refused with their name.
+
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail};
+use interp_core::InterpConfig;
+use traces::analysis::{Analyzer, Summary};
+use traces::blocks::Program;
+use traces::messages::LoopTimingMsg;
+use traces::sim::{self, SimItem, SimSettings};
+use traces::writer::{TraceCompression, TraceWriter};
+
+/// Options of `interpd simulate`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct SimulateArgs {
+    /// The program: the JSON block form (`docs/traces.md`). G-code (`.ngc`)
+    /// arrives with the G-code parser.
+    pub program: PathBuf,
+    /// TOML configuration (`[interp]`, `[simulate]`).
+    #[arg(long, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+    /// Write the trace to this MCAP file.
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
+    /// Print the summary as one JSON object.
+    #[arg(long)]
+    pub json: bool,
+    /// Override any `[interp]` key, e.g. `--set brake-reserve=0.1` (repeatable).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
+    /// Interpolation period, µs (`interp.period`; default 1000).
+    #[arg(long, value_name = "US")]
+    pub period_us: Option<f64>,
+    /// Chord tolerance, mm (`interp.chord-tolerance`; default 0.001).
+    #[arg(long, value_name = "MM")]
+    pub chord_tolerance_mm: Option<f64>,
+    /// Machine path-speed limit, mm/s (`interp.max-path-speed`; default 250).
+    #[arg(long, value_name = "MM_PER_S")]
+    pub max_speed: Option<f64>,
+    /// Tangential acceleration limit, mm/s² (`interp.max-path-accel`; default 2000).
+    #[arg(long, value_name = "MM_PER_S2")]
+    pub max_accel: Option<f64>,
+    /// Control points per segment when long NURBS are split (`simulate.max-ctrl-per-block`; default 20).
+    #[arg(long, value_name = "N")]
+    pub max_ctrl_per_block: Option<usize>,
+    /// Chunk compression of the trace: zstd (default), lz4 or none.
+    #[arg(long, value_name = "KIND", default_value = "zstd")]
+    pub compression: TraceCompression,
+}
+
+/// Reads a program file.
+pub fn load_program(path: &Path) -> Result<Program> {
+    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+    if ext.eq_ignore_ascii_case("ngc") || ext.eq_ignore_ascii_case("nc") {
+        // TODO(lead): parse with `gcode::parse` and convert to `Program` once
+        // the gcode crate lands (issue: G-code parser); see docs/traces.md.
+        bail!(
+            "{}: G-code input is not wired in yet; give the program in the JSON block form \
+             (docs/traces.md)",
+            path.display()
+        );
+    }
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    serde_json::from_str(&text)
+        .with_context(|| format!("parsing {} as a JSON program", path.display()))
+}
+
+/// The resolved configuration.
+#[derive(Clone, Debug)]
+pub struct Resolved {
+    /// The interpolator's.
+    pub interp: InterpConfig,
+    /// The simulation's.
+    pub settings: SimSettings,
+}
+
+fn table_of<T: serde::Serialize>(v: &T) -> Result<toml::Table> {
+    toml::Table::try_from(v).context("serialising the default configuration")
+}
+
+/// Lays `over` on `base`, refusing keys `base` does not have.
+fn merge(base: &mut toml::Table, over: &toml::Table, section: &str, origin: &str) -> Result<()> {
+    for (k, v) in over {
+        if !base.contains_key(k) {
+            let known: Vec<&str> = base.keys().map(String::as_str).collect();
+            bail!(
+                "{origin}: unknown key `{section}.{k}` (known: {})",
+                known.join(", ")
+            );
+        }
+        base.insert(k.clone(), v.clone());
+    }
+    Ok(())
+}
+
+/// Defaults, then `--config`, then `--set`, then flags.
+pub fn resolve(args: &SimulateArgs) -> Result<Resolved> {
+    let mut interp = table_of(&InterpConfig::default())?;
+    let mut simulate = table_of(&SimSettings::default())?;
+    if let Some(path) = &args.config {
+        let origin = path.display().to_string();
+        let text = std::fs::read_to_string(path).with_context(|| format!("reading {origin}"))?;
+        let file: toml::Table =
+            toml::from_str(&text).with_context(|| format!("parsing {origin} as TOML"))?;
+        for (k, v) in &file {
+            let (target, name) = match k.as_str() {
+                "interp" => (&mut interp, "interp"),
+                "simulate" => (&mut simulate, "simulate"),
+                _ => bail!("{origin}: unknown table `{k}` (known: interp, simulate)"),
+            };
+            let Some(t) = v.as_table() else {
+                bail!("{origin}: `{k}` must be a table");
+            };
+            merge(target, t, name, &origin)?;
+        }
+    }
+    for s in &args.set {
+        let Some((k, v)) = s.split_once('=') else {
+            bail!("--set {s}: expected KEY=VALUE");
+        };
+        let doc: toml::Table = toml::from_str(&format!("{} = {}", k.trim(), v.trim()))
+            .with_context(|| format!("--set {s}: VALUE must be a TOML value"))?;
+        merge(&mut interp, &doc, "interp", &format!("--set {s}"))?;
+    }
+    let mut cfg: InterpConfig = interp
+        .try_into()
+        .context("the [interp] configuration does not fit InterpConfig")?;
+    let mut settings: SimSettings = simulate
+        .try_into()
+        .context("the [simulate] configuration does not fit")?;
+    if let Some(us) = args.period_us {
+        cfg.period = us * 1e-6;
+    }
+    if let Some(v) = args.chord_tolerance_mm {
+        cfg.chord_tolerance = v;
+    }
+    if let Some(v) = args.max_speed {
+        cfg.max_path_speed = v;
+    }
+    if let Some(v) = args.max_accel {
+        cfg.max_path_accel = v;
+    }
+    if let Some(n) = args.max_ctrl_per_block {
+        settings.max_ctrl_per_block = n;
+    }
+    cfg.validate()
+        .map_err(anyhow::Error::msg)
+        .context("checking the configuration")?;
+    let max = interp_core::nurbs::MAX_CTRL;
+    if !(1..=max).contains(&settings.max_ctrl_per_block) {
+        bail!(
+            "simulate.max-ctrl-per-block must be in 1..={max}, got {}",
+            settings.max_ctrl_per_block
+        );
+    }
+    Ok(Resolved {
+        interp: cfg,
+        settings,
+    })
+}
+
+/// What `writer` in the config message says.
+pub fn writer_name() -> String {
+    format!("interpd simulate {}", env!("CARGO_PKG_VERSION"))
+}
+
+/// Runs the simulation; writes the trace to `args.out` if given.
+pub fn run(args: &SimulateArgs) -> Result<Summary> {
+    let program = load_program(&args.program)?;
+    let r = resolve(args)?;
+    let source = args.program.display().to_string();
+    let config = sim::config_for(&program, r.interp, &r.settings, &writer_name(), &source);
+    let expanded = program
+        .expand(r.settings.max_ctrl_per_block, sim::FIRST_BLOCK_ID)
+        .with_context(|| format!("in {source}"))?;
+    let mut analyzer = Analyzer::new(&config, expanded.blocks.len(), expanded.segments());
+    let mut writer = match &args.out {
+        Some(path) => {
+            let f = File::create(path).with_context(|| format!("creating {}", path.display()))?;
+            Some(
+                TraceWriter::new(BufWriter::new(f), args.compression)
+                    .with_context(|| format!("starting the trace {}", path.display()))?,
+            )
+        }
+        None => None,
+    };
+    let period = config.interp.period;
+    sim::run(
+        &config,
+        &program,
+        r.settings.max_machine_time,
+        |item| -> Result<(), traces::writer::WriteError> {
+            match item {
+                SimItem::Config(c) => {
+                    if let Some(w) = &mut writer {
+                        w.config(c)?;
+                    }
+                }
+                SimItem::Block(b) => {
+                    if let Some(w) = &mut writer {
+                        w.block(b, b.accepted_at_seq as f64 * period)?;
+                    }
+                }
+                SimItem::Tick {
+                    setpoint,
+                    queue_depth,
+                } => {
+                    analyzer.push(setpoint);
+                    if let Some(w) = &mut writer {
+                        w.setpoint(setpoint)?;
+                        let timing = LoopTimingMsg {
+                            seq: setpoint.seq,
+                            queue_depth,
+                            ..LoopTimingMsg::default()
+                        };
+                        w.loop_timing(&timing, setpoint.time)?;
+                    }
+                }
+                SimItem::Event(e) => {
+                    analyzer.event(e.kind);
+                    if let Some(w) = &mut writer {
+                        w.event(e)?;
+                    }
+                }
+            }
+            Ok(())
+        },
+    )
+    .with_context(|| format!("simulating {source}"))?;
+    if let (Some(w), Some(path)) = (writer, &args.out) {
+        w.finish()
+            .with_context(|| format!("finishing the trace {}", path.display()))?;
+    }
+    Ok(analyzer.summary())
+}
+
+/// `interpd simulate`.
+pub fn main(args: &SimulateArgs) -> Result<()> {
+    let summary = run(args)?;
+    if args.json {
+        println!("{}", serde_json::to_string(&summary)?);
+    } else {
+        print!("{summary}");
+        if let Some(p) = &args.out {
+            println!("  trace         {}", p.display());
+        }
+    }
+    Ok(())
+}
