@@ -18,7 +18,6 @@ use anyhow::{Context, Result, bail};
 use interp_core::InterpConfig;
 use traces::analysis::{Analyzer, Summary};
 use traces::blocks::Program;
-use traces::messages::LoopTimingMsg;
 use traces::sim::{self, SimItem, SimSettings};
 use traces::writer::{TraceCompression, TraceWriter};
 
@@ -187,62 +186,31 @@ pub fn run(args: &SimulateArgs) -> Result<Summary> {
         .expand(r.settings.max_ctrl_per_block, sim::FIRST_BLOCK_ID)
         .with_context(|| format!("in {source}"))?;
     let mut analyzer = Analyzer::new(&config, expanded.blocks.len(), expanded.segments());
-    let mut writer = match &args.out {
+    let mut observe = |item: &SimItem<'_>| match item {
+        SimItem::Tick { setpoint, .. } => {
+            analyzer.push(setpoint);
+        }
+        SimItem::Event(e) => analyzer.event(e.kind),
+        SimItem::Config(_) | SimItem::Block(_) => {}
+    };
+    let max_time = r.settings.max_machine_time;
+    match &args.out {
         Some(path) => {
             let f = File::create(path).with_context(|| format!("creating {}", path.display()))?;
-            Some(
-                TraceWriter::new(BufWriter::new(f), args.compression)
-                    .with_context(|| format!("starting the trace {}", path.display()))?,
-            )
+            let mut w = TraceWriter::new(BufWriter::new(f), args.compression)
+                .with_context(|| format!("starting the trace {}", path.display()))?;
+            sim::record(&config, &program, max_time, &mut w, observe)
+                .with_context(|| format!("simulating {source}"))?;
+            w.finish()
+                .with_context(|| format!("finishing the trace {}", path.display()))?;
         }
-        None => None,
-    };
-    let period = config.interp.period;
-    sim::run(
-        &config,
-        &program,
-        r.settings.max_machine_time,
-        |item| -> Result<(), traces::writer::WriteError> {
-            match item {
-                SimItem::Config(c) => {
-                    if let Some(w) = &mut writer {
-                        w.config(c)?;
-                    }
-                }
-                SimItem::Block(b) => {
-                    if let Some(w) = &mut writer {
-                        w.block(b, b.accepted_at_seq as f64 * period)?;
-                    }
-                }
-                SimItem::Tick {
-                    setpoint,
-                    queue_depth,
-                } => {
-                    analyzer.push(setpoint);
-                    if let Some(w) = &mut writer {
-                        w.setpoint(setpoint)?;
-                        let timing = LoopTimingMsg {
-                            seq: setpoint.seq,
-                            queue_depth,
-                            ..LoopTimingMsg::default()
-                        };
-                        w.loop_timing(&timing, setpoint.time)?;
-                    }
-                }
-                SimItem::Event(e) => {
-                    analyzer.event(e.kind);
-                    if let Some(w) = &mut writer {
-                        w.event(e)?;
-                    }
-                }
-            }
-            Ok(())
-        },
-    )
-    .with_context(|| format!("simulating {source}"))?;
-    if let (Some(w), Some(path)) = (writer, &args.out) {
-        w.finish()
-            .with_context(|| format!("finishing the trace {}", path.display()))?;
+        None => {
+            sim::run(&config, &program, max_time, |item| {
+                observe(&item);
+                Ok::<(), std::convert::Infallible>(())
+            })
+            .with_context(|| format!("simulating {source}"))?;
+        }
     }
     Ok(analyzer.summary())
 }

@@ -233,3 +233,36 @@ pub fn run<E>(
         stats: ip.stats(),
     })
 }
+
+/// Runs `program` like [`run`] and writes everything to `writer` (config,
+/// blocks at the time they were accepted, setpoints, loop timing with the
+/// queue depth and no clock readings, events). `also` sees every item first.
+pub fn record<W: std::io::Write + std::io::Seek>(
+    config: &ConfigMsg,
+    program: &Program,
+    max_machine_time: f64,
+    writer: &mut crate::writer::TraceWriter<W>,
+    mut also: impl FnMut(&SimItem<'_>),
+) -> Result<SimOutcome, SimError<crate::writer::WriteError>> {
+    let period = config.interp.period;
+    run(config, program, max_machine_time, |item| {
+        also(&item);
+        match item {
+            SimItem::Config(c) => writer.config(c),
+            SimItem::Block(b) => writer.block(b, b.accepted_at_seq as f64 * period),
+            SimItem::Tick {
+                setpoint,
+                queue_depth,
+            } => {
+                writer.setpoint(setpoint)?;
+                let timing = crate::messages::LoopTimingMsg {
+                    seq: setpoint.seq,
+                    queue_depth,
+                    ..Default::default()
+                };
+                writer.loop_timing(&timing, setpoint.time)
+            }
+            SimItem::Event(e) => writer.event(e),
+        }
+    })
+}
