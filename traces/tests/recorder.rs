@@ -4,10 +4,10 @@
 use std::io::Cursor;
 
 use interp_core::{RunState, Setpoint};
+use traces::Trace;
 use traces::messages::{EventKind, LoopTimingMsg};
 use traces::recorder::{PushRefused, Record, Recorder};
 use traces::writer::{TraceCompression, TraceWriter};
-use traces::Trace;
 
 fn setpoint(k: u64) -> Setpoint {
     Setpoint {
@@ -94,7 +94,14 @@ fn a_small_queue_overflows_counts_and_records_it_without_allocating() {
                 }
                 Err(other) => panic!("{other:?}"),
             }
-            let _ = tx.try_push(Record::LoopTiming(LoopTimingMsg { seq: k, queue_depth: 3, ..Default::default() }, k as f64 * 1e-3));
+            let _ = tx.try_push(Record::LoopTiming(
+                LoopTimingMsg {
+                    seq: k,
+                    queue_depth: 3,
+                    ..Default::default()
+                },
+                k as f64 * 1e-3,
+            ));
         }
         refused
     });
@@ -104,16 +111,33 @@ fn a_small_queue_overflows_counts_and_records_it_without_allocating() {
     let overflows = tx.overflows();
     drop(tx);
     let (sink, report) = rec.join().expect("recorder finishes");
-    assert!(refused > 0, "20,000 pushes into 4 slots while encoding: some must be refused");
+    assert!(
+        refused > 0,
+        "20,000 pushes into 4 slots while encoding: some must be refused"
+    );
     assert_eq!(report.overflows, overflows);
     assert_eq!(report.written.setpoints + refused, N);
     let trace = Trace::from_bytes(&sink.into_inner()).expect("trace reads");
     assert_eq!(trace.setpoints.len() as u64, N - refused);
-    assert!(trace.setpoints.windows(2).all(|w| w[0].seq < w[1].seq), "in order");
-    let ev: Vec<_> = trace.events.iter().filter(|e| e.kind == EventKind::RecorderOverflow).collect();
+    assert!(
+        trace.setpoints.windows(2).all(|w| w[0].seq < w[1].seq),
+        "in order"
+    );
+    let ev: Vec<_> = trace
+        .events
+        .iter()
+        .filter(|e| e.kind == EventKind::RecorderOverflow)
+        .collect();
     assert!(!ev.is_empty(), "overflow recorded as an event");
-    assert!(ev.windows(2).all(|w| w[0].count < w[1].count), "running totals");
-    assert_eq!(ev.last().and_then(|e| e.count), Some(overflows), "final total recorded");
+    assert!(
+        ev.windows(2).all(|w| w[0].count < w[1].count),
+        "running totals"
+    );
+    assert_eq!(
+        ev.last().and_then(|e| e.count),
+        Some(overflows),
+        "final total recorded"
+    );
 }
 
 #[test]
