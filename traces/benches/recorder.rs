@@ -23,6 +23,14 @@ use traces::recorder::{Record, Recorder};
 use traces::sim::{self, SimItem, SimSettings};
 use traces::writer::{CHUNK_SIZE, TraceCompression, TraceWriter};
 
+/// Compression and level pairs measured (0: the codec's default, zstd 3).
+const LEVELS: [(TraceCompression, u32); 4] = [
+    (TraceCompression::Zstd, 1),
+    (TraceCompression::Zstd, 0),
+    (TraceCompression::Lz4, 0),
+    (TraceCompression::None, 0),
+];
+
 fn setpoints() -> Vec<Setpoint> {
     let program: Program =
         serde_json::from_str(include_str!("../../tests/golden/nurbs_mrr.json")).expect("program");
@@ -41,7 +49,19 @@ fn setpoints() -> Vec<Setpoint> {
         Ok::<(), ()>(())
     })
     .expect("simulates");
-    out
+    // Sixteen copies (seq and time continued) so that per-trace costs (schemas,
+    // compressor set-up, summary) are amortised as over a real run.
+    let n = out.len() as u64;
+    let ts = 1e-3;
+    (0..16u64)
+        .flat_map(|r| {
+            out.iter().map(move |sp| Setpoint {
+                seq: sp.seq + r * n,
+                time: sp.time + (r * n) as f64 * ts,
+                ..*sp
+            })
+        })
+        .collect()
 }
 
 fn varint(buf: &mut Vec<u8>, mut v: u64) {
@@ -74,8 +94,8 @@ fn protobuf(buf: &mut Vec<u8>, sp: &Setpoint) {
     varint(buf, sp.state as u64);
 }
 
-fn write_json(sps: &[Setpoint], c: TraceCompression) -> usize {
-    let mut w = TraceWriter::new(Cursor::new(Vec::new()), c).expect("writer");
+fn write_json(sps: &[Setpoint], c: TraceCompression, level: u32) -> usize {
+    let mut w = TraceWriter::with_level(Cursor::new(Vec::new()), c, level).expect("writer");
     for sp in sps {
         w.setpoint(sp).expect("write");
     }
@@ -85,6 +105,7 @@ fn write_json(sps: &[Setpoint], c: TraceCompression) -> usize {
 fn write_protobuf(sps: &[Setpoint]) -> usize {
     let mut w = mcap::WriteOptions::new()
         .compression(Some(mcap::Compression::Zstd))
+        .compression_level(1)
         .chunk_size(Some(CHUNK_SIZE))
         .compression_threads(0)
         .create(Cursor::new(Vec::new()))
@@ -131,18 +152,14 @@ fn bench(c: &mut Criterion) {
         json_bytes as f64 / n as f64,
         pb_bytes as f64 / n as f64
     );
-    for cmp in [
-        TraceCompression::Zstd,
-        TraceCompression::Lz4,
-        TraceCompression::None,
-    ] {
+    for (cmp, level) in LEVELS {
         eprintln!(
-            "file bytes/setpoint, JSON {cmp:?}: {:.1}",
-            write_json(&sps, cmp) as f64 / n as f64
+            "file bytes/setpoint, JSON {cmp:?} level {level}: {:.1}",
+            write_json(&sps, cmp, level) as f64 / n as f64
         );
     }
     eprintln!(
-        "file bytes/setpoint, protobuf Zstd: {:.1}",
+        "file bytes/setpoint, protobuf Zstd level 1: {:.1}",
         write_protobuf(&sps) as f64 / n as f64
     );
 
@@ -171,18 +188,14 @@ fn bench(c: &mut Criterion) {
 
     let mut g = c.benchmark_group("write");
     g.throughput(Throughput::Elements(n as u64));
-    for cmp in [
-        TraceCompression::Zstd,
-        TraceCompression::Lz4,
-        TraceCompression::None,
-    ] {
+    for (cmp, level) in LEVELS {
         g.bench_with_input(
-            BenchmarkId::new("json", format!("{cmp:?}")),
-            &cmp,
-            |b, &cmp| b.iter(|| black_box(write_json(&sps, cmp))),
+            BenchmarkId::new("json", format!("{cmp:?}-{level}")),
+            &(cmp, level),
+            |b, &(cmp, level)| b.iter(|| black_box(write_json(&sps, cmp, level))),
         );
     }
-    g.bench_function("protobuf/Zstd", |b| {
+    g.bench_function("protobuf/Zstd-1", |b| {
         b.iter(|| black_box(write_protobuf(&sps)))
     });
     g.finish();

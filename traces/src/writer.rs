@@ -17,6 +17,11 @@ use crate::messages::{
 /// chunk; 256 KiB is ~1,000 setpoints and compresses as well as larger chunks.
 pub const CHUNK_SIZE: u64 = 256 * 1024;
 
+/// Compression level of [`TraceWriter::new`]: zstd level 1, the fastest
+/// (level 3, zstd's default, halves the writer's throughput for ~10 % smaller
+/// files; `BENCHMARKS.md`).
+pub const COMPRESSION_LEVEL: u32 = 1;
+
 /// Chunk compression. Measured in `BENCHMARKS.md` (`## traces`): zstd makes
 /// setpoint traces ~5× smaller than none at a small fraction of the writer's
 /// time, and every MCAP reader (Python `mcap`, Foxglove) decodes it.
@@ -111,9 +116,15 @@ fn log_time(t: f64) -> u64 {
 impl<W: Write + Seek> TraceWriter<W> {
     /// Starts a trace on `w` and registers the channels.
     pub fn new(w: W, compression: TraceCompression) -> Result<Self, WriteError> {
+        Self::with_level(w, compression, COMPRESSION_LEVEL)
+    }
+
+    /// [`TraceWriter::new`] with a compression level (0: the codec's default).
+    pub fn with_level(w: W, compression: TraceCompression, level: u32) -> Result<Self, WriteError> {
         let opts = WriteOptions::new()
             .profile(PROFILE)
             .compression(compression.mcap())
+            .compression_level(level)
             .chunk_size(Some(CHUNK_SIZE))
             // The recorder is one thread on one core: no compression pool.
             .compression_threads(0);
