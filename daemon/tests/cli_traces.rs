@@ -201,3 +201,38 @@ fn a_damaged_trace_is_refused_with_what_was_recovered() {
         );
     }
 }
+
+#[test]
+fn gcode_programs_simulate_and_replay_from_the_trace_alone() {
+    let ngc = tmp("small.ngc");
+    std::fs::write(
+        &ngc,
+        "G21 G90 G17\nG0 X0 Y0 Z0\nG1 X10 F600\nG2 X20 Y0 I5 J0 F900\nG1 Y5\nG0 Y5\nM2\n",
+    )
+    .unwrap();
+    let out = tmp("small.mcap");
+    let o = interpd(&[
+        "simulate",
+        ngc.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let s: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    // G0 to where it stands and the zero-length G0 are dropped: three moves.
+    assert_eq!(s["input_blocks"], 3, "{s}");
+    assert_eq!(s["final_state"], "done");
+    assert_eq!(s["final_point"], serde_json::json!([20.0, 5.0, 0.0]));
+    let t = traces::Trace::open(&out).expect("reads");
+    let lines: Vec<_> = t.blocks.iter().map(|b| b.block.source_line).collect();
+    assert_eq!(lines, [Some(3), Some(4), Some(5)]);
+    std::fs::remove_file(&ngc).unwrap();
+    let o = interpd(&["replay", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    let bad = tmp("bad.ngc");
+    std::fs::write(&bad, "G1 X10 F600\nG1 X(1+\n").unwrap();
+    let o = interpd(&["simulate", bad.to_str().unwrap()]);
+    assert!(!o.status.success());
+    assert!(text(&o).contains("bad.ngc"), "{}", text(&o));
+}
