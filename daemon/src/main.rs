@@ -11,6 +11,9 @@
 mod clock;
 mod demo;
 mod histogram;
+mod replay;
+mod simulate;
+mod trace_cmd;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -27,11 +30,20 @@ struct Cli {
 enum Command {
     /// Stream the bundled butterfly NURBS through the interpolator loop and print a summary.
     Demo(demo::DemoArgs),
+    /// Run a program through the interpolator with no clock; print a summary, write a trace.
+    Simulate(simulate::SimulateArgs),
+    /// Re-simulate a trace's blocks and compare every setpoint bit for bit.
+    Replay(replay::ReplayArgs),
+    /// Summarise or plot a recorded trace.
+    Trace(trace_cmd::TraceArgs),
 }
 
 fn main() -> Result<()> {
     match Cli::parse().command {
         Command::Demo(args) => demo::main(&args),
+        Command::Simulate(args) => simulate::main(&args),
+        Command::Replay(args) => replay::main(&args),
+        Command::Trace(args) => trace_cmd::main(&args),
     }
 }
 
@@ -51,7 +63,9 @@ mod tests {
         assert!(matches!(cli.command, Command::Demo(_)));
         let cli = Cli::try_parse_from(["interpd", "demo", "--fast", "--json", "--feed", "3000"])
             .expect("demo flags parse");
-        let Command::Demo(args) = cli.command;
+        let Command::Demo(args) = cli.command else {
+            panic!("expected demo");
+        };
         assert!(args.fast && args.json);
         assert_eq!(args.feed, 3000.0);
     }
