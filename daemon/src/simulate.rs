@@ -138,10 +138,10 @@ pub fn program_from_gcode(g: &gcode::Program, rapid_speed: f64) -> Result<Progra
             ),
             _ => continue,
         };
-        if let PathSpec::Line { end } = &block.path {
-            if *end == from {
-                continue; // zero length: moves nothing
-            }
+        if let PathSpec::Line { end } = &block.path
+            && *end == from
+        {
+            continue; // zero length: moves nothing
         }
         start.get_or_insert(from);
         blocks.push(block);

@@ -50,7 +50,11 @@ fn python_mcap_reads_our_traces() {
     let dir = std::env::temp_dir().join(format!("interpd-interop-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");
     for (name, program) in golden_programs() {
-        for compression in [TraceCompression::Zstd, TraceCompression::Lz4, TraceCompression::None] {
+        for compression in [
+            TraceCompression::Zstd,
+            TraceCompression::Lz4,
+            TraceCompression::None,
+        ] {
             let bytes = record(&golden_config(&program, &name), &program, compression);
             let trace = Trace::from_bytes(&bytes).expect("reads");
             let path = dir.join(format!("{name}-{compression:?}.mcap"));

@@ -145,10 +145,11 @@ fn drain<W: Write + Seek>(
         }
     }
     let now = overflow.load(Ordering::Relaxed);
-    if now > reported && first_error.is_none() {
-        if let Err(e) = w.event(&overflow_event(at, now)) {
-            first_error = Some(e);
-        }
+    if now > reported
+        && first_error.is_none()
+        && let Err(e) = w.event(&overflow_event(at, now))
+    {
+        first_error = Some(e);
     }
     if let Some(e) = first_error {
         return Err(e);

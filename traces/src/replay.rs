@@ -88,6 +88,12 @@ impl<'de> Deserialize<'de> for Fields {
     }
 }
 
+/// A value's JSON text: equal text is equal bits (`Value`'s own `==` takes
+/// `-0.0` for `0.0`).
+fn json_text(v: &Value) -> String {
+    v.to_string()
+}
+
 /// The first field (in declaration order) whose JSON differs: `None` when
 /// the two serialise identically, which for our writer means equal bits
 /// (shortest round-trip floats; `-0.0` prints as such).
@@ -102,7 +108,7 @@ pub fn first_difference(recorded: &SetpointMsg, replayed: &SetpointMsg) -> Optio
     let diff =
         fa.0.iter()
             .zip(&fb.0)
-            .find(|((ka, va), (kb, vb))| ka != kb || va.to_string() != vb.to_string());
+            .find(|((ka, va), (kb, vb))| ka != kb || json_text(va) != json_text(vb));
     let (field, r, p) = match diff {
         Some(((k, va), (_, vb))) => (k.clone(), va.to_string(), vb.to_string()),
         None => ("(record)".to_owned(), a, b),

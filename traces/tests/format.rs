@@ -55,7 +55,7 @@ fn setpoints_round_trip_through_json_bit_for_bit() {
     ];
     for k in 0..20_000u64 {
         let pick = |rng: &mut Rng| {
-            if rng.next() % 4 == 0 {
+            if rng.next().is_multiple_of(4) {
                 specials[(rng.next() % specials.len() as u64) as usize]
             } else {
                 rng.f64()
