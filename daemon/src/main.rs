@@ -11,6 +11,7 @@
 mod clock;
 mod demo;
 mod histogram;
+mod plan_raster;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -27,11 +28,22 @@ struct Cli {
 enum Command {
     /// Stream the bundled butterfly NURBS through the interpolator loop and print a summary.
     Demo(demo::DemoArgs),
+    /// Offline planners: meshes to tool paths.
+    #[command(subcommand)]
+    Plan(PlanCommand),
+}
+
+/// `interpd plan …` subcommands.
+#[derive(Debug, Subcommand)]
+enum PlanCommand {
+    /// Raster finishing over an STL mesh by slicing the offset triangle mesh.
+    Raster(plan_raster::RasterArgs),
 }
 
 fn main() -> Result<()> {
     match Cli::parse().command {
         Command::Demo(args) => demo::main(&args),
+        Command::Plan(PlanCommand::Raster(args)) => plan_raster::main(&args),
     }
 }
 
@@ -51,8 +63,44 @@ mod tests {
         assert!(matches!(cli.command, Command::Demo(_)));
         let cli = Cli::try_parse_from(["interpd", "demo", "--fast", "--json", "--feed", "3000"])
             .expect("demo flags parse");
-        let Command::Demo(args) = cli.command;
+        let Command::Demo(args) = cli.command else {
+            panic!("demo parsed as another command");
+        };
         assert!(args.fast && args.json);
         assert_eq!(args.feed, 3000.0);
+    }
+
+    #[test]
+    fn plan_raster_subcommand_parses() {
+        let cli = Cli::try_parse_from([
+            "interpd",
+            "plan",
+            "raster",
+            "--stl",
+            "part.stl",
+            "--tool",
+            "ball:6",
+            "--stepover",
+            "0.5",
+            "--angle",
+            "30",
+            "--zigzag",
+            "--out",
+            "part.ngc",
+            "--json",
+        ])
+        .expect("plan raster parses");
+        let Command::Plan(PlanCommand::Raster(args)) = cli.command else {
+            panic!("plan raster parsed as another command");
+        };
+        assert_eq!(args.tool, planner::cutter::Cutter::Ball { diameter: 6.0 });
+        assert!(args.zigzag && args.json);
+        assert_eq!((args.stepover, args.angle), (0.5, 30.0));
+        assert!(
+            Cli::try_parse_from([
+                "interpd", "plan", "raster", "--stl", "a.stl", "--tool", "cone:6"
+            ])
+            .is_err()
+        );
     }
 }
