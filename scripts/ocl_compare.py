@@ -72,9 +72,12 @@ def make_cutter(tool):
     raise SystemExit(f"unknown tool {tool}")
 
 
-def ocl_points(stl, tool, ys, xs, zmin, threads):
+def ocl_points(tris, tool, ys, xs, zmin, threads):
+    # Triangles go in directly: OCL's STLReader takes binary files whose
+    # header starts with "solid" for ASCII.
     surf = ocl.STLSurf()
-    ocl.STLReader(stl, surf)
+    for a, b, c in tris:
+        surf.addTriangle(ocl.Triangle(ocl.Point(*a), ocl.Point(*b), ocl.Point(*c)))
     bdc = ocl.BatchDropCutter()
     bdc.setSTL(surf)
     bdc.setCutter(make_cutter(tool))
@@ -125,7 +128,7 @@ def main():
     ap.add_argument("--fixture", help="write the OCL points as a JSON fixture here")
     args = ap.parse_args()
 
-    (x0, x1, y0, y1, z0, z1), _ = read_bounds(args.stl)
+    (x0, x1, y0, y1, z0, z1), tris = read_bounds(args.stl)
     with tempfile.TemporaryDirectory() as tmp:
         cl = os.path.join(tmp, "cl.json")
         cmd = [args.interpd, "plan", "raster", "--stl", args.stl, "--tool", args.tool,
@@ -147,7 +150,7 @@ def main():
     r = float(args.tool.split(":")[1]) / 2
     nx = int((x1 - x0 + 2 * r) / args.sample) + 1
     xs = [x0 - r + i * args.sample for i in range(nx)]
-    pts, ocl_s = ocl_points(args.stl, args.tool, ys, xs, z0 - BELOW, args.threads)
+    pts, ocl_s = ocl_points(tris, args.tool, ys, xs, z0 - BELOW, args.threads)
 
     max_dz, worst, compared, missing = 0.0, None, 0, 0
     fixture = []

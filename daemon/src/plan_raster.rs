@@ -105,7 +105,7 @@ pub fn main(args: &RasterArgs) -> Result<()> {
     let show = !args.quiet && !args.json && std::io::stderr().is_terminal();
     let bar = |done: usize, total: usize| {
         // Redraw about 50 times per run.
-        if show && (done == total || done % (total / 50).max(1) == 0) {
+        if show && (done == total || done.is_multiple_of((total / 50).max(1))) {
             let filled = done * 40 / total.max(1);
             eprint!(
                 "\r[{}{}] {done}/{total} passes",

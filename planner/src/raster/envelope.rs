@@ -31,8 +31,11 @@ pub(crate) struct EnvelopeOptions {
     /// candidate at the midpoint wins.
     pub min_split: f64,
     /// Two candidates whose values agree this closely (mm) at the sample
-    /// points and that come from the same feature are one curve.
+    /// points may be one curve (see `same_curve_width`).
     pub same_value: f64,
+    /// Below this interval width (mm) two curves equal at three points are
+    /// taken as one.
+    pub same_curve_width: f64,
     /// Chord tolerance of the output polyline, mm.
     pub chord_tolerance: f64,
 }
@@ -165,7 +168,6 @@ fn resolve(
         full: bool,
         ub: f64,
         z: [f64; 3],
-        feature: Feature,
         line: bool,
     }
     let mut bounds: Vec<Bound> = Vec::with_capacity(cands.len());
@@ -178,7 +180,7 @@ fn resolve(
         }
         let c = 0.5 * (a + b);
         let (za, _) = geo.eval(i, a);
-        let (zc, feature) = geo.eval(i, c);
+        let (zc, _) = geo.eval(i, c);
         let (zb, _) = geo.eval(i, b);
         let full = a == s && b == t;
         if full {
@@ -190,8 +192,10 @@ fn resolve(
             full,
             ub,
             z: [za, zc, zb],
-            feature,
-            line: matches!(p.kind, PieceKind::Line { .. }),
+            // A concave curve through the midpoint of its chord is straight
+            // on the interval (it is above the chord and concave).
+            line: matches!(p.kind, PieceKind::Line { .. })
+                || (za + zb - 2.0 * zc).abs() <= opt.same_value,
         });
     }
     // Linear lower bounds of the envelope: the chords of the full candidates
@@ -227,14 +231,15 @@ fn resolve(
         if !(b.ub >= lower) || below(b) {
             continue;
         }
-        // The same curve held twice: one vertex offset in two capsules (same
-        // feature), or a line and a concave curve equal at three points
-        // (then equal throughout).
+        // The same curve held twice: a straight piece and a concave curve
+        // equal at three points are equal throughout; two curves equal at three points
+        // of a very short interval (one vertex offset in two capsules) differ
+        // in between by far less than the tolerances.
         let dup = b.full
             && kept.iter().any(|&j| {
                 let o = &bounds[j];
                 o.full
-                    && (o.feature == b.feature || o.line || b.line)
+                    && (o.line || b.line || t - s <= opt.same_curve_width)
                     && (0..3).all(|q| (o.z[q] - b.z[q]).abs() <= opt.same_value)
             });
         if dup {
