@@ -534,7 +534,8 @@ fn translating_the_mesh_moves_the_path() {
     let soup = heightfield(-6.0, 6.0, -6.0, 6.0, 12, f);
     let d = nalgebra::Vector3::new(3.25, -1.5, 7.0);
     let moved: Vec<[P3; 3]> = soup.iter().map(|t| t.map(|q| q + d)).collect();
-    for cutter in cutters() {
+    // The bull cutter is left out to keep the test quick (see the docs).
+    for cutter in ["ball:6", "flat:6"].map(|s| s.parse::<Cutter>().unwrap()) {
         let a = plan_raster(&mesh(&soup), &cutter, &config(0.5)).unwrap();
         let b = plan_raster(&mesh(&moved), &cutter, &config(0.5)).unwrap();
         assert_eq!(a.passes.len(), b.passes.len());
