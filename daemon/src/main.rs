@@ -14,6 +14,7 @@ mod histogram;
 mod replay;
 mod simulate;
 mod trace_cmd;
+mod plan_raster;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -36,6 +37,16 @@ enum Command {
     Replay(replay::ReplayArgs),
     /// Summarise or plot a recorded trace.
     Trace(trace_cmd::TraceArgs),
+    /// Offline planners: meshes to tool paths.
+    #[command(subcommand)]
+    Plan(PlanCommand),
+}
+
+/// `interpd plan …` subcommands.
+#[derive(Debug, Subcommand)]
+enum PlanCommand {
+    /// Raster finishing over an STL mesh by slicing the offset triangle mesh.
+    Raster(plan_raster::RasterArgs),
 }
 
 fn main() -> Result<()> {
@@ -44,6 +55,7 @@ fn main() -> Result<()> {
         Command::Simulate(args) => simulate::main(&args),
         Command::Replay(args) => replay::main(&args),
         Command::Trace(args) => trace_cmd::main(&args),
+        Command::Plan(PlanCommand::Raster(args)) => plan_raster::main(&args),
     }
 }
 
@@ -68,5 +80,39 @@ mod tests {
         };
         assert!(args.fast && args.json);
         assert_eq!(args.feed, 3000.0);
+    }
+
+    #[test]
+    fn plan_raster_subcommand_parses() {
+        let cli = Cli::try_parse_from([
+            "interpd",
+            "plan",
+            "raster",
+            "--stl",
+            "part.stl",
+            "--tool",
+            "ball:6",
+            "--stepover",
+            "0.5",
+            "--angle",
+            "30",
+            "--zigzag",
+            "--out",
+            "part.ngc",
+            "--json",
+        ])
+        .expect("plan raster parses");
+        let Command::Plan(PlanCommand::Raster(args)) = cli.command else {
+            panic!("plan raster parsed as another command");
+        };
+        assert_eq!(args.tool, planner::cutter::Cutter::Ball { diameter: 6.0 });
+        assert!(args.zigzag && args.json);
+        assert_eq!((args.stepover, args.angle), (0.5, 30.0));
+        assert!(
+            Cli::try_parse_from([
+                "interpd", "plan", "raster", "--stl", "a.stl", "--tool", "cone:6"
+            ])
+            .is_err()
+        );
     }
 }

@@ -170,6 +170,192 @@ impl TriMesh {
     }
 }
 
+/// How the two triangles on an edge meet (seed `001_…` §4.2, Fig. 3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum EdgeConvexity {
+    /// The material bends away: a ball rolling over the edge touches it.
+    Convex,
+    /// The two triangles are coplanar within the tolerance.
+    Flat,
+    /// The material bends towards the cutter; the edge never touches it.
+    Concave,
+    /// Only one triangle uses the edge (the mesh's border or a gap).
+    Boundary,
+    /// Three or more triangles use the edge (overlaps, bad topology), or the
+    /// two triangles run it the same way (inconsistent orientation).
+    NonManifold,
+}
+
+/// One undirected edge of a [`TriMesh`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MeshEdge {
+    /// End vertices, the smaller index first.
+    pub vertices: [u32; 2],
+    /// The first two triangles using the edge; [`NO_TRIANGLE`] when absent.
+    pub triangles: [u32; 2],
+    /// Convexity judged with the triangles' own (file-orientation) normals.
+    pub convexity: EdgeConvexity,
+}
+
+/// Marks a missing neighbour in [`MeshEdge::triangles`] and
+/// [`MeshTopology::neighbours`] (the seed's `-1`).
+pub const NO_TRIANGLE: u32 = u32::MAX;
+
+/// Options for [`TriMesh::topology`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TopologyOptions {
+    /// Two triangles whose far corner lies within this distance (mm) of the
+    /// other's plane meet at a [`EdgeConvexity::Flat`] edge. Default 1e-9 mm:
+    /// only truly coplanar pairs, so no machining-relevant edge is skipped.
+    pub flat_tolerance: f64,
+    /// A triangle whose smallest altitude is below this (mm) is counted as a
+    /// sliver. Default 1e-4 mm.
+    pub sliver_height: f64,
+}
+
+impl Default for TopologyOptions {
+    fn default() -> Self {
+        Self {
+            flat_tolerance: 1e-9,
+            sliver_height: 1e-4,
+        }
+    }
+}
+
+/// Adjacency of a [`TriMesh`]: edges with convexity, each triangle's edges
+/// and neighbours (seed `001_…` Fig. 3), and counts of the defects found.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MeshTopology {
+    /// All undirected edges.
+    pub edges: Vec<MeshEdge>,
+    /// Edge `k` of triangle `t` (from corner `k` to corner `k+1`) is
+    /// `edges[triangle_edges[t][k]]`.
+    pub triangle_edges: Vec<[u32; 3]>,
+    /// The triangle across edge `k` of triangle `t`, or [`NO_TRIANGLE`].
+    pub neighbours: Vec<[u32; 3]>,
+    /// Edges with a single triangle.
+    pub boundary_edges: usize,
+    /// Edges with three or more triangles or inconsistent orientation.
+    pub non_manifold_edges: usize,
+    /// Triangles with an altitude below [`TopologyOptions::sliver_height`].
+    pub slivers: usize,
+}
+
+impl TriMesh {
+    /// Builds edges, neighbours and per-edge convexity. Edges are found by
+    /// sorting (vertex, vertex) keys, so this is O(n log n) and needs no hash map.
+    pub fn topology(&self, options: TopologyOptions) -> MeshTopology {
+        let n = self.triangles.len();
+        // (lo, hi, triangle, local edge, forward?)
+        let mut keys: Vec<(u32, u32, u32, u8)> = Vec::with_capacity(3 * n);
+        for (t, tri) in self.triangles.iter().enumerate() {
+            for k in 0..3 {
+                let (a, b) = (tri[k], tri[(k + 1) % 3]);
+                keys.push((a.min(b), a.max(b), t as u32, k as u8));
+            }
+        }
+        keys.sort_unstable();
+        let mut edges = Vec::with_capacity(3 * n / 2 + 1);
+        let mut triangle_edges = vec![[0u32; 3]; n];
+        let mut neighbours = vec![[NO_TRIANGLE; 3]; n];
+        let (mut boundary_edges, mut non_manifold_edges) = (0, 0);
+        let mut i = 0;
+        while i < keys.len() {
+            let mut j = i + 1;
+            while j < keys.len() && keys[j].0 == keys[i].0 && keys[j].1 == keys[i].1 {
+                j += 1;
+            }
+            let group = &keys[i..j];
+            let id = edges.len() as u32;
+            for &(_, _, t, k) in group {
+                triangle_edges[t as usize][k as usize] = id;
+            }
+            let (lo, hi) = (group[0].0, group[0].1);
+            let convexity = match group {
+                [_] => {
+                    boundary_edges += 1;
+                    EdgeConvexity::Boundary
+                }
+                [a, b] => {
+                    neighbours[a.2 as usize][a.3 as usize] = b.2;
+                    neighbours[b.2 as usize][b.3 as usize] = a.2;
+                    let forward =
+                        |g: &(u32, u32, u32, u8)| self.triangles[g.2 as usize][g.3 as usize] == lo;
+                    if forward(a) == forward(b) {
+                        non_manifold_edges += 1;
+                        EdgeConvexity::NonManifold
+                    } else {
+                        self.classify_edge(a.2 as usize, b.2 as usize, lo, hi, options)
+                    }
+                }
+                _ => {
+                    non_manifold_edges += 1;
+                    EdgeConvexity::NonManifold
+                }
+            };
+            edges.push(MeshEdge {
+                vertices: [lo, hi],
+                triangles: [group[0].2, group.get(1).map_or(NO_TRIANGLE, |g| g.2)],
+                convexity,
+            });
+            i = j;
+        }
+        let slivers = (0..n)
+            .filter(|&t| self.min_altitude(t) < options.sliver_height)
+            .count();
+        MeshTopology {
+            edges,
+            triangle_edges,
+            neighbours,
+            boundary_edges,
+            non_manifold_edges,
+            slivers,
+        }
+    }
+
+    /// Smallest altitude of triangle `t` (twice the area over the longest side).
+    pub fn min_altitude(&self, t: usize) -> f64 {
+        let [a, b, c] = self.corners(t);
+        let area2 = (b - a).cross(&(c - a)).norm();
+        let longest = (b - a).norm().max((c - b).norm()).max((a - c).norm());
+        area2 / longest
+    }
+
+    /// The corner of triangle `t` that is not `lo` or `hi`.
+    fn far_corner(&self, t: usize, lo: u32, hi: u32) -> P3 {
+        let tri = self.triangles[t];
+        let v = tri
+            .iter()
+            .copied()
+            .find(|&v| v != lo && v != hi)
+            .unwrap_or(tri[0]);
+        self.vertices[v as usize]
+    }
+
+    fn classify_edge(
+        &self,
+        a: usize,
+        b: usize,
+        lo: u32,
+        hi: u32,
+        options: TopologyOptions,
+    ) -> EdgeConvexity {
+        let on_edge = self.vertices[lo as usize];
+        // Signed height of b's far corner above a's plane (and vice versa):
+        // negative means the surface falls away, i.e. a convex edge.
+        let hb = (self.far_corner(b, lo, hi) - on_edge).dot(&self.normals[a]);
+        let ha = (self.far_corner(a, lo, hi) - on_edge).dot(&self.normals[b]);
+        let tol = options.flat_tolerance;
+        if hb < -tol || ha < -tol {
+            EdgeConvexity::Convex
+        } else if hb > tol || ha > tol {
+            EdgeConvexity::Concave
+        } else {
+            EdgeConvexity::Flat
+        }
+    }
+}
+
 /// Merges points within a tolerance by hashing them into grid cells of that
 /// size and looking in the 27 cells around each new point.
 struct Welder {
