@@ -9,3 +9,4 @@
 
 pub mod cutter;
 pub mod mesh;
+pub mod setup;
