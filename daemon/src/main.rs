@@ -11,6 +11,7 @@
 mod clock;
 mod demo;
 mod histogram;
+mod plan_setup;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -27,11 +28,22 @@ struct Cli {
 enum Command {
     /// Stream the bundled butterfly NURBS through the interpolator loop and print a summary.
     Demo(demo::DemoArgs),
+    /// Offline planners (5-axis setup, …).
+    #[command(subcommand)]
+    Plan(PlanCommand),
+}
+
+/// `interpd plan …` subcommands.
+#[derive(Debug, Subcommand)]
+enum PlanCommand {
+    /// 5-axis machinability and setup orientation of an STL part.
+    Setup(plan_setup::SetupArgs),
 }
 
 fn main() -> Result<()> {
     match Cli::parse().command {
         Command::Demo(args) => demo::main(&args),
+        Command::Plan(PlanCommand::Setup(args)) => plan_setup::main(&args),
     }
 }
 
@@ -51,8 +63,43 @@ mod tests {
         assert!(matches!(cli.command, Command::Demo(_)));
         let cli = Cli::try_parse_from(["interpd", "demo", "--fast", "--json", "--feed", "3000"])
             .expect("demo flags parse");
-        let Command::Demo(args) = cli.command;
+        let Command::Demo(args) = cli.command else {
+            panic!("expected demo");
+        };
         assert!(args.fast && args.json);
         assert_eq!(args.feed, 3000.0);
+    }
+
+    #[test]
+    fn plan_setup_parses_and_refuses_bad_machines() {
+        let cli = Cli::try_parse_from([
+            "interpd",
+            "plan",
+            "setup",
+            "--stl",
+            "p.stl",
+            "--machine",
+            "W/caxyBz/T",
+            "--ranges",
+            "30,20,180,180",
+            "--cells",
+            "5000",
+            "--json",
+        ])
+        .expect("plan setup parses");
+        let Command::Plan(PlanCommand::Setup(args)) = cli.command else {
+            panic!("expected plan setup");
+        };
+        assert_eq!((args.cells, args.json), (5000, true));
+        assert_eq!(args.machine.key().to_string(), "caB");
+        assert!((args.ranges.degrees()[1] - 20.0).abs() < 1e-12);
+        for bad in [
+            ["--machine", "W/xyBzac/T", "--ranges", "1,1,1,1"],
+            ["--machine", "W/caxyBz/T", "--ranges", "1,2,1,1"],
+        ] {
+            let mut argv = vec!["interpd", "plan", "setup", "--stl", "p.stl"];
+            argv.extend(bad);
+            assert!(Cli::try_parse_from(argv).is_err(), "{bad:?}");
+        }
     }
 }

@@ -213,6 +213,7 @@ pub fn search_setup(
         .collect();
     let cells = sphere.cells();
     let tol = config.fit_tolerance_deg.to_radians();
+    let resolution = sphere.spacing() / 2.0;
     let done = AtomicUsize::new(0);
     /// Candidates per progress report.
     const PROGRESS_EVERY: usize = 256;
@@ -251,7 +252,7 @@ pub fn search_setup(
                 let p = &cells[i];
                 let (best, fit) = match kind {
                     MachineType::CA => search::fan_search(p, md, ranges, tol, fan),
-                    MachineType::AB => search::rect_search(p, md, ranges, tol, rect),
+                    MachineType::AB => search::rect_search(p, md, ranges, tol, resolution, rect),
                 };
                 let wrap = |placement: Placement| SetupOrientation {
                     placement,
@@ -260,7 +261,7 @@ pub fn search_setup(
                     md_points: md.len(),
                 };
                 let n = done.fetch_add(1, Ordering::Relaxed) + 1;
-                if n % PROGRESS_EVERY == 0 || n == cells.len() {
+                if n.is_multiple_of(PROGRESS_EVERY) || n == cells.len() {
                     progress(Phase::Search, n, cells.len());
                 }
                 (Some(wrap(best)), fit.map(wrap), group_ii == 0)

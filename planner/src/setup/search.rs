@@ -104,7 +104,7 @@ pub fn md_cells(
     scratch.md.clear();
     scratch.unassigned.clear();
     scratch.unassigned.resize(words, u64::MAX);
-    if classes.classes % 64 != 0 {
+    if !classes.classes.is_multiple_of(64) {
         scratch.unassigned[words - 1] = (1u64 << (classes.classes % 64)) - 1;
     }
     scratch.active.clear();
@@ -389,14 +389,36 @@ pub struct RectScratch {
     proj: Vec<(f64, f64, usize)>,
     hull: Vec<usize>,
     r1: Vec<V3>,
+    bins: Vec<bool>,
+    tan_vec: Vec<V3>,
+    cross: Vec<V3>,
+}
+
+/// A key that orders points `(x, y)` like `atan2(y, x)` does, in (−2, 2].
+fn pseudo_angle(x: f64, y: f64) -> f64 {
+    let d = x.abs() + y.abs();
+    if d == 0.0 {
+        return 0.0;
+    }
+    let r = y / d; // in [−1, 1]
+    if x >= 0.0 {
+        r
+    } else if y >= 0.0 {
+        2.0 - r
+    } else {
+        -2.0 - r
+    }
 }
 
 /// The A,B search for tool axis `p` (eq. 14–21) over the MD points `md`.
+/// `R1` directions closer than `r1_resolution` (radians; the sphere's cell
+/// spacing is a good value) are tried once.
 pub fn rect_search(
     p: &V3,
     md: &[V3],
     machine: &AxisRanges,
     tol: f64,
+    r1_resolution: f64,
     scratch: &mut RectScratch,
 ) -> (Placement, Option<Placement>) {
     let (e1, e2) = basis(p);
@@ -414,11 +436,34 @@ pub fn rect_search(
             scratch.r1.push(r1.normalize());
         }
     }
-    if md.iter().any(|v| v.dot(p) <= HULL_MIN_DOT) || scratch.r1.is_empty() {
+    let all_in_hull = md.iter().all(|v| v.dot(p) > HULL_MIN_DOT);
+    if !all_in_hull || scratch.r1.is_empty() {
         for k in 0..FALLBACK_R1_DIRECTIONS {
             let t = PI * k as f64 / FALLBACK_R1_DIRECTIONS as f64;
             scratch.r1.push(e1 * t.cos() + e2 * t.sin());
         }
+    }
+    // R1 and −R1 give the same rectangle; directions closer than the
+    // resolution give the same one to within it: keep one per bin.
+    let bins = ((PI / r1_resolution.max(1e-6)).ceil() as usize).max(1);
+    scratch.bins.clear();
+    scratch.bins.resize(bins, false);
+    scratch.r1.retain(|r| {
+        let t = r.dot(&e2).atan2(r.dot(&e1)).rem_euclid(PI);
+        let b = ((t / PI * bins as f64) as usize).min(bins - 1);
+        !std::mem::replace(&mut scratch.bins[b], true)
+    });
+    scratch.tan_vec.clear();
+    scratch.cross.clear();
+    if !all_in_hull {
+        scratch.cross.extend(md.iter().map(|v| p.cross(v)));
+    } else {
+        scratch.tan_vec.extend(
+            scratch
+                .hull
+                .iter()
+                .map(|&i| p.cross(&md[i]) / p.dot(&md[i])),
+        );
     }
     let mut best: Option<Placement> = None;
     let mut best_fit: Option<Placement> = None;
@@ -428,19 +473,43 @@ pub fn rect_search(
         // (R1 and R2 swap roles), since the two axes' ranges differ.
         for r1 in [scratch.r1[k], p.cross(&scratch.r1[k])] {
             let r2 = p.cross(&r1); // eq. 16
-            let (mut amax, mut amin, mut bmax, mut bmin) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+            // V⁰: v projected onto the basis great circle (eq. 18); α: turn
+            // about R1 from p to V⁰, β: latitude off it (eq. 17). The extreme
+            // α lie on hull vertices (a half-space through R1 bounds each
+            // level); the extreme β are the extreme v·R1 over all points.
+            let (amax, amin) = if all_in_hull {
+                // Inside the hemisphere tan α = (p×v)·R1 / (p·v), monotone in α.
+                let (mut tmax, mut tmin) = (0.0f64, 0.0f64);
+                for c in &scratch.tan_vec {
+                    let t = c.dot(&r1);
+                    tmax = tmax.max(t);
+                    tmin = tmin.min(t);
+                }
+                (tmax.atan(), tmin.atan())
+            } else {
+                // α = atan2(y, x) with y = (p×v)·R1, x = p·v: compare a cheap
+                // angle-monotone key, take atan2 of the two extremes only.
+                let (mut kmax, mut kmin) = (0.0f64, 0.0f64);
+                let (mut xy_max, mut xy_min) = ((1.0, 0.0), (1.0, 0.0));
+                for (v, c) in md.iter().zip(&scratch.cross) {
+                    let (x, y) = (p.dot(v), c.dot(&r1));
+                    let k = pseudo_angle(x, y);
+                    if k > kmax {
+                        (kmax, xy_max) = (k, (x, y));
+                    }
+                    if k < kmin {
+                        (kmin, xy_min) = (k, (x, y));
+                    }
+                }
+                (xy_max.1.atan2(xy_max.0), xy_min.1.atan2(xy_min.0))
+            };
+            let (mut lmax, mut lmin) = (0.0f64, 0.0f64);
             for v in md {
-                // V⁰: v projected onto the basis great circle (eq. 18);
-                // α: turn about R1 from p to V⁰, β: latitude off it (eq. 17).
-                let lat = v.dot(&r1);
-                let v0 = v - r1 * lat;
-                let a = p.cross(&v0).dot(&r1).atan2(p.dot(&v0));
-                let b = lat.clamp(-1.0, 1.0).asin();
-                amax = amax.max(a);
-                amin = amin.min(a);
-                bmax = bmax.max(b);
-                bmin = bmin.min(b);
+                let l = v.dot(&r1);
+                lmax = lmax.max(l);
+                lmin = lmin.min(l);
             }
+            let (bmax, bmin) = (lmax.min(1.0).asin(), lmin.max(-1.0).asin());
             // eq. 19 (the tool axis itself, α = β = 0, is always inside).
             let (phi_l, phi_s) = (amax.max(-amin), amax.min(-amin));
             let (theta_l, theta_s) = (bmax.max(-bmin), bmax.min(-bmin));
@@ -615,7 +684,14 @@ mod tests {
             md.push(on_circle * b.cos() + r1 * b.sin());
         }
         let machine = ranges([40.0, 30.0, 20.0, 20.0]);
-        let (best, fit) = rect_search(&V3::z(), &md, &machine, 1e-9, &mut RectScratch::default());
+        let (best, fit) = rect_search(
+            &V3::z(),
+            &md,
+            &machine,
+            1e-9,
+            1e-3,
+            &mut RectScratch::default(),
+        );
         let fit = fit.expect("fits");
         assert_eq!(best, fit);
         let got = fit.required.degrees();
@@ -628,11 +704,25 @@ mod tests {
     }
 
     #[test]
+    fn pseudo_angle_orders_like_atan2() {
+        let mut pts: Vec<(f64, f64)> = (0..360)
+            .map(|k| {
+                let a = (k as f64 * 1.003 - 179.5).to_radians();
+                (a.cos() * 2.0, a.sin() * 2.0)
+            })
+            .collect();
+        pts.sort_by(|a, b| pseudo_angle(a.0, a.1).total_cmp(&pseudo_angle(b.0, b.1)));
+        for w in pts.windows(2) {
+            assert!(w[0].1.atan2(w[0].0) < w[1].1.atan2(w[1].0));
+        }
+    }
+
+    #[test]
     fn no_md_points_need_no_motion() {
         let m = ranges([0.0, 0.0, 0.0, 0.0]);
         let (b, f) = fan_search(&V3::z(), &[], &m, 0.0, &mut FanScratch::default());
         assert_eq!((b.area, f.is_some()), (0.0, true));
-        let (b, f) = rect_search(&V3::z(), &[], &m, 0.0, &mut RectScratch::default());
+        let (b, f) = rect_search(&V3::z(), &[], &m, 0.0, 1e-3, &mut RectScratch::default());
         assert_eq!((b.area, f.is_some()), (0.0, true));
     }
 }

@@ -179,6 +179,75 @@ impl RayCaster {
     }
 }
 
+impl RayCaster {
+    /// Triangles (other than `skip`) with a corner strictly in front of the
+    /// plane through `origin` with normal `normal`: only these can block a
+    /// ray leaving that plane on its front side. Found through the hierarchy
+    /// (a box is entered when its farthest corner is in front).
+    pub fn in_front(
+        &self,
+        origin: &Point3<f64>,
+        normal: &Vector3<f64>,
+        skip: usize,
+        stack: &mut Vec<usize>,
+        out: &mut Vec<usize>,
+    ) {
+        out.clear();
+        if self.bvh.nodes.is_empty() {
+            return;
+        }
+        let level = normal.dot(&origin.coords) + self.t_min;
+        let box_front = |b: &Aabb<f64, 3>| {
+            let mut far = 0.0;
+            for k in 0..3 {
+                far += normal[k] * if normal[k] > 0.0 { b.max[k] } else { b.min[k] };
+            }
+            far > level
+        };
+        stack.clear();
+        stack.push(0);
+        while let Some(index) = stack.pop() {
+            match &self.bvh.nodes[index] {
+                BvhNode::Leaf { shape_index, .. } => {
+                    if *shape_index != skip
+                        && self.shapes[*shape_index]
+                            .corners
+                            .iter()
+                            .any(|c| normal.dot(&c.coords) > level)
+                    {
+                        out.push(*shape_index);
+                    }
+                }
+                BvhNode::Node {
+                    child_l_index,
+                    child_l_aabb,
+                    child_r_index,
+                    child_r_aabb,
+                    ..
+                } => {
+                    if box_front(child_l_aabb) {
+                        stack.push(*child_l_index);
+                    }
+                    if box_front(child_r_aabb) {
+                        stack.push(*child_r_index);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Whether the ray meets one of the triangles `candidates`.
+    fn occluded_by(&self, origin: &Point3<f64>, dir: &Vector3<f64>, candidates: &[usize]) -> bool {
+        candidates
+            .iter()
+            .any(|&t| hits_triangle(origin, dir, &self.shapes[t].corners, self.t_min))
+    }
+}
+
+/// Up to this many triangles in front of a patch are tested one by one;
+/// beyond, each ray goes through the hierarchy.
+const BRUTE_FORCE_MAX: usize = 24;
+
 /// Slab test for `t ≥ 0`; a zero direction component keeps the ray inside the
 /// slab only if the origin is (closed bounds, so a ray in a box face counts).
 fn hits_box(o: &Point3<f64>, d: &Vector3<f64>, inv: &Vector3<f64>, b: &Aabb<f64, 3>) -> bool {
@@ -258,21 +327,36 @@ pub fn compute(
     map.bits
         .par_chunks_mut(words * PROGRESS_CHUNK)
         .enumerate()
-        .for_each_init(Vec::new, |stack, (chunk, bits)| {
-            for (k, row) in bits.chunks_mut(words).enumerate() {
-                let t = chunk * PROGRESS_CHUNK + k;
-                let [a, b, c] = mesh.corners(t);
-                let origin = Point3::from((a.coords + b.coords + c.coords) / 3.0);
-                let normal = mesh.normals[t];
-                for (i, d) in cells.iter().enumerate() {
-                    if d.dot(&normal) > min_dot && !caster.occluded(&origin, d, t, stack) {
-                        row[i / 64] |= 1 << (i % 64);
+        .for_each_init(
+            || (Vec::new(), Vec::new()),
+            |(stack, front), (chunk, bits)| {
+                for (k, row) in bits.chunks_mut(words).enumerate() {
+                    let t = chunk * PROGRESS_CHUNK + k;
+                    let [a, b, c] = mesh.corners(t);
+                    let origin = Point3::from((a.coords + b.coords + c.coords) / 3.0);
+                    let normal = mesh.normals[t];
+                    // Most patches of a part have few triangles in front of them
+                    // (none on convex regions): test those directly.
+                    caster.in_front(&origin, &normal, t, stack, front);
+                    let small = front.len() <= BRUTE_FORCE_MAX;
+                    for (i, d) in cells.iter().enumerate() {
+                        if d.dot(&normal) > min_dot {
+                            let blocked = if small {
+                                caster.occluded_by(&origin, d, front)
+                            } else {
+                                caster.occluded(&origin, d, t, stack)
+                            };
+                            if !blocked {
+                                row[i / 64] |= 1 << (i % 64);
+                            }
+                        }
                     }
                 }
-            }
-            let now = done.fetch_add(bits.len() / words, Ordering::Relaxed) + bits.len() / words;
-            progress(now, n);
-        });
+                let now =
+                    done.fetch_add(bits.len() / words, Ordering::Relaxed) + bits.len() / words;
+                progress(now, n);
+            },
+        );
     map
 }
 
