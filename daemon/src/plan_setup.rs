@@ -189,6 +189,17 @@ fn print_text(out: &PlanOut) {
 
 /// Runs `interpd plan setup`.
 pub fn main(args: &SetupArgs) -> Result<()> {
+    let out = compute(args)?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&out)?);
+    } else {
+        print_text(&out);
+    }
+    Ok(())
+}
+
+/// Reads the part and plans its setup.
+fn compute(args: &SetupArgs) -> Result<PlanOut> {
     let mesh = TriMesh::from_stl_path(&args.stl, WeldOptions::default())
         .with_context(|| format!("reading {}", args.stl.display()))?;
     let config = SetupConfig {
@@ -230,11 +241,62 @@ pub fn main(args: &SetupArgs) -> Result<()> {
     {
         pb.finish_and_clear();
     }
-    let out = output(args, &plan);
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&out)?);
-    } else {
-        print_text(&out);
+    Ok(output(args, &plan))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use planner::setup::samples::teapot;
+    use std::fmt::Write as _;
+
+    fn args(stl: PathBuf, machine: &str, ranges: &str) -> SetupArgs {
+        SetupArgs {
+            stl,
+            machine: machine.parse().unwrap(),
+            ranges: ranges.parse().unwrap(),
+            cells: 1200,
+            json: true,
+        }
     }
-    Ok(())
+
+    #[test]
+    fn teapot_stl_plans_end_to_end_and_bad_stl_is_an_error() {
+        let dir = std::env::temp_dir().join(format!("interpd-plan-setup-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut text = String::from("solid teapot\n");
+        for t in teapot(10, 12, 5, 6) {
+            text.push_str("facet normal 0 0 0\nouter loop\n");
+            for p in t {
+                writeln!(text, "vertex {} {} {}", p.x, p.y, p.z).unwrap();
+            }
+            text.push_str("endloop\nendfacet\n");
+        }
+        text.push_str("endsolid teapot\n");
+        let stl = dir.join("teapot.stl");
+        std::fs::write(&stl, text).unwrap();
+        let out = compute(&args(stl.clone(), "W/caxyBz/T", "90,90,180,180")).unwrap();
+        assert!(out.feasible && !out.three_axis);
+        assert_eq!(
+            (out.patches, out.cells, out.rotary_order.as_str()),
+            (288, 1280, "caB")
+        );
+        let setup = out.setup.as_ref().unwrap();
+        assert!(setup.tool_axis[0] > 0.0, "tilts toward the spout");
+        let json = serde_json::to_value(&out).unwrap();
+        assert_eq!(json["machine_type"], "C,A");
+        // Too little tilt: infeasible, with MAR.
+        let out = compute(&args(stl, "W/baxzBy/T", "5,5,5,5")).unwrap();
+        assert!(!out.feasible && out.setup.is_none());
+        assert!(out.minimum_axis_ranges.required_deg.phi_l > 5.0);
+        let bad = dir.join("bad.stl");
+        std::fs::write(
+            &bad,
+            "solid x\nfacet normal 0 0 0\nouter loop\nvertex 0 0 nan\n",
+        )
+        .unwrap();
+        let err = compute(&args(bad, "W/caxyBz/T", "1,1,1,1")).unwrap_err();
+        assert!(format!("{err:#}").contains("bad.stl"), "{err:#}");
+        std::fs::remove_dir_all(&dir).ok();
+    }
 }

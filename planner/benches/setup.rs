@@ -21,63 +21,55 @@ fn run(name: &str, part: &TriMesh, cells: usize, repeats: usize) {
         ..SetupConfig::default()
     };
     let ranges = AxisRanges::from_degrees(90.0, 90.0, 180.0, 180.0).expect("valid ranges");
-    let mut vis = Vec::new();
-    let mut ca = Vec::new();
-    let mut ab = Vec::new();
-    let mut last = None;
-    for _ in 0..repeats {
-        let t = Instant::now();
-        let map = visibility_map(part, &sphere, &config, &|_, _, _| {}).expect("valid config");
-        vis.push(t.elapsed().as_secs_f64());
-        let t = Instant::now();
-        let p = search_setup(
-            &map,
-            &sphere,
-            MachineType::CA,
-            &ranges,
-            &config,
-            &|_, _, _| {},
-        );
-        ca.push(t.elapsed().as_secs_f64());
-        let t = Instant::now();
-        let q = search_setup(
-            &map,
-            &sphere,
-            MachineType::AB,
-            &ranges,
-            &config,
-            &|_, _, _| {},
-        );
-        ab.push(t.elapsed().as_secs_f64());
-        last = Some((p, q));
-    }
     let best = |v: &[f64]| v.iter().copied().fold(f64::INFINITY, f64::min);
-    let (p, q) = last.expect("at least one run");
     let rays = (sphere.len() * part.triangles.len()) as f64;
     println!(
-        "{name}: {} cells × {} triangles ({} PVC classes), {} threads, best of {repeats}",
+        "{name}: {} cells × {} triangles, {} threads, best of {repeats}",
         sphere.len(),
         part.triangles.len(),
-        p.pvc_classes,
         rayon::current_num_threads()
     );
+    // Each phase prints as soon as it is done (the large case takes minutes).
+    let mut vis = Vec::new();
+    let mut map = None;
+    for _ in 0..repeats {
+        let t = Instant::now();
+        map = Some(visibility_map(part, &sphere, &config, &|_, _, _| {}).expect("valid config"));
+        vis.push(t.elapsed().as_secs_f64());
+    }
+    let map = map.expect("at least one run");
     println!(
         "  visibility map : {:9.3} s  ({:.2} M patch-cell pairs/s)",
         best(&vis),
         rays / best(&vis) / 1e6
     );
-    println!(
-        "  C,A search     : {:9.3} s  (feasible {}, MAR {:.1?}°)",
-        best(&ca),
-        p.feasible,
-        p.mar.placement.required.degrees()
-    );
-    println!(
-        "  A,B search     : {:9.3} s  (feasible {}, MAR {:.1?}°)",
-        best(&ab),
-        q.feasible,
-        q.mar.placement.required.degrees()
-    );
+    for (label, kind) in [
+        ("C,A search", MachineType::CA),
+        ("A,B search", MachineType::AB),
+    ] {
+        let mut times = Vec::new();
+        let mut last = None;
+        for _ in 0..repeats {
+            let t = Instant::now();
+            last = Some(search_setup(
+                &map,
+                &sphere,
+                kind,
+                &ranges,
+                &config,
+                &|_, _, _| {},
+            ));
+            times.push(t.elapsed().as_secs_f64());
+        }
+        let p = last.expect("at least one run");
+        println!(
+            "  {label}     : {:9.3} s  ({} PVC classes, feasible {}, MAR {:.1?}°)",
+            best(&times),
+            p.pvc_classes,
+            p.feasible,
+            p.mar.placement.required.degrees()
+        );
+    }
 }
 
 fn main() {
