@@ -15,6 +15,7 @@ mod replay;
 mod simulate;
 mod trace_cmd;
 mod plan_raster;
+mod plan_setup;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -47,6 +48,8 @@ enum Command {
 enum PlanCommand {
     /// Raster finishing over an STL mesh by slicing the offset triangle mesh.
     Raster(plan_raster::RasterArgs),
+    /// 5-axis machinability and setup orientation of an STL part.
+    Setup(plan_setup::SetupArgs),
 }
 
 fn main() -> Result<()> {
@@ -56,6 +59,7 @@ fn main() -> Result<()> {
         Command::Replay(args) => replay::main(&args),
         Command::Trace(args) => trace_cmd::main(&args),
         Command::Plan(PlanCommand::Raster(args)) => plan_raster::main(&args),
+        Command::Plan(PlanCommand::Setup(args)) => plan_setup::main(&args),
     }
 }
 
@@ -114,5 +118,38 @@ mod tests {
             ])
             .is_err()
         );
+    }
+
+    #[test]
+    fn plan_setup_parses_and_refuses_bad_machines() {
+        let cli = Cli::try_parse_from([
+            "interpd",
+            "plan",
+            "setup",
+            "--stl",
+            "p.stl",
+            "--machine",
+            "W/caxyBz/T",
+            "--ranges",
+            "30,20,180,180",
+            "--cells",
+            "5000",
+            "--json",
+        ])
+        .expect("plan setup parses");
+        let Command::Plan(PlanCommand::Setup(args)) = cli.command else {
+            panic!("expected plan setup");
+        };
+        assert_eq!((args.cells, args.json), (5000, true));
+        assert_eq!(args.machine.key().to_string(), "caB");
+        assert!((args.ranges.degrees()[1] - 20.0).abs() < 1e-12);
+        for bad in [
+            ["--machine", "W/xyBzac/T", "--ranges", "1,1,1,1"],
+            ["--machine", "W/caxyBz/T", "--ranges", "1,2,1,1"],
+        ] {
+            let mut argv = vec!["interpd", "plan", "setup", "--stl", "p.stl"];
+            argv.extend(bad);
+            assert!(Cli::try_parse_from(argv).is_err(), "{bad:?}");
+        }
     }
 }

@@ -10,3 +10,4 @@
 pub mod cutter;
 pub mod mesh;
 pub mod raster;
+pub mod setup;

@@ -1,0 +1,92 @@
+//! Benchmark of the 5-axis setup planner (seed `000_…`): the binary
+//! spherical map (ray casting) and the setup search, timed separately.
+//!
+//! `cargo bench -p planner --bench setup` runs the paper's size (the
+//! 288-triangle teapot on 1,280 cells, best of 5). Add `-- large` for 20,480
+//! cells × ~100,000 triangles (one run, minutes), or `-- cavity` for the
+//! overhanging spherical pocket of the tests. All cores are used (rayon).
+
+use std::time::Instant;
+
+use planner::mesh::{TriMesh, WeldOptions};
+use planner::setup::samples::{cavity, teapot};
+use planner::setup::{
+    AxisRanges, GeodesicSphere, MachineType, SetupConfig, search_setup, visibility_map,
+};
+
+fn run(name: &str, part: &TriMesh, cells: usize, repeats: usize) {
+    let sphere = GeodesicSphere::with_at_least(cells).expect("valid cell count");
+    let config = SetupConfig {
+        cells,
+        ..SetupConfig::default()
+    };
+    let ranges = AxisRanges::from_degrees(90.0, 90.0, 180.0, 180.0).expect("valid ranges");
+    let best = |v: &[f64]| v.iter().copied().fold(f64::INFINITY, f64::min);
+    let rays = (sphere.len() * part.triangles.len()) as f64;
+    println!(
+        "{name}: {} cells × {} triangles, {} threads, best of {repeats}",
+        sphere.len(),
+        part.triangles.len(),
+        rayon::current_num_threads()
+    );
+    // Each phase prints as soon as it is done (the large case takes minutes).
+    let mut vis = Vec::new();
+    let mut map = None;
+    for _ in 0..repeats {
+        let t = Instant::now();
+        map = Some(visibility_map(part, &sphere, &config, &|_, _, _| {}).expect("valid config"));
+        vis.push(t.elapsed().as_secs_f64());
+    }
+    let map = map.expect("at least one run");
+    println!(
+        "  visibility map : {:9.3} s  ({:.2} M patch-cell pairs/s)",
+        best(&vis),
+        rays / best(&vis) / 1e6
+    );
+    for (label, kind) in [
+        ("C,A search", MachineType::CA),
+        ("A,B search", MachineType::AB),
+    ] {
+        let mut times = Vec::new();
+        let mut last = None;
+        for _ in 0..repeats {
+            let t = Instant::now();
+            last = Some(search_setup(
+                &map,
+                &sphere,
+                kind,
+                &ranges,
+                &config,
+                &|_, _, _| {},
+            ));
+            times.push(t.elapsed().as_secs_f64());
+        }
+        let p = last.expect("at least one run");
+        println!(
+            "  {label}     : {:9.3} s  ({} PVC classes, feasible {}, MAR {:.1?}°)",
+            best(&times),
+            p.pvc_classes,
+            p.feasible,
+            p.mar.placement.required.degrees()
+        );
+    }
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let mesh =
+        |soup: Vec<_>| TriMesh::from_triangles(&soup, WeldOptions::default()).expect("valid");
+    if args.iter().any(|a| a == "cavity") {
+        run(
+            "cavity (test part)",
+            &mesh(cavity(30.0, 60.0, 12, 36)),
+            5000,
+            3,
+        );
+    }
+    if args.iter().any(|a| a == "large") {
+        run("large teapot", &mesh(teapot(160, 256, 72, 128)), 20_000, 1);
+    } else if !args.iter().any(|a| a == "cavity") {
+        run("paper teapot", &mesh(teapot(10, 12, 5, 6)), 1200, 5);
+    }
+}

@@ -1,0 +1,183 @@
+//! Parts built in code whose setups are known, for tests, benchmarks and
+//! examples. Each returns a triangle soup (build a mesh with
+//! [`TriMesh::from_triangles`](crate::mesh::TriMesh::from_triangles)); the
+//! triangles face the side a tool comes from.
+
+use std::f64::consts::{PI, TAU};
+
+use nalgebra::{Point3, Rotation3, Unit, Vector3};
+
+type P3 = Point3<f64>;
+type V3 = Vector3<f64>;
+
+/// Turns `tri` so that its normal points along `want`.
+fn facing(tri: [P3; 3], want: V3) -> [P3; 3] {
+    let n = (tri[1] - tri[0]).cross(&(tri[2] - tri[0]));
+    if n.dot(&want) < 0.0 {
+        [tri[0], tri[2], tri[1]]
+    } else {
+        tri
+    }
+}
+
+fn centroid(t: &[P3; 3]) -> P3 {
+    P3::from((t[0].coords + t[1].coords + t[2].coords) / 3.0)
+}
+
+/// A unit-sphere point at polar angle `theta` from +z and azimuth `phi`.
+fn on_sphere(theta: f64, phi: f64) -> V3 {
+    V3::new(
+        theta.sin() * phi.cos(),
+        theta.sin() * phi.sin(),
+        theta.cos(),
+    )
+}
+
+/// A band of the sphere of radius `r` between polar angles `t0 < t1`
+/// (radians from +z), `rings × segments` quads (a fan where `t0 = 0`), facing
+/// outward (`outward`) or toward the centre.
+fn sphere_band(
+    r: f64,
+    t0: f64,
+    t1: f64,
+    rings: usize,
+    segments: usize,
+    outward: bool,
+) -> Vec<[P3; 3]> {
+    let mut soup = Vec::new();
+    let p = |i: usize, j: usize| {
+        let t = t0 + (t1 - t0) * i as f64 / rings as f64;
+        P3::from(on_sphere(t, TAU * j as f64 / segments as f64) * r)
+    };
+    let sign = if outward { 1.0 } else { -1.0 };
+    let mut push = |tri: [P3; 3]| {
+        let c = centroid(&tri);
+        soup.push(facing(tri, c.coords * sign));
+    };
+    for i in 0..rings {
+        for j in 0..segments {
+            let (a, b, c, d) = (p(i, j), p(i + 1, j), p(i + 1, j + 1), p(i, j + 1));
+            if i == 0 && t0 == 0.0 {
+                push([a, b, c]);
+            } else {
+                push([a, b, c]);
+                push([a, c, d]);
+            }
+        }
+    }
+    soup
+}
+
+/// Rotates every corner of `soup` by `rotation` about the origin.
+pub fn rotated(soup: &[[P3; 3]], rotation: &Rotation3<f64>) -> Vec<[P3; 3]> {
+    soup.iter().map(|t| t.map(|p| rotation * p)).collect()
+}
+
+/// The rotation taking +z to the unit vector `axis` (shortest arc).
+pub fn z_to(axis: &V3) -> Rotation3<f64> {
+    Rotation3::rotation_between(&V3::z(), axis)
+        .unwrap_or_else(|| Rotation3::from_axis_angle(&Unit::new_normalize(V3::x()), PI))
+}
+
+/// A convex spherical shell (outer side) of radius `r` around +z, from the
+/// pole down to `extent_deg` from it. Beyond 90° it is an undercut: its rim
+/// faces away from +z by `extent_deg − 90°`, and every setup must tilt that
+/// far all around the axis.
+pub fn dome(r: f64, extent_deg: f64, rings: usize, segments: usize) -> Vec<[P3; 3]> {
+    sphere_band(r, 0.0, extent_deg.to_radians(), rings, segments, true)
+}
+
+/// The inside of a sphere of radius `r` with a round opening of half-angle
+/// `opening_deg` around +z (a pocket machined through its mouth). Below 90°
+/// the mouth overhangs: the wall just under the lip is reached only by
+/// directions tilted at least `90° − opening_deg` from +z.
+pub fn cavity(r: f64, opening_deg: f64, rings: usize, segments: usize) -> Vec<[P3; 3]> {
+    sphere_band(r, opening_deg.to_radians(), PI, rings, segments, false)
+}
+
+/// The inside of a hemispherical bowl of radius `r`, open toward +z.
+pub fn bowl(r: f64, rings: usize, segments: usize) -> Vec<[P3; 3]> {
+    cavity(r, 90.0, rings, segments)
+}
+
+/// A small floor triangle (centroid at the origin, facing +z) at the bottom
+/// of a round well of radius `radius` and depth `depth`, with a flat collar
+/// out to `3·radius` around its mouth. Seen from the floor's centroid, the
+/// open directions form a cone of half-angle `atan(radius / depth)` around +z.
+/// Triangle 0 is the floor.
+pub fn well(radius: f64, depth: f64, segments: usize) -> Vec<[P3; 3]> {
+    /// Floor triangle size as a fraction of the radius (a point, nearly).
+    const FLOOR_FRACTION: f64 = 1e-3;
+    let s = radius * FLOOR_FRACTION;
+    let mut soup = vec![facing(
+        [
+            P3::new(s, 0.0, 0.0),
+            P3::new(-s / 2.0, s * 0.866, 0.0),
+            P3::new(-s / 2.0, -s * 0.866, 0.0),
+        ],
+        V3::z(),
+    )];
+    let ring = |rad: f64, z: f64, j: usize| {
+        let a = TAU * j as f64 / segments as f64;
+        P3::new(rad * a.cos(), rad * a.sin(), z)
+    };
+    for j in 0..segments {
+        let (a, b) = (ring(radius, 0.0, j), ring(radius, 0.0, j + 1));
+        let (c, d) = (ring(radius, depth, j + 1), ring(radius, depth, j));
+        for tri in [[a, b, c], [a, c, d]] {
+            let inward = -centroid(&tri).coords.xy().push(0.0);
+            soup.push(facing(tri, inward));
+        }
+        let (e, f) = (
+            ring(3.0 * radius, depth, j + 1),
+            ring(3.0 * radius, depth, j),
+        );
+        for tri in [[d, c, e], [d, e, f]] {
+            soup.push(facing(tri, V3::z()));
+        }
+    }
+    soup
+}
+
+/// A teapot-like body as in the paper's example: a hemispherical shell of
+/// radius 50 mm (open at the bottom, `body_rings × body_segments`) with a
+/// straight open spout of radius 8 mm and length 45 mm rising at 40° toward
+/// +x from the body's side (`spout_rings × spout_segments`). The spout's
+/// underside faces down and out, so the best setup tilts toward the spout.
+/// `teapot(10, 12, 5, 6)` has the paper's 288 triangles.
+pub fn teapot(
+    body_rings: usize,
+    body_segments: usize,
+    spout_rings: usize,
+    spout_segments: usize,
+) -> Vec<[P3; 3]> {
+    const BODY_RADIUS: f64 = 50.0;
+    const SPOUT_RADIUS: f64 = 8.0;
+    const SPOUT_LENGTH: f64 = 45.0;
+    const SPOUT_ELEVATION_DEG: f64 = 40.0;
+    const SPOUT_ROOT_ELEVATION_DEG: f64 = 25.0;
+    let mut soup = sphere_band(BODY_RADIUS, 0.0, PI / 2.0, body_rings, body_segments, true);
+    // The spout's root ring lies on the body: a circle of radius r around the
+    // body point at the root elevation.
+    let root_dir = on_sphere((90.0 - SPOUT_ROOT_ELEVATION_DEG).to_radians(), 0.0);
+    let axis = on_sphere((90.0 - SPOUT_ELEVATION_DEG).to_radians(), 0.0);
+    let root = root_dir * (BODY_RADIUS.powi(2) - SPOUT_RADIUS.powi(2)).sqrt();
+    let e1 = V3::y();
+    let e2 = root_dir.cross(&e1);
+    let p = |i: usize, j: usize| {
+        let a = TAU * j as f64 / spout_segments as f64;
+        let t = SPOUT_LENGTH * i as f64 / spout_rings as f64;
+        P3::from(root + (e1 * a.cos() + e2 * a.sin()) * SPOUT_RADIUS + axis * t)
+    };
+    for i in 0..spout_rings {
+        for j in 0..spout_segments {
+            let (a, b, c, d) = (p(i, j), p(i + 1, j), p(i + 1, j + 1), p(i, j + 1));
+            for tri in [[a, b, c], [a, c, d]] {
+                let off = centroid(&tri).coords - root;
+                let out = off - axis * off.dot(&axis);
+                soup.push(facing(tri, out));
+            }
+        }
+    }
+    soup
+}

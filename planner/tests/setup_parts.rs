@@ -1,0 +1,233 @@
+//! Known-answer and metamorphic tests of the 5-axis setup planner
+//! (seed `000_…`) on parts built in code (`planner::setup::samples`).
+
+use nalgebra::{Point3, Rotation3, Unit, Vector3};
+use planner::mesh::{TriMesh, WeldOptions};
+use planner::setup::samples::{bowl, cavity, dome, rotated, teapot, well, z_to};
+use planner::setup::{
+    AxisRanges, GeodesicSphere, MachineConfig, SetupConfig, SetupPlan, plan_setup, visibility_map,
+};
+
+type V3 = Vector3<f64>;
+
+/// A C,A machine: table C then A (the paper's figure 4(c)).
+const CA_MACHINE: &str = "W/caxyBz/T";
+/// An A,B machine (the paper's figure 4(d)).
+const AB_MACHINE: &str = "W/baxzBy/T";
+/// Cells of the finer test sphere (2,000 cells, 4.5° spacing).
+const FINE_CELLS: usize = 2000;
+
+fn mesh(soup: &[[Point3<f64>; 3]]) -> TriMesh {
+    TriMesh::from_triangles(soup, WeldOptions::default()).expect("sample meshes are valid")
+}
+
+fn ranges(deg: [f64; 4]) -> AxisRanges {
+    AxisRanges::from_degrees(deg[0], deg[1], deg[2], deg[3]).unwrap()
+}
+
+fn plan(m: &TriMesh, machine: &str, deg: [f64; 4], cells: usize) -> SetupPlan {
+    let machine: MachineConfig = machine.parse().unwrap();
+    let config = SetupConfig {
+        cells,
+        ..SetupConfig::default()
+    };
+    plan_setup(m, &machine, &ranges(deg), &config, &|_, _, _| {}).unwrap()
+}
+
+fn angle_deg(a: &V3, b: &V3) -> f64 {
+    a.cross(b).norm().atan2(a.dot(b)).to_degrees()
+}
+
+fn spacing_deg(cells: usize) -> f64 {
+    GeodesicSphere::with_at_least(cells)
+        .unwrap()
+        .spacing()
+        .to_degrees()
+}
+
+/// A tilted axis used by several tests: 35° from +z toward azimuth 20°.
+fn tilted_axis() -> V3 {
+    let (t, a) = (35f64.to_radians(), 20f64.to_radians());
+    V3::new(t.sin() * a.cos(), t.sin() * a.sin(), t.cos())
+}
+
+#[test]
+fn well_floor_sees_exactly_the_cone_of_its_mouth_around_a_tilted_axis() {
+    let (radius, depth): (f64, f64) = (10.0, 20.0);
+    let half_angle = (radius / depth).atan().to_degrees(); // 26.57°
+    let axis = tilted_axis();
+    let part = mesh(&rotated(&well(radius, depth, 48), &z_to(&axis)));
+    let sphere = GeodesicSphere::with_at_least(FINE_CELLS).unwrap();
+    let map = visibility_map(&part, &sphere, &SetupConfig::default(), &|_, _, _| {}).unwrap();
+    // The polygonal well is a little narrower than the circle at its flats.
+    let flat = radius * (std::f64::consts::PI / 48.0).cos();
+    let inner = (flat / depth).atan().to_degrees();
+    let (mut inside, mut outside) = (0, 0);
+    for (i, d) in sphere.cells().iter().enumerate() {
+        let off = angle_deg(d, &axis);
+        if off < inner - 1e-6 {
+            assert!(map.visible(0, i), "cell {i} at {off:.2}° hidden");
+            inside += 1;
+        } else if off > half_angle + 1e-6 {
+            assert!(!map.visible(0, i), "cell {i} at {off:.2}° visible");
+            outside += 1;
+        }
+    }
+    assert!(inside > 50 && outside > 1500, "{inside} {outside}");
+    // The setup finds that axis: the tool stands in the well's cone, and the
+    // walls need only a small tilt.
+    let p = plan(&part, CA_MACHINE, [30.0, 30.0, 180.0, 180.0], FINE_CELLS);
+    assert!(p.feasible && !p.three_axis, "{p:#?}");
+    let s = p.setup.unwrap();
+    let off = angle_deg(&s.placement.tool_axis, &axis);
+    assert!(off <= 2.0 * spacing_deg(FINE_CELLS), "axis {off:.2}° off");
+    assert!(
+        s.placement.required.phi_l.to_degrees() <= half_angle,
+        "{s:#?}"
+    );
+}
+
+#[test]
+fn tilted_undercut_dome_needs_its_overhang_as_tilt_all_around() {
+    // A dome reaching 115° from a tilted axis. Known answer: every patch
+    // needs the tool tilted past its plane, i.e. by its normal's angle from
+    // the axis less 90°; only a setup on the axis manages with the largest
+    // of these (≈ 20° for the last ring's triangles), all around.
+    let axis = tilted_axis();
+    let part = mesh(&rotated(&dome(40.0, 115.0, 8, 24), &z_to(&axis)));
+    let overhang = part
+        .normals
+        .iter()
+        .map(|n| angle_deg(n, &axis) - 90.0)
+        .fold(f64::NEG_INFINITY, f64::max);
+    assert!(overhang > 15.0 && overhang < 25.0, "{overhang}");
+    let sp = spacing_deg(FINE_CELLS);
+    for machine in [CA_MACHINE, AB_MACHINE] {
+        let p = plan(&part, machine, [40.0, 40.0, 180.0, 180.0], FINE_CELLS);
+        assert!(p.feasible && !p.three_axis);
+        let s = p.setup.unwrap();
+        let off = angle_deg(&s.placement.tool_axis, &axis);
+        let r = s.placement.required.degrees();
+        assert!(off <= 1.5 * sp, "{machine}: axis {off:.2}° off, {r:?}");
+        assert!(
+            (r[0] - overhang).abs() <= sp && (r[1] - overhang).abs() <= sp,
+            "{machine}: {r:?}, overhang {overhang:.2}°"
+        );
+    }
+    // With less tilt than the overhang it cannot be done; MAR asks for it.
+    let short = (overhang - 2.0 * sp).floor();
+    let p = plan(&part, CA_MACHINE, [short, short, 180.0, 180.0], FINE_CELLS);
+    assert!(!p.feasible && p.setup.is_none());
+    let mar = p.mar.placement.required.degrees();
+    assert!((mar[0] - overhang).abs() <= sp, "{mar:?}");
+}
+
+#[test]
+fn hemispherical_bowl_is_three_axis_from_its_axis_only() {
+    let axis = tilted_axis();
+    let part = mesh(&rotated(&bowl(30.0, 4, 24), &z_to(&axis)));
+    // Known answer: a direction reaches every patch iff it is within the
+    // smallest angle between a patch's plane and the axis.
+    let margin = part
+        .normals
+        .iter()
+        .map(|n| 90.0 - angle_deg(n, &axis))
+        .fold(f64::INFINITY, f64::min);
+    assert!(margin > 5.0 && margin < 12.0, "{margin}");
+    let sphere = GeodesicSphere::with_at_least(FINE_CELLS).unwrap();
+    let map = visibility_map(&part, &sphere, &SetupConfig::default(), &|_, _, _| {}).unwrap();
+    for (i, d) in sphere.cells().iter().enumerate() {
+        let all = (0..map.patches()).all(|j| map.visible(j, i));
+        let off = angle_deg(d, &axis);
+        if off < margin - 1e-6 {
+            assert!(all, "cell {i} at {off:.2}° misses a patch");
+        } else if off > margin + 1e-6 {
+            assert!(!all, "cell {i} at {off:.2}° sees all");
+        }
+    }
+    let p = plan(&part, CA_MACHINE, [0.0, 0.0, 0.0, 0.0], FINE_CELLS);
+    assert!(p.three_axis && p.feasible, "{p:#?}");
+    let s = p.setup.unwrap();
+    assert_eq!((s.group_ii_classes, s.md_points), (0, 0));
+    assert_eq!(s.placement.required.degrees(), [0.0; 4]);
+    assert!(angle_deg(&s.placement.tool_axis, &axis) < margin);
+}
+
+#[test]
+fn overhanging_cavity_has_no_three_axis_setup() {
+    // A spherical pocket whose mouth is 60° wide (an undercut). Known answer:
+    // from a patch at polar angle t below the lip, the steepest way out
+    // grazes the lip along the chord to it, whose direction is tilted
+    // 90° − (60° + t)/2 from the axis. The 8 rings put the first centroids
+    // at t = 65°: the setup must tilt 27.5° toward every side.
+    let part = mesh(&cavity(30.0, 60.0, 8, 24));
+    let need = 90.0 - (60.0 + 65.0) / 2.0;
+    let sp = spacing_deg(FINE_CELLS);
+    let p = plan(&part, CA_MACHINE, [0.0, 0.0, 0.0, 0.0], FINE_CELLS);
+    assert!(!p.three_axis && !p.feasible && p.setup.is_none());
+    assert!(p.unreachable_patches.is_empty());
+    let mar = p.mar.placement.required.degrees();
+    assert!((mar[0] - need).abs() <= sp, "{mar:?}");
+    assert!(angle_deg(&p.mar.placement.tool_axis, &V3::z()) <= 1.5 * sp);
+    let p = plan(&part, AB_MACHINE, [35.0, 35.0, 35.0, 35.0], FINE_CELLS);
+    assert!(p.feasible);
+    let s = p.setup.unwrap();
+    assert!(angle_deg(&s.placement.tool_axis, &V3::z()) <= 1.5 * sp);
+}
+
+#[test]
+fn teapot_setup_tilts_toward_the_spout() {
+    let part = mesh(&teapot(10, 12, 5, 6));
+    assert_eq!(part.triangles.len(), 288);
+    for machine in [CA_MACHINE, AB_MACHINE] {
+        let p = plan(&part, machine, [90.0, 90.0, 180.0, 180.0], 1200);
+        assert!(p.feasible && !p.three_axis && p.unreachable_patches.is_empty());
+        let axis = p.setup.unwrap().placement.tool_axis;
+        let tilt = angle_deg(&axis, &V3::z());
+        let azimuth = axis.y.atan2(axis.x).to_degrees();
+        assert!(
+            tilt > 3.0 && azimuth.abs() < 30.0,
+            "{machine}: tilt {tilt:.1}°, azimuth {azimuth:.1}°"
+        );
+    }
+}
+
+#[test]
+fn rotating_the_part_rotates_the_setup() {
+    let rotation = Rotation3::from_axis_angle(&Unit::new_normalize(V3::new(0.3, -1.0, 0.5)), 1.1);
+    // 2,000 cells (4.5° spacing): the sphere does not turn with the part, so
+    // the two answers agree to within about a cell.
+    let cells = 2000;
+    let sp = spacing_deg(cells);
+    for (name, soup) in [
+        ("dome", dome(40.0, 115.0, 8, 24)),
+        ("teapot", teapot(10, 12, 5, 6)),
+    ] {
+        for machine in [CA_MACHINE, AB_MACHINE] {
+            let deg = [90.0, 90.0, 180.0, 180.0];
+            let a = plan(&mesh(&soup), machine, deg, cells);
+            let b = plan(&mesh(&rotated(&soup, &rotation)), machine, deg, cells);
+            let (sa, sb) = (a.setup.unwrap().placement, b.setup.unwrap().placement);
+            let off = angle_deg(&(rotation * sa.tool_axis), &sb.tool_axis);
+            let (ra, rb) = (sa.required.degrees(), sb.required.degrees());
+            // The teapot's optimum is flat (near-equal areas over a
+            // range of tilts), so there only the area must agree.
+            if name == "dome" {
+                assert!(off <= 2.0 * sp, "{name} {machine}: axis moved {off:.2}°");
+                for k in 0..4 {
+                    assert!(
+                        (ra[k] - rb[k]).abs() <= 2.0 * sp,
+                        "{name} {machine}: {ra:?} vs {rb:?}"
+                    );
+                }
+            }
+            let rel = (sa.area - sb.area).abs() / sa.area.max(sb.area);
+            assert!(
+                rel < 0.25,
+                "{name} {machine}: areas {} vs {}",
+                sa.area,
+                sb.area
+            );
+        }
+    }
+}
