@@ -108,7 +108,9 @@ impl FromStr for Cutter {
             },
             _ => return Err(syntax()),
         };
-        cutter.validated().map_err(|_| CutterError::Size(s.to_string()))
+        cutter
+            .validated()
+            .map_err(|_| CutterError::Size(s.to_string()))
     }
 }
 

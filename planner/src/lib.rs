@@ -8,4 +8,7 @@
 //! `interp-core`, it may allocate and use all cores.
 
 pub mod cutter;
+pub mod fit;
+pub mod gouge;
 pub mod mesh;
+pub mod predict;
