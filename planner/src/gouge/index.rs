@@ -132,6 +132,47 @@ impl Grid2 {
     }
 }
 
+impl Grid2 {
+    /// Number of cells.
+    pub fn cell_count(&self) -> usize {
+        self.dims[0] * self.dims[1]
+    }
+
+    /// The item ids stored in cell `c`.
+    pub fn cell_items(&self, c: usize) -> &[u32] {
+        &self.items[self.starts[c] as usize..self.starts[c + 1] as usize]
+    }
+
+    /// Calls `visit(cell, cell_rect, ids)` for every non-empty cell overlapping
+    /// the rectangle, so a caller can skip whole cells with a bound.
+    pub fn query_cells(&self, rect: [f64; 4], mut visit: impl FnMut(usize, [f64; 4], &[u32])) {
+        let max = [
+            self.origin[0] + self.cell * self.dims[0] as f64,
+            self.origin[1] + self.cell * self.dims[1] as f64,
+        ];
+        if rect[2] < self.origin[0]
+            || rect[3] < self.origin[1]
+            || rect[0] > max[0]
+            || rect[1] > max[1]
+        {
+            return;
+        }
+        let (ix, iy) = self.range(&rect);
+        for y in iy.0..=iy.1 {
+            for x in ix.0..=ix.1 {
+                let c = y * self.dims[0] + x;
+                let ids = self.cell_items(c);
+                if ids.is_empty() {
+                    continue;
+                }
+                let x0 = self.origin[0] + self.cell * x as f64;
+                let y0 = self.origin[1] + self.cell * y as f64;
+                visit(c, [x0, y0, x0 + self.cell, y0 + self.cell], ids);
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

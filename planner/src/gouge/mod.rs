@@ -159,6 +159,8 @@ pub struct CcSurface {
     /// The CC points, mm.
     pub points: Vec<P3>,
     grid: Grid2,
+    /// Highest CC point per grid cell, to skip cells the cutter cannot reach.
+    cell_max_z: Vec<f64>,
 }
 
 impl CcSurface {
@@ -217,7 +219,37 @@ impl CcSurface {
     /// Uses the given points as CC points, indexed in cells of about `cell` mm.
     pub fn from_points(points: Vec<P3>, cell: f64) -> Self {
         let grid = Grid2::of_points(points.iter().map(|p| [p.x, p.y]), cell);
-        Self { points, grid }
+        let cell_max_z = (0..grid.cell_count())
+            .map(|c| {
+                grid.cell_items(c)
+                    .iter()
+                    .map(|&i| points[i as usize].z)
+                    .fold(f64::NEG_INFINITY, f64::max)
+            })
+            .collect();
+        Self {
+            points,
+            grid,
+            cell_max_z,
+        }
+    }
+
+    /// Calls `visit` with every CC point in the XY rectangle's cells whose
+    /// highest point is above `skip_below(cell_rect)`.
+    fn near_pruned(
+        &self,
+        rect: [f64; 4],
+        skip_below: impl Fn(&[f64; 4]) -> f64,
+        mut visit: impl FnMut(&P3),
+    ) {
+        self.grid.query_cells(rect, |c, cell_rect, ids| {
+            if self.cell_max_z[c] <= skip_below(&cell_rect) {
+                return;
+            }
+            for &i in ids {
+                visit(&self.points[i as usize]);
+            }
+        });
     }
 
     /// Calls `visit` with every CC point in the XY rectangle's cells.
@@ -309,7 +341,16 @@ pub fn pair_interference(
     let z_low = a.z.min(b.z);
     let mut best: Option<(f64, P3, f64)> = None;
     let mut tests = 0u64;
-    surface.near(rect, |q| {
+    // A cell is skipped when even its highest point is below the cutter's
+    // lowest possible surface over it: the lowest tip plus the profile at
+    // the cell's smallest distance from the move.
+    let skip_below = |cell: &[f64; 4]| {
+        let (cx, cy) = (0.5 * (cell[0] + cell[2]), 0.5 * (cell[1] + cell[3]));
+        let half_diag = 0.5 * (cell[2] - cell[0]).hypot(cell[3] - cell[1]);
+        let rmin = (xy_distance_to_segment(a, b, cx, cy) - half_diag).max(0.0);
+        z_low + profile_height(cutter, rmin).unwrap_or(0.0) + threshold
+    };
+    surface.near_pruned(rect, skip_below, |q| {
         let floor = best.map_or(threshold, |(d, _, _)| d);
         // Cheap bound: the cutter is never lower than its lowest tip plus the
         // profile at the smallest horizontal distance.
@@ -451,7 +492,24 @@ pub fn correct(
     if let Some(first) = lifted.first() {
         out.push(*first);
     }
+    // Pairs that still interfere after the lift, found in parallel; the
+    // others are copied as they are.
+    let lifted_points_only: Vec<P3> = lifted.iter().map(|c| c.p).collect();
+    let flagged: std::collections::HashSet<usize> = detect(
+        cutter,
+        surface,
+        &lifted_points_only,
+        config.correction_target,
+    )
+    .interferences
+    .iter()
+    .map(|i| i.pair)
+    .collect();
     for m in 0..lifted.len().saturating_sub(1) {
+        if !flagged.contains(&m) {
+            out.push(lifted[m + 1]);
+            continue;
+        }
         let (naive_a, naive_b) = (path[m], path[m + 1]);
         let mut stack = vec![lifted[m + 1]];
         let mut splits = 0;

@@ -106,6 +106,25 @@ pub fn swept_bottom(cutter: &Cutter, a: &P3, b: &P3, x: f64, y: f64) -> Option<S
         (lo, hi)
     };
     let dz = b.z - a.z;
+    match *cutter {
+        // A flat end: the swept bottom is linear in t, lowest at an end.
+        Cutter::Flat { .. } => {
+            let (zl, zh) = (a.z + lo * dz, a.z + hi * dz);
+            return Some(if zl <= zh {
+                SweptBottom { z: zl, t: lo }
+            } else {
+                SweptBottom { z: zh, t: hi }
+            });
+        }
+        Cutter::Ball { .. } => {
+            let s = ball_bottom(big_r, a, b, x, y);
+            // Within reach, but round-off at the very rim may miss both.
+            if s.z.is_finite() {
+                return Some(s);
+            }
+        }
+        Cutter::Bull { .. } => {}
+    }
     let f = |t: f64| {
         let r = (wx - t * ux).hypot(wy - t * uy);
         // Round-off at the bracket ends may put r a hair beyond R.
@@ -114,6 +133,49 @@ pub fn swept_bottom(cutter: &Cutter, a: &P3, b: &P3, x: f64, y: f64) -> Option<S
     };
     let (t, z) = golden_min(f, lo, hi);
     Some(SweptBottom { z, t })
+}
+
+/// Closed form for a ball: the lowest point of the capsule of radius `r`
+/// around the centre segment, above `(x, y)` (which must be within reach). It
+/// is on the sphere at an end or on the cylinder between them (eq. 4–5).
+fn ball_bottom(r: f64, a: &P3, b: &P3, x: f64, y: f64) -> SweptBottom {
+    let sphere = |c: &P3| {
+        let s = r * r - (x - c.x).powi(2) - (y - c.y).powi(2);
+        if s >= 0.0 {
+            c.z + r - s.sqrt()
+        } else {
+            f64::INFINITY
+        }
+    };
+    let (za, zb) = (sphere(a), sphere(b));
+    let mut best = if za <= zb {
+        SweptBottom { z: za, t: 0.0 }
+    } else {
+        SweptBottom { z: zb, t: 1.0 }
+    };
+    let (dx, dy, dz) = (b.x - a.x, b.y - a.y, b.z - a.z);
+    let horiz = dx * dx + dy * dy;
+    if horiz.sqrt() < PLUNGE_XY_LEN {
+        return best;
+    }
+    let dd = horiz + dz * dz;
+    let (wx, wy) = (x - a.x, y - a.y);
+    let k = wx * dx + wy * dy;
+    let s = wx * wx + wy * wy;
+    // |w|² D − (w·d)² = R² D, a quadratic in the height w_z above a's centre.
+    let quarter_disc = (k * dz).powi(2) - horiz * ((s - r * r) * dd - k * k);
+    if quarter_disc >= 0.0 {
+        let wz = (k * dz - quarter_disc.sqrt()) / horiz;
+        let t = (k + wz * dz) / dd;
+        if (0.0..=1.0).contains(&t) {
+            // Back from the centre frame: a's centre is at a.z + r.
+            let z = a.z + r + wz;
+            if z < best.z {
+                best = SweptBottom { z, t };
+            }
+        }
+    }
+    best
 }
 
 /// Minimum of a convex function on `[lo, hi]`, also comparing the ends (the
