@@ -5,6 +5,7 @@
 //! is within the tolerance everywhere, and undercut is left at the junction.
 
 use planner::cutter::Cutter;
+use planner::fit::{self, FitConfig};
 use planner::gouge::{self, CcSurface, GougeConfig, InterferenceCase};
 use planner::mesh::{P3, TriMesh, V3, WeldOptions};
 use planner::predict::{self, PredictConfig};
@@ -156,6 +157,35 @@ fn seed_example_gouges_at_the_junction_and_correction_removes_the_overcut() {
         let cy = 0.5 * (r.xy_box[1] + r.xy_box[3]);
         assert!(cx.hypot(cy) < junction + cutter.radius() + 1.0);
     }
+    // Fit into NURBS blocks at 1 µm with the gouge re-check; the milled
+    // surface of the fitted curves (sampled) still has no overcut beyond the
+    // tolerance, and the blocks are fewer than the CL points.
+    let fitted = fit::fit_checked(
+        &fixed.points(),
+        &FitConfig::default(),
+        Some(fit::Recheck {
+            cutter: &cutter,
+            surface: &cc,
+            max_depth: TOL,
+        }),
+    )
+    .unwrap();
+    eprintln!(
+        "fit {:?}: {} blocks, {} lines, compression {:.1}, max dev {:.2e}, recheck {:?}",
+        t0.elapsed(),
+        fitted.nurbs_blocks,
+        fitted.line_moves,
+        fitted.compression,
+        fitted.max_deviation,
+        fitted.recheck_max_depth
+    );
+    assert!(fitted.max_deviation <= 1e-3);
+    assert!(fitted.recheck_max_depth.unwrap() <= TOL);
+    assert!(fitted.compression > 2.0);
+    let sampled: Vec<P3> = fitted.pieces.iter().flat_map(fit::sample_piece).collect();
+    let milled = predict::predict(&cutter, &mesh, &sampled, &pcfg).unwrap();
+    assert!(milled.stats.max_overcut <= TOL, "{:?}", milled.stats);
+
     // Away from the junction the corrected path is the naive one.
     for (p, &l) in fixed.points().iter().zip(&fixed.lift) {
         if p.x.hypot(p.y) > junction + 2.0 * cutter.radius() {
