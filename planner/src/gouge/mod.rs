@@ -165,7 +165,11 @@ pub struct CcSurface {
 
 impl CcSurface {
     /// CC points of a mesh: its vertices, points every `spacing` mm along each
-    /// edge (once per edge) and on a barycentric lattice inside each face.
+    /// edge (once per edge) and on rows `spacing` apart inside each face that
+    /// does not face down (the number of points follows the area, so slivers
+    /// cost little). A downward face of a closed part lies under an upward one
+    /// everywhere, so a cutter coming from above meets the upward one first;
+    /// its edges and corners are still sampled.
     pub fn from_mesh(mesh: &TriMesh, spacing: f64) -> Result<Self, GougeError> {
         if !(spacing.is_finite() && spacing > 0.0) {
             return Err(GougeError::Config {
@@ -174,14 +178,12 @@ impl CcSurface {
                 why: "must be finite and > 0",
             });
         }
-        let divisions = |a: &P3, b: &P3| ((b - a).norm() / spacing).ceil().max(1.0);
         let mut needed = mesh.vertices.len() as f64;
         for t in 0..mesh.triangles.len() {
             let [a, b, c] = mesh.corners(t);
-            let n = divisions(&a, &b)
-                .max(divisions(&b, &c))
-                .max(divisions(&c, &a));
-            needed += n * n / 2.0 + 3.0 * n;
+            let area = 0.5 * (b - a).cross(&(c - a)).norm();
+            let perimeter = (b - a).norm() + (c - b).norm() + (a - c).norm();
+            needed += 2.0 * area / (spacing * spacing) + perimeter / spacing + 3.0;
         }
         if needed > MAX_CC_POINTS as f64 {
             return Err(GougeError::TooManySamples {
@@ -192,24 +194,34 @@ impl CcSurface {
         let mut points = mesh.vertices.clone();
         let mut edges = std::collections::HashSet::new();
         for (t, tri) in mesh.triangles.iter().enumerate() {
-            let [a, b, c] = mesh.corners(t);
             for (i, j) in [(0, 1), (1, 2), (2, 0)] {
                 let key = (tri[i].min(tri[j]), tri[i].max(tri[j]));
                 if edges.insert(key) {
                     let (p, q) = (mesh.vertices[key.0 as usize], mesh.vertices[key.1 as usize]);
-                    let n = divisions(&p, &q) as usize;
+                    let n = ((q - p).norm() / spacing).ceil().max(1.0) as usize;
                     for k in 1..n {
                         points.push(p + (q - p) * (k as f64 / n as f64));
                     }
                 }
             }
-            let n = divisions(&a, &b)
-                .max(divisions(&b, &c))
-                .max(divisions(&c, &a)) as usize;
-            for i in 1..n {
-                for j in 1..n - i {
-                    let (u, v) = (i as f64 / n as f64, j as f64 / n as f64);
-                    points.push(a + (b - a) * u + (c - a) * v);
+            if mesh.normals[t].z < 0.0 {
+                continue;
+            }
+            // Rows parallel to the longest edge a–b, `spacing` apart towards c.
+            let [a0, b0, c0] = mesh.corners(t);
+            let (a, b, c) = [(a0, b0, c0), (b0, c0, a0), (c0, a0, b0)]
+                .into_iter()
+                .max_by(|x, y| (x.1 - x.0).norm().total_cmp(&(y.1 - y.0).norm()))
+                .expect("three edges");
+            let base = (b - a).norm();
+            let height = 2.0 * 0.5 * (b - a).cross(&(c - a)).norm() / base;
+            let rows = (height / spacing).ceil() as usize;
+            for i in 1..rows {
+                let v = i as f64 / rows as f64;
+                let (left, right) = (a + (c - a) * v, b + (c - b) * v);
+                let cols = ((right - left).norm() / spacing).ceil() as usize;
+                for k in 1..cols {
+                    points.push(left + (right - left) * (k as f64 / cols as f64));
                 }
             }
         }
@@ -252,23 +264,32 @@ impl CcSurface {
         });
     }
 
-    /// Calls `visit` with every CC point in the XY rectangle's cells.
-    fn near(&self, rect: [f64; 4], mut visit: impl FnMut(&P3)) {
-        self.grid.query(rect, |i| visit(&self.points[i as usize]));
-    }
-
     /// Tip height at which the cutter, lowered along Z at `(x, y)`, first
     /// touches a CC point (drop-cutter); `None` if no CC point is within reach.
     pub fn drop_height(&self, cutter: &Cutter, x: f64, y: f64) -> Option<f64> {
         let r = cutter.radius();
         let mut best: Option<f64> = None;
-        self.near([x - r, y - r, x + r, y + r], |q| {
-            if let Some(z) = touch_height(cutter, x, y, q)
-                && best.is_none_or(|b| z > b)
-            {
-                best = Some(z);
-            }
-        });
+        self.grid
+            .query_cells([x - r, y - r, x + r, y + r], |c, cell, ids| {
+                // No point of this cell can hold the cutter higher than its
+                // highest point minus the profile at the cell's nearest place.
+                let (cx, cy) = (0.5 * (cell[0] + cell[2]), 0.5 * (cell[1] + cell[3]));
+                let half_diag = 0.5 * (cell[2] - cell[0]).hypot(cell[3] - cell[1]);
+                let rmin = ((cx - x).hypot(cy - y) - half_diag).max(0.0);
+                let Some(h) = profile_height(cutter, rmin) else {
+                    return;
+                };
+                if best.is_some_and(|b| self.cell_max_z[c] - h <= b) {
+                    return;
+                }
+                for &i in ids {
+                    if let Some(z) = touch_height(cutter, x, y, &self.points[i as usize])
+                        && best.is_none_or(|b| z > b)
+                    {
+                        best = Some(z);
+                    }
+                }
+            });
         best
     }
 }
