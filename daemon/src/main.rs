@@ -11,6 +11,7 @@
 mod clock;
 mod demo;
 mod histogram;
+mod plan_gouge;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -27,11 +28,15 @@ struct Cli {
 enum Command {
     /// Stream the bundled butterfly NURBS through the interpolator loop and print a summary.
     Demo(demo::DemoArgs),
+    /// Offline planners (gouge check and correction, NURBS fitting).
+    #[command(subcommand)]
+    Plan(plan_gouge::PlanCommand),
 }
 
 fn main() -> Result<()> {
     match Cli::parse().command {
         Command::Demo(args) => demo::main(&args),
+        Command::Plan(cmd) => plan_gouge::main(&cmd),
     }
 }
 
@@ -51,7 +56,9 @@ mod tests {
         assert!(matches!(cli.command, Command::Demo(_)));
         let cli = Cli::try_parse_from(["interpd", "demo", "--fast", "--json", "--feed", "3000"])
             .expect("demo flags parse");
-        let Command::Demo(args) = cli.command;
+        let Command::Demo(args) = cli.command else {
+            panic!("demo parses as Demo");
+        };
         assert!(args.fast && args.json);
         assert_eq!(args.feed, 3000.0);
     }

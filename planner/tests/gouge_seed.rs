@@ -18,7 +18,7 @@ const CAP_Z: f64 = -8.0;
 /// Half the side of the square part, mm.
 const HALF: f64 = 30.0;
 /// Mesh grid step, mm.
-const MESH_STEP: f64 = 0.5;
+const MESH_STEP: f64 = 1.0;
 const TOL: f64 = 0.05;
 
 fn bowl(x: f64, y: f64) -> (f64, V3) {

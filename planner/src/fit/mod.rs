@@ -144,12 +144,18 @@ pub struct NurbsBlock {
 impl NurbsBlock {
     /// The curve point at parameter `u` in [0, 1].
     pub fn point(&self, u: f64) -> P3 {
-        let pts: Vec<P3> = self
-            .control_points
-            .iter()
-            .map(|c| P3::new(c[0], c[1], c[2]))
-            .collect();
-        eval(self.degree, &self.knots, &pts, u)
+        let (p, knots, ctrl) = (self.degree, &self.knots, &self.control_points);
+        let span = knot_span(ctrl.len() - 1, p, u, knots);
+        let mut nb = [0.0; MAX_DEGREE + 1];
+        basis(span, u, p, knots, &mut nb);
+        let mut pt = [0.0; 3];
+        for j in 0..=p {
+            let c = ctrl[span - p + j];
+            for k in 0..3 {
+                pt[k] += c[k] * nb[j];
+            }
+        }
+        P3::new(pt[0], pt[1], pt[2])
     }
 }
 

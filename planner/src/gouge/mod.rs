@@ -508,15 +508,10 @@ pub fn correct(
         })
         .collect();
     let lifted_points = lifted.iter().filter(|c| c.p.z != c.naive_z).count();
-    let mut out: Vec<Cl> = Vec::with_capacity(path.len());
-    let mut inserted = 0;
-    if let Some(first) = lifted.first() {
-        out.push(*first);
-    }
     // Pairs that still interfere after the lift, found in parallel; the
     // others are copied as they are.
     let lifted_points_only: Vec<P3> = lifted.iter().map(|c| c.p).collect();
-    let flagged: std::collections::HashSet<usize> = detect(
+    let flagged: Vec<usize> = detect(
         cutter,
         surface,
         &lifted_points_only,
@@ -526,49 +521,38 @@ pub fn correct(
     .iter()
     .map(|i| i.pair)
     .collect();
-    for m in 0..lifted.len().saturating_sub(1) {
-        if !flagged.contains(&m) {
-            out.push(lifted[m + 1]);
-            continue;
+    // Each flagged pair is refined on its own, in parallel; its chain starts
+    // and ends with the pair's (possibly further lifted) end points.
+    let chains: std::collections::HashMap<usize, Vec<Cl>> = flagged
+        .par_iter()
+        .map(|&m| {
+            let chain = refine_pair(
+                cutter,
+                surface,
+                lifted[m],
+                lifted[m + 1],
+                (&path[m], &path[m + 1]),
+                &config,
+            );
+            (m, chain)
+        })
+        .collect();
+    let mut out: Vec<Cl> = Vec::with_capacity(path.len() + chains.len());
+    let mut inserted = 0;
+    for m in 0..lifted.len() {
+        // A shared end point takes the highest lift any of its pairs asked
+        // for (lifting is always safe).
+        let mut point = lifted[m];
+        if let Some(c) = m.checked_sub(1).and_then(|k| chains.get(&k)) {
+            point.p.z = point.p.z.max(c[c.len() - 1].p.z);
         }
-        let (naive_a, naive_b) = (path[m], path[m + 1]);
-        let mut stack = vec![lifted[m + 1]];
-        let mut splits = 0;
-        while let Some(&next) = stack.last() {
-            let cur = *out.last().expect("out starts with the first point");
-            let (hit, _) =
-                pair_interference(cutter, surface, &cur.p, &next.p, config.correction_target);
-            let Some((depth, _, t)) = hit else {
-                out.push(next);
-                stack.pop();
-                continue;
-            };
-            let xy_len = (next.p.x - cur.p.x).hypot(next.p.y - cur.p.y);
-            if xy_len <= config.min_move || splits >= MAX_SPLITS_PER_PAIR {
-                // Lifting both ends by the depth clears every CC point of
-                // this move; lifting never makes another move interfere.
-                out.last_mut().expect("non-empty").p.z += depth;
-                let mut lifted_next = next;
-                lifted_next.p.z += depth;
-                out.push(lifted_next);
-                stack.pop();
-                continue;
-            }
-            splits += 1;
-            // Eq. 6: the new CL point where the cutter passes deepest; eq. 7:
-            // lifted along Z until it touches the surface.
-            let c_xy = cur.p + (next.p - cur.p) * t;
-            let line_z = c_xy.z;
-            let z = surface
-                .drop_height(cutter, c_xy.x, c_xy.y)
-                .map_or(line_z, |d| d.max(line_z));
-            // The naive height at this place, on the original move.
-            let naive_z = naive_at(&naive_a, &naive_b, c_xy.x, c_xy.y);
-            stack.push(Cl {
-                p: P3::new(c_xy.x, c_xy.y, z),
-                naive_z,
-            });
-            inserted += 1;
+        if let Some(c) = chains.get(&m) {
+            point.p.z = point.p.z.max(c[0].p.z);
+        }
+        out.push(point);
+        if let Some(c) = chains.get(&m) {
+            out.extend_from_slice(&c[1..c.len() - 1]);
+            inserted += c.len() - 2;
         }
     }
     let corrected: Vec<P3> = out.iter().map(|c| c.p).collect();
@@ -584,6 +568,58 @@ pub fn correct(
         max_depth_before: before.max_depth(),
         max_depth_after: after.max_depth(),
     })
+}
+
+/// Splits and lifts one interfering pair until no part of it interferes by
+/// more than the correction target (eq. 6–7, recursively). Returns the chain
+/// from the (possibly lifted) start to the (possibly lifted) end.
+fn refine_pair(
+    cutter: &Cutter,
+    surface: &CcSurface,
+    start: Cl,
+    end: Cl,
+    naive: (&P3, &P3),
+    config: &GougeConfig,
+) -> Vec<Cl> {
+    let mut out = vec![start];
+    let mut stack = vec![end];
+    let mut splits = 0;
+    while let Some(&next) = stack.last() {
+        let cur = *out.last().expect("out starts with the first point");
+        let (hit, _) =
+            pair_interference(cutter, surface, &cur.p, &next.p, config.correction_target);
+        let Some((depth, _, t)) = hit else {
+            out.push(next);
+            stack.pop();
+            continue;
+        };
+        let xy_len = (next.p.x - cur.p.x).hypot(next.p.y - cur.p.y);
+        if xy_len <= config.min_move || splits >= MAX_SPLITS_PER_PAIR {
+            // Lifting both ends by the depth clears every CC point of this
+            // move; lifting never makes another move interfere.
+            out.last_mut().expect("non-empty").p.z += depth;
+            let mut lifted_next = next;
+            lifted_next.p.z += depth;
+            out.push(lifted_next);
+            stack.pop();
+            continue;
+        }
+        splits += 1;
+        // Eq. 6: the new CL point where the cutter passes deepest; eq. 7:
+        // lifted along Z until it touches the surface.
+        let c_xy = cur.p + (next.p - cur.p) * t;
+        let line_z = c_xy.z;
+        let z = surface
+            .drop_height(cutter, c_xy.x, c_xy.y)
+            .map_or(line_z, |d| d.max(line_z));
+        // The naive height at this place, on the original move.
+        let naive_z = naive_at(naive.0, naive.1, c_xy.x, c_xy.y);
+        stack.push(Cl {
+            p: P3::new(c_xy.x, c_xy.y, z),
+            naive_z,
+        });
+    }
+    out
 }
 
 /// Height of the naive move `a → b` at the XY place nearest `(x, y)`.
