@@ -6,7 +6,6 @@
 //! or G6.2 NURBS in LinuxCNC's form (fit). The reader and writer here are
 //! deliberately small; the `gcode` crate replaces them when it is merged.
 
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
@@ -111,107 +110,40 @@ pub struct ClProgram {
     pub feed: Option<f64>,
 }
 
-/// Reads a G0/G1 program. Refuses what it cannot follow (arcs, NURBS,
-/// parameters, inch or incremental mode), naming the line.
+/// Reads a program with the `gcode` parser and takes its G0/G1 moves as CL
+/// polylines. Arcs and NURBS are refused, naming the line (a CL path for the
+/// gouge check is a polyline).
 pub fn read_cl_program(text: &str) -> Result<ClProgram> {
-    let mut pos = [f64::NAN; 3];
-    let mut motion: Option<u32> = None;
+    use gcode::BlockKind;
+    let program = gcode::parse(text).map_err(|e| anyhow::anyhow!("{e}"))?;
     let mut paths: Vec<Vec<P3>> = Vec::new();
     let mut current: Vec<P3> = Vec::new();
     let mut feed = None;
-    for (n, raw) in text.lines().enumerate() {
-        let line_no = n + 1;
-        let mut clean = String::with_capacity(raw.len());
-        let mut depth = 0;
-        for ch in raw.chars() {
-            match ch {
-                '(' => depth += 1,
-                ')' if depth > 0 => depth -= 1,
-                ';' if depth == 0 => break,
-                c if depth == 0 && !c.is_whitespace() => clean.push(c.to_ascii_uppercase()),
-                _ => {}
-            }
-        }
-        if clean.is_empty() || clean.starts_with('%') {
-            continue;
-        }
-        if clean.contains('#') || clean.contains('[') {
-            bail!("line {line_no}: parameters and expressions are not supported in plan input");
-        }
-        let mut words = Vec::new();
-        let bytes = clean.as_bytes();
-        let mut i = 0;
-        while i < bytes.len() {
-            let letter = bytes[i] as char;
-            if !letter.is_ascii_alphabetic() {
-                bail!(
-                    "line {line_no}: expected a word letter at `{}`",
-                    &clean[i..]
-                );
-            }
-            let start = i + 1;
-            let mut j = start;
-            while j < bytes.len() && !(bytes[j] as char).is_ascii_alphabetic() {
-                j += 1;
-            }
-            let value: f64 = clean[start..j].parse().with_context(|| {
-                format!("line {line_no}: bad number in word `{}`", &clean[i..j])
-            })?;
-            if !value.is_finite() {
-                bail!("line {line_no}: word `{}` is not finite", &clean[i..j]);
-            }
-            words.push((letter, value));
-            i = j;
-        }
-        let mut target = pos;
-        let mut moved = false;
-        for &(letter, value) in &words {
-            match letter {
-                'G' => {
-                    let code = (value * 10.0).round() as i64;
-                    match code {
-                        0 => motion = Some(0),
-                        10 => motion = Some(1),
-                        20 | 30 | 52 | 53 | 62 => bail!(
-                            "line {line_no}: G{value} is not supported in plan input (G0/G1 polylines only)"
-                        ),
-                        200 => bail!("line {line_no}: G20 (inch) is not supported; use mm"),
-                        910 => bail!("line {line_no}: G91 (incremental) is not supported"),
-                        _ => {}
-                    }
+    let p3 = |p: [f64; 3]| P3::new(p[0], p[1], p[2]);
+    for block in &program.blocks {
+        match &block.kind {
+            BlockKind::Linear(m) => {
+                if feed.is_none()
+                    && let gcode::Feed::PerMinute(f) = m.feed
+                {
+                    feed = Some(f);
                 }
-                'X' | 'Y' | 'Z' => {
-                    target[(letter as u8 - b'X') as usize] = value;
-                    moved = true;
+                if current.is_empty() {
+                    current.push(p3(m.start));
                 }
-                'F' => {
-                    feed.get_or_insert(value);
-                }
-                _ => {}
+                current.push(p3(m.end));
             }
-        }
-        if !moved {
-            continue;
-        }
-        pos = target;
-        match motion {
-            Some(1) => {
-                if pos.iter().any(|c| c.is_nan()) {
-                    bail!("line {line_no}: G1 before X, Y and Z are all known");
-                }
-                current.push(P3::new(pos[0], pos[1], pos[2]));
-            }
-            _ => {
-                // A rapid (or a move before any motion word) ends the run and
-                // starts the next one at the new position.
+            BlockKind::Rapid(_) => {
                 if current.len() >= 2 {
                     paths.push(std::mem::take(&mut current));
                 }
                 current.clear();
-                if pos.iter().all(|c| !c.is_nan()) {
-                    current.push(P3::new(pos[0], pos[1], pos[2]));
-                }
             }
+            BlockKind::Arc(_) | BlockKind::Nurbs(_) => bail!(
+                "line {}: arcs and NURBS are not supported in a CL path (G0/G1 polylines only)",
+                block.line
+            ),
+            _ => {}
         }
     }
     if current.len() >= 2 {
@@ -230,74 +162,85 @@ fn read_program(path: &Path) -> Result<ClProgram> {
     Ok(prog)
 }
 
-fn header(out: &mut String, what: &str) {
-    let _ = writeln!(out, "({what}, written by interpd plan)");
-    let _ = writeln!(out, "G21 G90 G17 G94");
-}
-
-fn approach(out: &mut String, p: &P3, feed: f64) {
-    let _ = writeln!(
-        out,
-        "G0 X{:.6} Y{:.6} Z{:.6}",
-        p.x,
-        p.y,
-        p.z + APPROACH_CLEARANCE
+/// Adds a rapid to `APPROACH_CLEARANCE` above `p` and a feed move down to it.
+fn approach(blocks: &mut Vec<gcode::ProgramBlock>, pos: &mut [f64; 3], p: &P3, feed: f64) {
+    let above = [p.x, p.y, p.z + APPROACH_CLEARANCE];
+    push(
+        blocks,
+        gcode::BlockKind::Rapid(gcode::RapidMove {
+            start: *pos,
+            end: above,
+        }),
     );
-    let _ = writeln!(out, "G1 Z{:.6} F{feed}", p.z);
+    *pos = above;
+    line_to(blocks, pos, [p.x, p.y, p.z], feed);
 }
 
-/// Writes CL polylines as G1 moves.
+fn push(blocks: &mut Vec<gcode::ProgramBlock>, kind: gcode::BlockKind) {
+    let line = blocks.len() as u32 + 1;
+    blocks.push(gcode::ProgramBlock { line, kind });
+}
+
+fn line_to(blocks: &mut Vec<gcode::ProgramBlock>, pos: &mut [f64; 3], end: [f64; 3], feed: f64) {
+    push(
+        blocks,
+        gcode::BlockKind::Linear(gcode::LinearMove {
+            start: *pos,
+            end,
+            feed: gcode::Feed::PerMinute(feed),
+        }),
+    );
+    *pos = end;
+}
+
+/// Writes CL polylines as G1 moves through the `gcode` emitter.
 pub fn write_g1(paths: &[Vec<P3>], feed: f64) -> String {
-    let mut out = String::new();
-    header(&mut out, "gouge-corrected CL path");
+    let mut blocks = Vec::new();
+    let mut pos = [0.0; 3];
     for path in paths {
-        approach(&mut out, &path[0], feed);
+        approach(&mut blocks, &mut pos, &path[0], feed);
         for p in &path[1..] {
-            let _ = writeln!(out, "G1 X{:.6} Y{:.6} Z{:.6}", p.x, p.y, p.z);
+            line_to(&mut blocks, &mut pos, [p.x, p.y, p.z], feed);
         }
     }
-    let _ = writeln!(out, "M2");
-    out
+    gcode::emit(&gcode::Program { blocks })
 }
 
-/// Writes fitted paths as G6.2 (LinuxCNC form: `P` the order, one `X Y Z R K`
-/// line per control point with one knot each, then the last `order` knots on
-/// `G6.2 K` lines) and straight pieces as G1.
+/// Writes fitted paths through the `gcode` emitter: curves as G6.2 NURBS
+/// (with Z on the control-point lines, interpd's 3-D extension), straight
+/// pieces as G1.
 pub fn write_g62(fitted: &[(P3, fit::Fitted)], feed: f64) -> String {
-    let mut out = String::new();
-    header(&mut out, "NURBS-fitted CL path");
+    let mut blocks = Vec::new();
+    let mut pos = [0.0; 3];
     for (start, f) in fitted {
-        approach(&mut out, start, feed);
+        approach(&mut blocks, &mut pos, start, feed);
         for piece in &f.pieces {
             match piece {
                 FitPiece::Lines(pts) => {
                     for p in &pts[1..] {
-                        let _ = writeln!(out, "G1 X{:.6} Y{:.6} Z{:.6}", p[0], p[1], p[2]);
+                        line_to(&mut blocks, &mut pos, *p, feed);
                     }
                 }
                 FitPiece::Nurbs(b) => {
-                    let order = b.degree + 1;
-                    for (i, (c, w)) in b.control_points.iter().zip(&b.weights).enumerate() {
-                        let lead = if i == 0 {
-                            format!("G6.2 P{order} ")
-                        } else {
-                            "    ".to_string()
-                        };
-                        let _ = writeln!(
-                            out,
-                            "{lead}X{:.6} Y{:.6} Z{:.6} R{w} K{:.12}",
-                            c[0], c[1], c[2], b.knots[i]
-                        );
-                    }
-                    for k in &b.knots[b.control_points.len()..] {
-                        let _ = writeln!(out, "G6.2 K{k:.12}");
-                    }
+                    let first_line = blocks.len() as u32 + 1;
+                    push(
+                        &mut blocks,
+                        gcode::BlockKind::Nurbs(gcode::NurbsMove {
+                            first_line,
+                            plane: gcode::Plane::Xy,
+                            degree: b.degree,
+                            points: b.control_points.clone(),
+                            weights: b.weights.clone(),
+                            knots: b.knots.clone(),
+                            feed: gcode::Feed::PerMinute(feed),
+                        }),
+                    );
+                    pos = *b.control_points.last().expect("a block has control points");
                 }
             }
         }
     }
-    let _ = writeln!(out, "M2");
-    out
+    gcode::emit(&gcode::Program { blocks })
 }
 
 fn gouge_main(a: &GougeArgs) -> Result<()> {
@@ -497,11 +440,12 @@ fn fit_main(a: &FitArgs) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::fmt::Write as _;
 
     #[test]
     fn reads_g1_runs_and_refuses_arcs_naming_the_line() {
         let prog = read_cl_program(
-            "%\n(t)\nG21 G90\nG0 X0 Y0 Z5\nG1 Z0 F500\nX1 Y0\nX2 Y1 Z-0.5 ; c\nG0 Z5\nX10\nG1 Z1\nY3\n",
+            "%\n(t)\nG21 G90\nG0 X0 Y0 Z5\nG1 Z0 F500\nX1 Y0\nX2 Y1 Z-0.5 ; c\nG0 Z5\nX10\nG1 Z1\nY3\n%\n",
         )
         .unwrap();
         assert_eq!(prog.feed, Some(500.0));
@@ -516,26 +460,43 @@ mod tests {
                 P3::new(10.0, 3.0, 1.0)
             ]
         );
-        let e = read_cl_program("G0 X0 Y0 Z0\nG2 X1 Y1 I1 J0\n").unwrap_err();
+        let e = read_cl_program("G0 X0 Y0 Z0\nG2 X1 Y1 I1 J0 F100\n").unwrap_err();
         assert!(e.to_string().contains("line 2"), "{e}");
-        let e = read_cl_program("G1 X0 Y0 Z0\nX1 Y$\n").unwrap_err();
-        assert!(e.to_string().contains("line 2"), "{e}");
+        assert!(read_cl_program("G1 X0 Y0 Z0 F1\nX1 Y$\n").is_err());
     }
 
     #[test]
-    fn g62_output_has_one_knot_per_control_point_plus_order() {
+    fn g62_output_parses_back_to_the_same_curves_and_converts_to_core_blocks() {
         let pts: Vec<P3> = (0..50)
-            .map(|i| P3::new(i as f64, (i as f64 / 7.0).sin(), 0.0))
+            .map(|i| P3::new(i as f64, (i as f64 / 7.0).sin(), 0.1 * i as f64))
             .collect();
         let f = fit::fit(&pts, &FitConfig::default()).unwrap();
         let text = write_g62(&[(pts[0], f.clone())], 800.0);
         let FitPiece::Nurbs(b) = &f.pieces[0] else {
             panic!("expected a curve");
         };
-        let k_words = text.matches(" K").count() + text.matches("G6.2 K").count();
-        assert_eq!(text.matches("G6.2 K").count(), b.degree + 1);
-        assert_eq!(k_words - (b.degree + 1), b.knots.len());
-        assert!(text.contains(&format!("G6.2 P{}", b.degree + 1)));
+        let prog = gcode::parse(&text).unwrap();
+        let nurbs: Vec<&gcode::NurbsMove> = prog
+            .blocks
+            .iter()
+            .filter_map(|bl| match &bl.kind {
+                gcode::BlockKind::Nurbs(n) => Some(n),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(nurbs.len(), 1);
+        let n = nurbs[0];
+        assert_eq!(n.degree, b.degree);
+        assert_eq!(n.knots.len(), b.knots.len());
+        for (p, q) in n.points.iter().zip(&b.control_points) {
+            for k in 0..3 {
+                assert!((p[k] - q[k]).abs() < 1e-6, "{p:?} vs {q:?}");
+            }
+        }
+        for (u, v) in n.knots.iter().zip(&b.knots) {
+            assert!((u - v).abs() < 1e-9);
+        }
+        prog.to_core_blocks(&gcode::CoreOptions::default()).unwrap();
     }
 
     /// The seed's compound surface (convex cap in a concave bowl) as an ASCII
@@ -642,7 +603,14 @@ mod tests {
         })
         .unwrap();
         let text = std::fs::read_to_string(&nurbs).unwrap();
-        assert!(text.contains("G6.2 P4"));
+        let prog = gcode::parse(&text).unwrap();
+        let curves = prog
+            .blocks
+            .iter()
+            .filter(|b| matches!(&b.kind, gcode::BlockKind::Nurbs(n) if n.degree == 3))
+            .count();
+        assert!(curves > 0, "no G6.2 curve in {text:.300}");
+        prog.to_core_blocks(&gcode::CoreOptions::default()).unwrap();
         std::fs::remove_dir_all(&dir).ok();
     }
 }
