@@ -1,10 +1,9 @@
 //! `interpd plan gouge` and `interpd plan fit`: the offline gouge check,
 //! correction and NURBS fitting of `planner` on G-code paths.
 //!
-//! Input paths are G0/G1 programs (X Y Z words, modal, mm, absolute): every G1
-//! run between rapids is one CL polyline of tool-tip points. Output is G1 (gouge)
-//! or G6.2 NURBS in LinuxCNC's form (fit). The reader and writer here are
-//! deliberately small; the `gcode` crate replaces them when it is merged.
+//! Input paths are read with `gcode::parse`; every run of G1 moves between
+//! rapids is one CL polyline of tool-tip points. Output goes through
+//! `gcode::emit`: G1 (gouge) or G6.2 NURBS (fit).
 
 use std::path::{Path, PathBuf};
 

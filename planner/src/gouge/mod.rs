@@ -488,7 +488,6 @@ pub fn correct(
 ) -> Result<Correction, GougeError> {
     let config = config.validated()?;
     check_path(path)?;
-    let before = detect(cutter, surface, path, config.contact_epsilon);
     // Eq. 7 at the CL points themselves (also eq. 8's case: a CC point
     // beyond the end of a move is cleared by lifting that end).
     let lifted: Vec<Cl> = path
@@ -511,16 +510,19 @@ pub fn correct(
     // Pairs that still interfere after the lift, found in parallel; the
     // others are copied as they are.
     let lifted_points_only: Vec<P3> = lifted.iter().map(|c| c.p).collect();
-    let flagged: Vec<usize> = detect(
-        cutter,
-        surface,
-        &lifted_points_only,
-        config.correction_target,
-    )
-    .interferences
-    .iter()
-    .map(|i| i.pair)
-    .collect();
+    let after_lift = detect(cutter, surface, &lifted_points_only, config.contact_epsilon);
+    // With nothing lifted the naive path is the lifted one: no second check.
+    let before = if lifted_points == 0 {
+        after_lift.clone()
+    } else {
+        detect(cutter, surface, path, config.contact_epsilon)
+    };
+    let flagged: Vec<usize> = after_lift
+        .interferences
+        .iter()
+        .filter(|i| i.depth > config.correction_target)
+        .map(|i| i.pair)
+        .collect();
     // Each flagged pair is refined on its own, in parallel; its chain starts
     // and ends with the pair's (possibly further lifted) end points.
     let chains: std::collections::HashMap<usize, Vec<Cl>> = flagged
