@@ -38,8 +38,14 @@ fn best_of<T>(mut f: impl FnMut() -> T) -> (f64, T) {
 }
 
 fn main() {
-    // `cargo bench` passes `--bench`; `cargo test --benches` passes nothing
-    // special: run a single quick pass then.
+    // `cargo bench` passes `--bench`; `cargo test --all-targets` runs this
+    // binary without it, and the full run takes minutes: skip then.
+    if !std::env::args().any(|a| a == "--bench") {
+        eprintln!(
+            "gouge bench: not run under `cargo test` (use `cargo bench -p planner --bench gouge`)"
+        );
+        return;
+    }
     let stl = corpus().join("meshes/terrain.stl");
     if !stl.exists() {
         eprintln!("skipping gouge bench: {} not found", stl.display());
