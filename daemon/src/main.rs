@@ -16,6 +16,7 @@ mod simulate;
 mod trace_cmd;
 mod plan_raster;
 mod plan_setup;
+mod plan_gouge;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -50,6 +51,10 @@ enum PlanCommand {
     Raster(plan_raster::RasterArgs),
     /// 5-axis machinability and setup orientation of an STL part.
     Setup(plan_setup::SetupArgs),
+    /// Check a G1 path for gouges against an STL part, correct it, and predict the milled surface.
+    Gouge(plan_gouge::GougeArgs),
+    /// Fit G1 paths into G6.2 NURBS blocks within a tolerance.
+    Fit(plan_gouge::FitArgs),
 }
 
 fn main() -> Result<()> {
@@ -60,6 +65,8 @@ fn main() -> Result<()> {
         Command::Trace(args) => trace_cmd::main(&args),
         Command::Plan(PlanCommand::Raster(args)) => plan_raster::main(&args),
         Command::Plan(PlanCommand::Setup(args)) => plan_setup::main(&args),
+        Command::Plan(PlanCommand::Gouge(args)) => plan_gouge::gouge_main(&args),
+        Command::Plan(PlanCommand::Fit(args)) => plan_gouge::fit_main(&args),
     }
 }
 

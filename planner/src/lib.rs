@@ -8,6 +8,9 @@
 //! `interp-core`, it may allocate and use all cores.
 
 pub mod cutter;
+pub mod fit;
+pub mod gouge;
 pub mod mesh;
 pub mod raster;
 pub mod setup;
+pub mod predict;

@@ -1,0 +1,669 @@
+//! CL polylines → NURBS blocks for interpd (G6.2).
+//!
+//! A polyline is cut at sharp corners (the row ends of a raster) into pieces.
+//! Each piece becomes one clamped, non-rational B-spline of degree ≤ 5 (cubic
+//! by default), fitted by least squares (Piegl & Tiller, *The NURBS Book*,
+//! §9.4.1): chord-length parameters, knots placed by averaging the parameters
+//! so every knot span holds data (eq. 9.68–9.69), end points interpolated. The
+//! number of control points is searched (doubling, then bisection) for the
+//! fewest that keep every CL point within [`FitConfig::tolerance`] of the curve
+//! at its parameter. The normal equations are banded (bandwidth = degree); they
+//! are solved by a banded Cholesky factorisation, with nalgebra's SVD as the
+//! fallback when the system is singular.
+//!
+//! After fitting, [`fit_checked`] samples each curve and re-runs the gouge
+//! detection; a piece that interferes more than allowed is refitted tighter,
+//! and kept as its polyline (G1) if that does not help.
+//!
+//! Output is valid for `interp_core::nurbs` (degree ≤ 5, clamped knots,
+//! weights 1 > 0); a piece may have any number of control points, since the
+//! program side splits long curves exactly.
+
+use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::cutter::Cutter;
+use crate::gouge::{self, CcSurface};
+use crate::mesh::P3;
+
+/// Highest degree interp-core evaluates.
+pub const MAX_DEGREE: usize = 5;
+
+/// Consecutive CL points closer than this (mm) are merged before fitting.
+const DUPLICATE_DISTANCE: f64 = 1e-9;
+
+/// How many times a piece that gouges after fitting is refitted, each time
+/// with a tenth of the tolerance, before it is kept as a polyline.
+const REFIT_ATTEMPTS: usize = 2;
+
+/// Curve samples per parameter interval between CL points for the gouge
+/// re-check (the CL points' own parameters included).
+const RECHECK_SAMPLES_PER_SPAN: usize = 4;
+
+/// Fitting settings. Serde field names are kebab-case.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case", default, deny_unknown_fields)]
+pub struct FitConfig {
+    /// Largest distance of a CL point from the fitted curve, mm. Default 0.001.
+    pub tolerance: f64,
+    /// Curve degree, 1..=5. Default 3.
+    pub degree: usize,
+    /// The polyline is cut where its direction turns by more than this,
+    /// degrees. Default 30.
+    pub corner_angle_deg: f64,
+    /// Longest piece fitted at once, CL points; longer runs are cut (a guard
+    /// on the size of one least-squares system). Default 2000.
+    pub max_points_per_piece: usize,
+}
+
+impl Default for FitConfig {
+    fn default() -> Self {
+        Self {
+            tolerance: 0.001,
+            degree: 3,
+            corner_angle_deg: 30.0,
+            max_points_per_piece: 2000,
+        }
+    }
+}
+
+/// Why a polyline could not be fitted.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FitError {
+    /// A setting is out of range.
+    #[error("fit config field `{field}` = {value}: {why}")]
+    Config {
+        /// The field (kebab-case).
+        field: &'static str,
+        /// Its value.
+        value: f64,
+        /// The allowed range.
+        why: &'static str,
+    },
+    /// A CL point is not finite.
+    #[error("CL point {0}: coordinate is not finite")]
+    NonFinite(usize),
+}
+
+impl FitConfig {
+    /// Checks every field.
+    pub fn validated(self) -> Result<Self, FitError> {
+        if !(self.tolerance.is_finite() && self.tolerance > 0.0) {
+            return Err(FitError::Config {
+                field: "tolerance",
+                value: self.tolerance,
+                why: "must be finite and > 0",
+            });
+        }
+        if !(1..=MAX_DEGREE).contains(&self.degree) {
+            return Err(FitError::Config {
+                field: "degree",
+                value: self.degree as f64,
+                why: "must be 1..=5",
+            });
+        }
+        if !(self.corner_angle_deg.is_finite()
+            && self.corner_angle_deg > 0.0
+            && self.corner_angle_deg <= 180.0)
+        {
+            return Err(FitError::Config {
+                field: "corner-angle-deg",
+                value: self.corner_angle_deg,
+                why: "must be in (0, 180]",
+            });
+        }
+        if self.max_points_per_piece < 2 {
+            return Err(FitError::Config {
+                field: "max-points-per-piece",
+                value: self.max_points_per_piece as f64,
+                why: "must be >= 2",
+            });
+        }
+        Ok(self)
+    }
+}
+
+/// One clamped non-rational B-spline block (all weights 1).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NurbsBlock {
+    /// Degree p, 1..=5.
+    pub degree: usize,
+    /// Control points, mm.
+    pub control_points: Vec<[f64; 3]>,
+    /// Weights (all 1: the fit is polynomial).
+    pub weights: Vec<f64>,
+    /// Clamped knot vector on [0, 1], `control_points.len() + degree + 1` long.
+    pub knots: Vec<f64>,
+    /// CL points this block replaces.
+    pub cl_points: usize,
+    /// Largest distance of those CL points from the curve, mm.
+    pub max_deviation: f64,
+}
+
+impl NurbsBlock {
+    /// The curve point at parameter `u` in [0, 1].
+    pub fn point(&self, u: f64) -> P3 {
+        let (p, knots, ctrl) = (self.degree, &self.knots, &self.control_points);
+        let span = knot_span(ctrl.len() - 1, p, u, knots);
+        let mut nb = [0.0; MAX_DEGREE + 1];
+        basis(span, u, p, knots, &mut nb);
+        let mut pt = [0.0; 3];
+        for j in 0..=p {
+            let c = ctrl[span - p + j];
+            for k in 0..3 {
+                pt[k] += c[k] * nb[j];
+            }
+        }
+        P3::new(pt[0], pt[1], pt[2])
+    }
+}
+
+/// A piece of fitted path.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum FitPiece {
+    /// A curve block.
+    Nurbs(NurbsBlock),
+    /// CL points kept as straight moves (two-point pieces, or pieces whose
+    /// fitted curve gouged).
+    Lines(Vec<[f64; 3]>),
+}
+
+/// The fitted path and its figures.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Fitted {
+    /// Pieces in path order; each starts where the previous ended.
+    pub pieces: Vec<FitPiece>,
+    /// CL points in.
+    pub cl_points: usize,
+    /// NURBS blocks out.
+    pub nurbs_blocks: usize,
+    /// Straight moves out.
+    pub line_moves: usize,
+    /// CL points per output block (NURBS blocks plus straight moves).
+    pub compression: f64,
+    /// Largest CL-point deviation over all blocks, mm.
+    pub max_deviation: f64,
+    /// Pieces refitted or kept as lines after the gouge re-check.
+    pub refitted_for_gouge: usize,
+    /// Deepest interference of the fitted curves (sampled), if re-checked, mm.
+    pub recheck_max_depth: Option<f64>,
+}
+
+fn knot_span(n: usize, p: usize, u: f64, knots: &[f64]) -> usize {
+    // Piegl–Tiller A2.1; `n` is the last control-point index.
+    if u >= knots[n + 1] {
+        return n;
+    }
+    if u <= knots[p] {
+        return p;
+    }
+    let (mut lo, mut hi) = (p, n + 1);
+    let mut mid = (lo + hi) / 2;
+    while u < knots[mid] || u >= knots[mid + 1] {
+        if u < knots[mid] {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+        mid = (lo + hi) / 2;
+    }
+    mid
+}
+
+fn basis(span: usize, u: f64, p: usize, knots: &[f64], out: &mut [f64; MAX_DEGREE + 1]) {
+    // Piegl–Tiller A2.2.
+    let mut left = [0.0; MAX_DEGREE + 1];
+    let mut right = [0.0; MAX_DEGREE + 1];
+    out[0] = 1.0;
+    for j in 1..=p {
+        left[j] = u - knots[span + 1 - j];
+        right[j] = knots[span + j] - u;
+        let mut saved = 0.0;
+        for r in 0..j {
+            let denom = right[r + 1] + left[j - r];
+            let temp = if denom != 0.0 { out[r] / denom } else { 0.0 };
+            out[r] = saved + right[r + 1] * temp;
+            saved = left[j - r] * temp;
+        }
+        out[j] = saved;
+    }
+}
+
+fn eval(p: usize, knots: &[f64], ctrl: &[P3], u: f64) -> P3 {
+    let n = ctrl.len() - 1;
+    let span = knot_span(n, p, u, knots);
+    let mut nb = [0.0; MAX_DEGREE + 1];
+    basis(span, u, p, knots, &mut nb);
+    let mut pt = nalgebra::Vector3::zeros();
+    for j in 0..=p {
+        pt += ctrl[span - p + j].coords * nb[j];
+    }
+    P3::from(pt)
+}
+
+/// Chord-length parameters on [0, 1].
+fn chord_params(q: &[P3]) -> Vec<f64> {
+    let mut u = vec![0.0; q.len()];
+    for k in 1..q.len() {
+        u[k] = u[k - 1] + (q[k] - q[k - 1]).norm();
+    }
+    let total = u[q.len() - 1];
+    for v in &mut u {
+        *v /= total;
+    }
+    let last = q.len() - 1;
+    u[last] = 1.0;
+    u
+}
+
+/// Knots for `n + 1` control points of degree `p` over parameters `ub`
+/// (eq. 9.69; eq. 9.8 averaging when interpolating).
+fn place_knots(ub: &[f64], n: usize, p: usize) -> Vec<f64> {
+    let m = ub.len() - 1;
+    let mut knots = vec![0.0; n + p + 2];
+    for k in knots.iter_mut().skip(n + 1) {
+        *k = 1.0;
+    }
+    if n == m {
+        for j in 1..=n - p {
+            knots[j + p] = ub[j..j + p].iter().sum::<f64>() / p as f64;
+        }
+    } else {
+        let d = (m + 1) as f64 / (n - p + 1) as f64;
+        for j in 1..=n - p {
+            let jd = j as f64 * d;
+            let i = jd.floor() as usize;
+            let alpha = jd - i as f64;
+            knots[p + j] = (1.0 - alpha) * ub[i - 1] + alpha * ub[i];
+        }
+    }
+    knots
+}
+
+/// Solves the symmetric positive definite banded system `a x = b` in place
+/// (`a[i][d]` = A(i, i−d), half-bandwidth `w`). Returns false if not SPD.
+fn banded_cholesky_solve(a: &mut [[f64; MAX_DEGREE + 1]], w: usize, b: &mut [f64]) -> bool {
+    let n = b.len();
+    for i in 0..n {
+        for d in (0..=w.min(i)).rev() {
+            let j = i - d;
+            let mut sum = a[i][d];
+            for k in i.saturating_sub(w)..j {
+                sum -= a[i][i - k] * a[j][j - k];
+            }
+            if d == 0 {
+                if !(sum > 0.0) {
+                    return false;
+                }
+                a[i][0] = sum.sqrt();
+            } else {
+                a[i][d] = sum / a[j][0];
+            }
+        }
+    }
+    for i in 0..n {
+        let mut s = b[i];
+        for k in i.saturating_sub(w)..i {
+            s -= a[i][i - k] * b[k];
+        }
+        b[i] = s / a[i][0];
+    }
+    for i in (0..n).rev() {
+        let mut s = b[i];
+        for k in i + 1..(i + w + 1).min(n) {
+            s -= a[k][k - i] * b[k];
+        }
+        b[i] = s / a[i][0];
+    }
+    true
+}
+
+/// Least-squares curve with `n + 1` control points through the end points.
+fn lsq(q: &[P3], ub: &[f64], n: usize, p: usize) -> (Vec<f64>, Vec<P3>) {
+    let m = q.len() - 1;
+    let knots = place_knots(ub, n, p);
+    let mut ctrl = vec![q[0]; n + 1];
+    ctrl[n] = q[m];
+    if n < 2 {
+        return (knots, ctrl);
+    }
+    let unknowns = n - 1;
+    let mut band = vec![[0.0; MAX_DEGREE + 1]; unknowns];
+    let mut rhs = [
+        vec![0.0; unknowns],
+        vec![0.0; unknowns],
+        vec![0.0; unknowns],
+    ];
+    let mut nb = [0.0; MAX_DEGREE + 1];
+    let rows: Vec<(usize, [f64; MAX_DEGREE + 1])> = (1..m)
+        .map(|k| {
+            let span = knot_span(n, p, ub[k], &knots);
+            basis(span, ub[k], p, &knots, &mut nb);
+            (span, nb)
+        })
+        .collect();
+    for (k, (span, nb)) in rows.iter().enumerate() {
+        let k = k + 1;
+        // R_k = Q_k − N_0 Q_0 − N_n Q_m (only the end basis functions touch them).
+        let mut r = q[k].coords;
+        for j in 0..=p {
+            let i = span - p + j;
+            if i == 0 {
+                r -= q[0].coords * nb[j];
+            } else if i == n {
+                r -= q[m].coords * nb[j];
+            }
+        }
+        for j in 0..=p {
+            let i = span - p + j;
+            if i == 0 || i == n {
+                continue;
+            }
+            let row = i - 1;
+            for c in 0..3 {
+                rhs[c][row] += nb[j] * r[c];
+            }
+            for jj in 0..=j {
+                let ii = span - p + jj;
+                if ii == 0 || ii == n {
+                    continue;
+                }
+                band[row][i - ii] += nb[j] * nb[jj];
+            }
+        }
+    }
+    let mut a = band.clone();
+    let mut sol = rhs.clone();
+    let mut ok = true;
+    for c in 0..3 {
+        a.clone_from(&band);
+        ok &= banded_cholesky_solve(&mut a, p, &mut sol[c]);
+    }
+    if !ok {
+        // Singular normal equations (a span without data): least squares by SVD.
+        let mut dense = DMatrix::zeros(unknowns, unknowns);
+        for i in 0..unknowns {
+            for d in 0..=p.min(i) {
+                dense[(i, i - d)] = band[i][d];
+                dense[(i - d, i)] = band[i][d];
+            }
+        }
+        let svd = dense.svd(true, true);
+        for c in 0..3 {
+            let x = svd
+                .solve(&DVector::from_vec(rhs[c].clone()), 1e-12)
+                .map(|v| v.as_slice().to_vec())
+                .unwrap_or_else(|_| vec![0.0; unknowns]);
+            sol[c] = x;
+        }
+    }
+    for i in 0..unknowns {
+        ctrl[i + 1] = P3::new(sol[0][i], sol[1][i], sol[2][i]);
+    }
+    (knots, ctrl)
+}
+
+fn max_deviation(q: &[P3], ub: &[f64], knots: &[f64], ctrl: &[P3], p: usize) -> f64 {
+    q.iter()
+        .zip(ub)
+        .map(|(pt, &u)| (eval(p, knots, ctrl, u) - pt).norm())
+        .fold(0.0, f64::max)
+}
+
+/// Fits one piece of at least two distinct points with the fewest control
+/// points that keep every point within `tol`.
+pub fn fit_piece(q: &[P3], degree: usize, tol: f64) -> NurbsBlock {
+    let m = q.len() - 1;
+    let p = degree.min(m).max(1);
+    let ub = chord_params(q);
+    let attempt = |n: usize| {
+        let (knots, ctrl) = lsq(q, &ub, n, p);
+        let dev = max_deviation(q, &ub, &knots, &ctrl, p);
+        (knots, ctrl, dev)
+    };
+    // Doubling, then bisection on the control-point count n + 1.
+    let mut lo;
+    let mut best = attempt(p);
+    if best.2 > tol {
+        let mut n = p;
+        loop {
+            lo = n;
+            n = (2 * n).min(m);
+            let got = attempt(n);
+            if got.2 <= tol || n == m {
+                best = got;
+                break;
+            }
+        }
+        let mut hi = n;
+        while hi - lo > 1 {
+            let mid = (lo + hi) / 2;
+            let got = attempt(mid);
+            if got.2 <= tol {
+                hi = mid;
+                best = got;
+            } else {
+                lo = mid;
+            }
+        }
+    }
+    let (knots, ctrl, dev) = best;
+    NurbsBlock {
+        degree: p,
+        weights: vec![1.0; ctrl.len()],
+        control_points: ctrl.iter().map(|c| [c.x, c.y, c.z]).collect(),
+        knots,
+        cl_points: q.len(),
+        max_deviation: dev,
+    }
+}
+
+/// Cuts the polyline into pieces at sharp corners; consecutive pieces share
+/// their corner point.
+fn split_at_corners(q: &[P3], cfg: &FitConfig) -> Vec<Vec<P3>> {
+    let cos_limit = cfg.corner_angle_deg.to_radians().cos();
+    let mut pieces = Vec::new();
+    let mut cur: Vec<P3> = vec![q[0]];
+    for k in 1..q.len() {
+        cur.push(q[k]);
+        let corner = k + 1 < q.len() && {
+            let (a, b) = ((q[k] - q[k - 1]).normalize(), (q[k + 1] - q[k]).normalize());
+            a.dot(&b) < cos_limit
+        };
+        if corner || cur.len() >= cfg.max_points_per_piece {
+            pieces.push(std::mem::replace(&mut cur, vec![q[k]]));
+        }
+    }
+    if cur.len() >= 2 {
+        pieces.push(cur);
+    }
+    pieces
+}
+
+fn to_piece(q: &[P3], cfg: &FitConfig, tol: f64) -> FitPiece {
+    if q.len() == 2 {
+        FitPiece::Lines(q.iter().map(|p| [p.x, p.y, p.z]).collect())
+    } else {
+        FitPiece::Nurbs(fit_piece(q, cfg.degree, tol))
+    }
+}
+
+/// Fits a CL polyline without a gouge re-check.
+pub fn fit(q: &[P3], cfg: &FitConfig) -> Result<Fitted, FitError> {
+    fit_checked(q, cfg, None)
+}
+
+/// What the gouge re-check after fitting compares against.
+#[derive(Debug, Clone, Copy)]
+pub struct Recheck<'a> {
+    /// The cutter.
+    pub cutter: &'a Cutter,
+    /// The design surface's CC points.
+    pub surface: &'a CcSurface,
+    /// Largest interference allowed on the fitted curves, mm.
+    pub max_depth: f64,
+}
+
+/// Fits a CL polyline; with `recheck`, samples each fitted curve, re-runs the
+/// gouge detection, refits pieces that interfere too much with a tighter
+/// tolerance and keeps them as polylines if that does not help.
+pub fn fit_checked(
+    q: &[P3],
+    cfg: &FitConfig,
+    recheck: Option<Recheck<'_>>,
+) -> Result<Fitted, FitError> {
+    let cfg = cfg.validated()?;
+    if let Some(i) = q
+        .iter()
+        .position(|p| !(p.x.is_finite() && p.y.is_finite() && p.z.is_finite()))
+    {
+        return Err(FitError::NonFinite(i));
+    }
+    let mut pts: Vec<P3> = Vec::with_capacity(q.len());
+    for p in q {
+        if pts
+            .last()
+            .is_none_or(|l: &P3| (p - l).norm() > DUPLICATE_DISTANCE)
+        {
+            pts.push(*p);
+        }
+    }
+    let raw: Vec<Vec<P3>> = if pts.len() >= 2 {
+        split_at_corners(&pts, &cfg)
+    } else {
+        Vec::new()
+    };
+    let results: Vec<(FitPiece, bool, f64)> = raw
+        .par_iter()
+        .map(|piece| {
+            let mut tol = cfg.tolerance;
+            let mut fitted = to_piece(piece, &cfg, tol);
+            let Some(rc) = recheck else {
+                return (fitted, false, 0.0);
+            };
+            let mut depth = sampled_depth(&fitted, &rc);
+            let mut refitted = false;
+            for _ in 0..REFIT_ATTEMPTS {
+                if depth <= rc.max_depth {
+                    break;
+                }
+                refitted = true;
+                tol /= 10.0;
+                fitted = to_piece(piece, &cfg, tol);
+                depth = sampled_depth(&fitted, &rc);
+            }
+            if depth > rc.max_depth {
+                fitted = FitPiece::Lines(piece.iter().map(|p| [p.x, p.y, p.z]).collect());
+                depth = sampled_depth(&fitted, &rc);
+            }
+            (fitted, refitted, depth)
+        })
+        .collect();
+    let nurbs_blocks = results
+        .iter()
+        .filter(|r| matches!(r.0, FitPiece::Nurbs(_)))
+        .count();
+    let line_moves: usize = results
+        .iter()
+        .map(|r| match &r.0 {
+            FitPiece::Lines(l) => l.len() - 1,
+            FitPiece::Nurbs(_) => 0,
+        })
+        .sum();
+    let max_deviation = results
+        .iter()
+        .map(|r| match &r.0 {
+            FitPiece::Nurbs(b) => b.max_deviation,
+            FitPiece::Lines(_) => 0.0,
+        })
+        .fold(0.0, f64::max);
+    let blocks = nurbs_blocks + line_moves;
+    Ok(Fitted {
+        cl_points: q.len(),
+        nurbs_blocks,
+        line_moves,
+        compression: if blocks > 0 {
+            q.len() as f64 / blocks as f64
+        } else {
+            0.0
+        },
+        max_deviation,
+        refitted_for_gouge: results.iter().filter(|r| r.1).count(),
+        recheck_max_depth: recheck.map(|_| results.iter().map(|r| r.2).fold(0.0, f64::max)),
+        pieces: results.into_iter().map(|r| r.0).collect(),
+    })
+}
+
+/// Dense samples of a piece: the curve at each CL point's parameter span cut
+/// into [`RECHECK_SAMPLES_PER_SPAN`] parts.
+pub fn sample_piece(piece: &FitPiece) -> Vec<P3> {
+    match piece {
+        FitPiece::Lines(l) => l.iter().map(|p| P3::new(p[0], p[1], p[2])).collect(),
+        FitPiece::Nurbs(b) => {
+            let steps = (b.cl_points - 1) * RECHECK_SAMPLES_PER_SPAN;
+            (0..=steps)
+                .map(|i| b.point(i as f64 / steps as f64))
+                .collect()
+        }
+    }
+}
+
+fn sampled_depth(piece: &FitPiece, rc: &Recheck<'_>) -> f64 {
+    let samples = sample_piece(piece);
+    gouge::detect(rc.cutter, rc.surface, &samples, 0.0).max_depth()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn banded_cholesky_matches_nalgebra() {
+        let n = 12;
+        let w = 3;
+        let mut dense = DMatrix::<f64>::zeros(n, n);
+        let mut band = vec![[0.0; MAX_DEGREE + 1]; n];
+        for i in 0..n {
+            for d in 0..=w.min(i) {
+                let v = if d == 0 {
+                    10.0 + i as f64
+                } else {
+                    1.0 / (1.0 + d as f64 + 0.1 * i as f64)
+                };
+                band[i][d] = v;
+                dense[(i, i - d)] = v;
+                dense[(i - d, i)] = v;
+            }
+        }
+        let b: Vec<f64> = (0..n).map(|i| (i as f64).sin()).collect();
+        let want = dense
+            .cholesky()
+            .unwrap()
+            .solve(&DVector::from_vec(b.clone()));
+        let mut x = b;
+        assert!(banded_cholesky_solve(&mut band, w, &mut x));
+        for i in 0..n {
+            assert!((x[i] - want[i]).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn a_sampled_cubic_is_reproduced_with_few_control_points() {
+        // Points on a helix-like smooth curve: a handful of control points
+        // must do at 1 µm, far fewer than the points.
+        let q: Vec<P3> = (0..200)
+            .map(|i| {
+                let t = i as f64 / 199.0 * 3.0;
+                P3::new(20.0 * t, 5.0 * t.sin(), 0.5 * t * t)
+            })
+            .collect();
+        let b = fit_piece(&q, 3, 1e-3);
+        assert!(b.max_deviation <= 1e-3);
+        assert!(b.control_points.len() < 40, "{}", b.control_points.len());
+        assert_eq!(b.knots.len(), b.control_points.len() + 4);
+        assert_eq!(b.point(0.0), q[0]);
+        assert!((b.point(1.0) - q[199]).norm() < 1e-12);
+    }
+}
