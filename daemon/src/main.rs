@@ -11,12 +11,12 @@
 mod clock;
 mod demo;
 mod histogram;
+mod plan_gouge;
+mod plan_raster;
+mod plan_setup;
 mod replay;
 mod simulate;
 mod trace_cmd;
-mod plan_raster;
-mod plan_setup;
-mod plan_gouge;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};

@@ -11,6 +11,6 @@ pub mod cutter;
 pub mod fit;
 pub mod gouge;
 pub mod mesh;
+pub mod predict;
 pub mod raster;
 pub mod setup;
-pub mod predict;
