@@ -9,8 +9,17 @@
 //! the fixed-period interpolator loop (see [`demo`]).
 
 mod clock;
+mod control;
 mod demo;
+mod demo_service;
 mod histogram;
+mod jitter;
+mod protocol;
+mod publish;
+mod rt;
+mod send;
+mod serve;
+mod watch;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -27,11 +36,23 @@ struct Cli {
 enum Command {
     /// Stream the bundled butterfly NURBS through the interpolator loop and print a summary.
     Demo(demo::DemoArgs),
+    /// Run the service: RT loop publishing setpoints over iceoryx2, control plane on TCP and a Unix socket.
+    Serve(serve::ServeArgs),
+    /// Stream a program to a running `interpd serve` with back-pressure.
+    Send(send::SendArgs),
+    /// Subscribe to the setpoints (iceoryx2) and report gaps.
+    Watch(watch::WatchArgs),
+    /// Measure wake lateness and tick+publish time: the full pipeline vs a bare loop.
+    Jitter(jitter::JitterArgs),
 }
 
 fn main() -> Result<()> {
     match Cli::parse().command {
         Command::Demo(args) => demo::main(&args),
+        Command::Serve(args) => serve::main(&args),
+        Command::Send(args) => send::main(&args),
+        Command::Watch(args) => watch::main(&args),
+        Command::Jitter(args) => jitter::main(&args),
     }
 }
 
@@ -51,7 +72,9 @@ mod tests {
         assert!(matches!(cli.command, Command::Demo(_)));
         let cli = Cli::try_parse_from(["interpd", "demo", "--fast", "--json", "--feed", "3000"])
             .expect("demo flags parse");
-        let Command::Demo(args) = cli.command;
+        let Command::Demo(args) = cli.command else {
+            panic!("not demo")
+        };
         assert!(args.fast && args.json);
         assert_eq!(args.feed, 3000.0);
     }
