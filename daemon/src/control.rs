@@ -143,7 +143,8 @@ impl Control {
         loop {
             let acked = self.status.aborts.load(Ordering::Acquire) > before;
             let st = self.status.run_state();
-            if acked && matches!(st, RunState::Idle | RunState::Done | RunState::Fault) {
+            let at_rest = self.status.feed.load(Ordering::Acquire) == 0f64.to_bits();
+            if acked && at_rest && matches!(st, RunState::Idle | RunState::Done | RunState::Fault) {
                 break;
             }
             if !self.status.running.load(Ordering::Acquire) && acked {

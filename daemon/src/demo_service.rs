@@ -194,6 +194,7 @@ pub fn run(args: &DemoArgs, direct: &Summary) -> Result<ServiceRun> {
         token: None,
         no_wait: false,
         json: false,
+        quiet: true,
     };
     let streamed = tokio::runtime::Builder::new_current_thread()
         .enable_all()

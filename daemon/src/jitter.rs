@@ -177,6 +177,7 @@ pub fn main(args: &JitterArgs) -> Result<()> {
         token: None,
         no_wait: false,
         json: false,
+        quiet: true,
     };
     let streamer = std::thread::spawn(move || -> Result<()> {
         tokio::runtime::Builder::new_current_thread()

@@ -264,6 +264,7 @@ pub fn spawn(cfg: InterpConfig, position: [f64; 6], opts: RtOptions) -> Result<R
                 started: opts.autostart,
                 autostart: opts.autostart,
                 position,
+                aborting: false,
             };
             let mut report = ctx.run();
             report.scheduling_warnings = warnings;
@@ -381,6 +382,8 @@ struct Loop {
     started: bool,
     autostart: bool,
     position: [f64; 6],
+    /// An abort is bringing the machine to rest (ticks go on without `start`).
+    aborting: bool,
 }
 
 impl Loop {
@@ -401,7 +404,8 @@ impl Loop {
                     *pending = None;
                     while self.blocks.dequeue().is_some() {}
                     *end_requested = false;
-                    self.started = self.autostart;
+                    // Tick until at rest; `start` is needed again after that.
+                    self.aborting = true;
                     self.status.aborts.fetch_add(1, Ordering::AcqRel);
                 }
             }
@@ -415,6 +419,8 @@ impl Loop {
         let mut overruns = 0u64;
         let mut pending: Option<Block> = None;
         let mut end_requested = false;
+        // Segments completed when the interpolator last refused `pending` for room.
+        let mut refused_at: Option<u64> = None;
         // The setpoint published while nothing moves: where the machine is.
         let mut last = Setpoint {
             axes: self.position,
@@ -431,17 +437,26 @@ impl Loop {
                 break;
             }
             self.apply_commands(&mut end_requested, &mut pending);
+            if pending.is_none() {
+                refused_at = None; // an abort dropped the refused block
+            }
 
             // At most one push per tick, only when there is room.
             let mut push_ns = 0u64;
             if pending.is_none() {
                 pending = self.blocks.dequeue();
             }
-            if let Some(b) = pending {
+            // After a refusal for room, retry only once a segment was
+            // completed: a refused push costs a large part of a full one.
+            let room_maybe = refused_at.is_none_or(|n| self.ip.stats().segments_done > n);
+            if let Some(b) = pending
+                && room_maybe
+            {
                 if self.ip.state() == RunState::Done {
                     // A new program after a finished one: leave Done, wait for `start`.
                     self.ip.abort();
                     self.started = self.autostart;
+                    last.state = self.ip.state();
                     self.status.finished.store(false, Ordering::Release);
                 }
                 let t0 = now_ns();
@@ -450,29 +465,36 @@ impl Loop {
                 match r {
                     Ok(()) => {
                         pending = None;
+                        refused_at = None;
                         self.status.blocks_pushed.fetch_add(1, Ordering::AcqRel);
                     }
-                    Err(PushError::Full { .. } | PushError::ProfileFull | PushError::Aborting) => {}
+                    Err(PushError::Full { .. } | PushError::ProfileFull) => {
+                        refused_at = Some(self.ip.stats().segments_done);
+                    }
+                    Err(PushError::Aborting) => {}
                     Err(error) => {
                         pending = None;
+                        refused_at = None;
                         self.status.blocks_refused.fetch_add(1, Ordering::AcqRel);
                         let _ = self.failures.enqueue(PushFailure { id: b.id, error });
                     }
                 }
-            } else if end_requested && self.blocks.peek().is_none() {
+            } else if pending.is_none() && end_requested && self.blocks.peek().is_none() {
                 self.ip.finish();
                 end_requested = false;
                 self.status.finished.store(true, Ordering::Release);
             }
 
             let t0 = now_ns();
-            let moving = self.started || self.ip.state() != RunState::Idle;
-            if moving {
+            if self.started || self.aborting {
                 last = self.ip.tick();
+                if self.aborting && last.state != RunState::Stopping {
+                    self.aborting = false;
+                    self.started = self.autostart;
+                }
             } else {
                 // Waiting for `start`: the last point again, unticked, so that
                 // a program queued before `start` runs as it would in simulate.
-                last.state = self.ip.state();
                 last.feed = 0.0;
             }
             let seq = self.publisher.publish(&last);

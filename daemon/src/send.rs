@@ -46,6 +46,9 @@ pub struct SendArgs {
     /// Print the final status as JSON.
     #[arg(long)]
     pub json: bool,
+    /// No progress output.
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 /// The status fields `send` looks at.
@@ -125,11 +128,15 @@ pub enum Outcome {
 
 struct Progress {
     tty: bool,
+    quiet: bool,
     last: Instant,
 }
 
 impl Progress {
     fn show(&mut self, msg: &str, force: bool) {
+        if self.quiet {
+            return;
+        }
         if self.tty {
             eprint!("\r\x1b[2K{msg}");
             let _ = std::io::stderr().flush();
@@ -139,7 +146,7 @@ impl Progress {
         }
     }
     fn done(&self) {
-        if self.tty {
+        if self.tty && !self.quiet {
             eprintln!();
         }
     }
@@ -176,6 +183,7 @@ pub async fn stream<S: AsyncRead + AsyncWrite + Unpin>(
         .context("installing the Ctrl-C handler")?;
     let mut progress = Progress {
         tty: std::io::stderr().is_terminal(),
+        quiet: args.quiet,
         last: Instant::now(),
     };
     let total = lines.len();

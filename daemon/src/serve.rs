@@ -23,8 +23,6 @@ use crate::rt::{RtOptions, RtReport, TickRecord};
 pub const DEFAULT_PORT: u16 = 47_110;
 /// Default SCHED_FIFO priority of the RT thread.
 pub const DEFAULT_PRIORITY: i32 = 80;
-/// Shortest and longest period, µs.
-pub const PERIOD_RANGE_US: (u32, u32) = (250, 10_000);
 /// The recorder drains its queue this often.
 const RECORDER_POLL: Duration = Duration::from_millis(5);
 
@@ -164,8 +162,6 @@ pub struct Service {
     pub addr: SocketAddr,
     /// Unix socket, if any.
     pub socket: Option<PathBuf>,
-    /// The control plane (for in-process use).
-    pub control: Arc<Control>,
     shutdown: Option<tokio::sync::oneshot::Sender<()>>,
     thread: Option<JoinHandle<Result<ServeSummary>>>,
 }
@@ -394,7 +390,6 @@ pub fn start(
     Ok(Service {
         addr,
         socket,
-        control,
         shutdown: Some(tx),
         thread: Some(thread),
     })

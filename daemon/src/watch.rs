@@ -11,7 +11,9 @@ use anyhow::{Context, Result, bail};
 use interp_core::RunState;
 use serde::Serialize;
 
-use crate::publish::{DEFAULT_SERVICE, SetpointSubscriber, run_state, state_name};
+use crate::publish::{
+    DEFAULT_SERVICE, SETPOINT_TYPE_NAME, SetpointSubscriber, run_state, state_name,
+};
 
 /// How long one wait for samples lasts.
 const POLL: Duration = Duration::from_millis(2);
@@ -73,7 +75,10 @@ pub fn main(args: &WatchArgs) -> Result<()> {
         }
         None => None,
     };
-    eprintln!("interpd watch: subscribed to {:?}", args.service);
+    eprintln!(
+        "interpd watch: subscribed to {:?} (type {SETPOINT_TYPE_NAME})",
+        args.service
+    );
     let t0 = Instant::now();
     let mut summary = WatchSummary {
         received: 0,

@@ -64,6 +64,7 @@ def main() -> int:
     args = ap.parse_args()
 
     assert ctypes.sizeof(SetpointMsg) == 104, ctypes.sizeof(SetpointMsg)
+    iox2.set_log_level(iox2.LogLevel.Error)  # not the "no config file" warning
     node = (iox2.NodeBuilder.new()
             .signal_handling_mode(iox2.SignalHandlingMode.HandleTerminationRequests)
             .create(iox2.ServiceType.Ipc))
