@@ -1,10 +1,35 @@
 //! RS274/NGC G-code for interpd.
 //!
-//! Per `DESIGN.md`, this crate will hold the parser from G-code text to a typed
-//! program (lines, arcs, NURBS blocks such as G5.2/G6.2, modal state) and the
-//! writer from a program back to text, and it must never panic on any input.
-//! The parser and writer are filled in by the later G-code issue; for now the
-//! crate holds only the length-units mode (G20/G21) that both will use.
+//! [`parse`] turns program text into a [`Program`] of typed blocks (mm,
+//! absolute, each with its source line); [`emit`] writes a program back as
+//! text; [`Program::to_core_blocks`] converts it into interp-core blocks (NURBS
+//! exactly as written, cut into pieces of at most `MAX_CTRL` control points;
+//! arcs exact). The parser never panics on any input: every defect is a
+//! [`ParseError`] with `line:column: message`.
+//!
+//! The dialect is LinuxCNC's: see `docs/gcode.md` for what is covered.
+
+mod convert;
+mod emit;
+mod error;
+mod expr;
+pub mod generate;
+mod parser;
+mod program;
+
+pub use convert::{ConvertOrSinkError, CoreOptions};
+pub use emit::{EMIT_HEADER, emit};
+pub use error::{ConvertError, ParseError, ParseErrorKind};
+pub use expr::{MAX_EXPRESSION_DEPTH, NEAR_INT_TOL, PARAMETER_COUNT};
+pub use parser::{
+    ARC_R_TINY, CENTER_ARC_RADIUS_TOLERANCE_INCH, CENTER_ARC_RADIUS_TOLERANCE_MM,
+    G5_2_DEFAULT_ORDER, RADIUS_TOLERANCE_INCH, SPIRAL_ABS_HARD_FACTOR, SPIRAL_RELATIVE_TOLERANCE,
+    g5_2_knots, parse,
+};
+pub use program::{
+    ArcMove, BlockKind, Feed, LinearMove, NurbsMove, PathControl, Plane, Point, Program,
+    ProgramBlock, RapidMove, SpindleRotation,
+};
 
 /// A G-code number that is not a units mode (only G20 and G21 are).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]

@@ -1,0 +1,98 @@
+//! Parse errors: every one names the line and column of the offending word.
+
+use interp_core::nurbs::NurbsError;
+
+/// Why a program was refused. Display is `line:column: message`.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{line}:{column}: {kind}")]
+pub struct ParseError {
+    /// 1-based source line.
+    pub line: u32,
+    /// 1-based column (in characters) of the word or character at fault.
+    pub column: u32,
+    /// What is wrong.
+    pub kind: ParseErrorKind,
+}
+
+/// The classes of parse error.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ParseErrorKind {
+    /// A character that starts no word, comment or expression.
+    #[error("unexpected character '{0}'")]
+    UnexpectedChar(char),
+    /// A letter that is no RS274/NGC word interpd knows.
+    #[error("unknown word '{0}'")]
+    UnknownWord(char),
+    /// A G or M code that does not exist or that interpd does not support.
+    #[error("unknown or unsupported code {0}")]
+    UnknownCode(String),
+    /// The same word twice on one line.
+    #[error("duplicate word '{0}' on one line")]
+    DuplicateWord(char),
+    /// Two codes of the same modal group on one line.
+    #[error("{first} and {second} are in the same modal group ({group})")]
+    ModalGroupConflict {
+        /// The group's name.
+        group: &'static str,
+        /// The first code.
+        first: String,
+        /// The second code.
+        second: String,
+    },
+    /// A required word is absent.
+    #[error("missing argument: {0}")]
+    MissingArgument(String),
+    /// Words that exclude each other, or a word no command on the line uses.
+    #[error("conflicting arguments: {0}")]
+    ConflictingArguments(String),
+    /// A word's value is out of range or not an integer where one is needed.
+    #[error("bad value: {0}")]
+    BadValue(String),
+    /// A number that does not parse.
+    #[error("bad number")]
+    BadNumber,
+    /// A malformed or unevaluable expression.
+    #[error("expression: {0}")]
+    Expression(String),
+    /// A NURBS whose control points, weights or knots are invalid.
+    #[error("invalid NURBS: {0}")]
+    InvalidNurbs(NurbsError),
+    /// A NURBS block sequence that is malformed (not its numbers).
+    #[error("NURBS: {0}")]
+    NurbsSequence(String),
+    /// An arc that cannot be made (radius mismatch, zero radius, unreachable end).
+    #[error("bad arc: {0}")]
+    BadArc(String),
+    /// A feature of RS274/NGC that interpd does not implement.
+    #[error("unsupported: {0}")]
+    Unsupported(String),
+}
+
+/// Why [`crate::Program::to_core_blocks`] refused a block.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ConvertError {
+    /// A line or arc interp-core refuses.
+    #[error("line {line}: {error}")]
+    Path {
+        /// Source line.
+        line: u32,
+        /// interp-core's reason.
+        error: interp_core::path::PathError,
+    },
+    /// A NURBS interp-core refuses.
+    #[error("line {line}: invalid NURBS: {error}")]
+    Nurbs {
+        /// Source line.
+        line: u32,
+        /// interp-core's reason.
+        error: NurbsError,
+    },
+    /// A feed that is zero, negative or not finite.
+    #[error("line {line}: feed {feed} is not positive")]
+    Feed {
+        /// Source line.
+        line: u32,
+        /// The feed, mm/s.
+        feed: f64,
+    },
+}

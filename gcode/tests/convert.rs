@@ -1,0 +1,146 @@
+//! Program blocks → interp-core blocks.
+
+use gcode::{ConvertError, CoreOptions, parse};
+use interp_core::Curve;
+use interp_core::path::{Path, PathError};
+
+fn core(text: &str) -> Vec<interp_core::Block> {
+    parse(text)
+        .unwrap()
+        .to_core_blocks(&CoreOptions::default())
+        .unwrap()
+}
+
+fn arr(v: interp_core::Vec3) -> [f64; 3] {
+    [v.x, v.y, v.z]
+}
+
+#[test]
+fn feeds_become_mm_per_second_and_rapids_use_the_rapid_speed() {
+    let opts = CoreOptions { rapid_speed: 123.0 };
+    let b = parse("G0 X10\nG1 Y10 F600\nG20 G1 X0 F60\n")
+        .unwrap()
+        .to_core_blocks(&opts)
+        .unwrap();
+    assert_eq!(b.len(), 3);
+    assert_eq!(b[0].feed, 123.0);
+    assert_eq!(b[1].feed, 10.0);
+    assert!((b[2].feed - 25.4).abs() < 1e-12);
+    assert_eq!(b.iter().map(|b| b.id).collect::<Vec<_>>(), [1, 2, 3]);
+    assert!(matches!(b[1].path, Path::Line(_)));
+    assert_eq!(arr(b[1].path.end_point()), [10.0, 10.0, 0.0]);
+}
+
+#[test]
+fn inverse_time_feed_is_length_over_time() {
+    // 30 mm in 1/2 min = 60 mm/min = 1 mm/s.
+    let b = core("G93 G1 X30 F2\n");
+    assert!((b[0].feed - 1.0).abs() < 1e-12);
+}
+
+#[test]
+fn zero_length_moves_and_aux_blocks_are_dropped() {
+    let b = core("G1 X0 F100\nG4 P1\nS100 M3\nT1 M6\nG64 P0.01\nG1 X1\nM2\n");
+    assert_eq!(b.len(), 1);
+    assert_eq!(b[0].id, 6);
+}
+
+#[test]
+fn arcs_are_exact_and_turn_the_programmed_way() {
+    let b = core("G0 X10\nG3 X0 Y10 I-10 J0 F600\nG2 X10 Y0 I0 J-10\n");
+    let Path::Arc(ccw) = &b[1].path else { panic!() };
+    assert_eq!(arr(ccw.start_point()), [10.0, 0.0, 0.0]);
+    assert_eq!(arr(ccw.end_point()), [0.0, 10.0, 0.0]);
+    assert_eq!(ccw.radius(), 10.0);
+    assert!((ccw.sweep() - std::f64::consts::FRAC_PI_2).abs() < 1e-15);
+    // Counter-clockwise about +Z: the midpoint is at 45° in the first quadrant.
+    let mid = ccw.eval(ccw.sweep() / 2.0, 0).p;
+    assert!(
+        (mid.x - 10.0 / 2f64.sqrt()).abs() < 1e-12 && (mid.y - 10.0 / 2f64.sqrt()).abs() < 1e-12
+    );
+    let Path::Arc(cw) = &b[2].path else { panic!() };
+    assert_eq!(arr(cw.axis()), [0.0, 0.0, -1.0]);
+    // Clockwise back along the same quarter.
+    let mid = cw.eval(cw.sweep() / 2.0, 0).p;
+    assert!(mid.x > 0.0 && mid.y > 0.0);
+}
+
+#[test]
+fn g18_and_g19_arcs_turn_about_plus_y_and_plus_x() {
+    // G18 G3 from X10 Z0 about the origin: counter-clockwise about +Y goes to −Z first
+    // (LinuxCNC: the (Z, X) plane, Z first).
+    let b = core("G0 X10\nG18 G3 X-10 Z0 I-10 K0 F60\n");
+    let Path::Arc(a) = &b[1].path else { panic!() };
+    assert_eq!(arr(a.axis()), [0.0, 1.0, 0.0]);
+    assert!(a.eval(a.sweep() / 2.0, 0).p.z < -9.99);
+    let b = core("G0 Y10\nG19 G3 Y-10 Z0 J-10 K0 F60\n");
+    let Path::Arc(a) = &b[1].path else { panic!() };
+    assert_eq!(arr(a.axis()), [1.0, 0.0, 0.0]);
+    assert!(a.eval(a.sweep() / 2.0, 0).p.z > 9.99);
+}
+
+#[test]
+fn helix_with_turns_has_the_programmed_length() {
+    // Two full turns (P2) of r = 5 plus a rise of 3 mm.
+    let b = core("G0 X5\nG3 X5 Y0 Z3 I-5 J0 P2 F60\n");
+    let Path::Arc(a) = &b[1].path else { panic!() };
+    let expected = (2.0 * 2.0 * std::f64::consts::PI * 5.0f64).hypot(3.0);
+    assert!((a.length() - expected).abs() < 1e-12);
+    assert_eq!(arr(a.end_point()), [5.0, 0.0, 3.0]);
+}
+
+#[test]
+fn conversion_errors_name_the_source_line() {
+    // Accepted by LinuxCNC's tolerance (0.02 mm over r = 10) but beyond
+    // interp-core's stricter 0.002 mm / 0.1 %: the conversion says which line.
+    let p = parse("G0 X-10\nG2 X10.02 Y0 I10 J0 F100\n").unwrap();
+    let e = p.to_core_blocks(&CoreOptions::default()).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            ConvertError::Path {
+                line: 2,
+                error: PathError::RadiusMismatch { .. }
+            }
+        ),
+        "{e:?}"
+    );
+    assert!(e.to_string().starts_with("line 2: "));
+    // A zero rapid speed is refused with the line.
+    let p = parse("\nG0 X1\n").unwrap();
+    let e = p
+        .to_core_blocks(&CoreOptions { rapid_speed: 0.0 })
+        .unwrap_err();
+    assert_eq!(e, ConvertError::Feed { line: 2, feed: 0.0 });
+}
+
+#[test]
+fn streaming_conversion_stops_when_the_sink_refuses() {
+    let p = parse("G1 X1 F60\nX2\nX3\n").unwrap();
+    let mut seen = 0;
+    let r = p.for_each_core_block(&CoreOptions::default(), |_| {
+        seen += 1;
+        if seen == 2 { Err("full") } else { Ok(()) }
+    });
+    assert_eq!(r, Err(gcode::ConvertOrSinkError::Sink("full")));
+    assert_eq!(seen, 2);
+}
+
+#[test]
+fn the_benchmark_program_parses_and_converts() {
+    let text = gcode::generate::g1_heavy_program(300_000);
+    let p = parse(&text).unwrap_or_else(|e| panic!("{e}"));
+    assert!(p.blocks.len() > 5000);
+    let b = p.to_core_blocks(&CoreOptions::default()).unwrap();
+    assert!(b.len() > 5000);
+}
+
+#[test]
+fn g64_p_is_the_programs_path_tolerance_in_mm() {
+    let tol = |t: &str| parse(t).unwrap().path_tolerance();
+    assert_eq!(tol("G64 P0.01\nG1 X1 F1\nG64 P0.5\nG1 X2\n"), Some(0.01));
+    assert_eq!(tol("G20 G64 P0.001\nG1 X1 F1\n"), Some(0.0254));
+    assert_eq!(tol("G1 X1 F1\nG64 P0.02\nG1 X2\n"), Some(0.02));
+    assert_eq!(tol("G64\nG1 X1 F1\n"), None);
+    assert_eq!(tol("G1 X1 F1\n"), None);
+}

@@ -1,0 +1,50 @@
+//! Every program of the LinuxCNC NURBS corpus parses (when the corpus is present).
+
+use std::path::Path;
+
+const CORPUS: &str = "/work/shared/corpus/nurbs-linuxcnc";
+
+#[test]
+#[ignore = "needs /work/shared/corpus; run with --ignored"]
+fn every_corpus_file_parses_and_converts() {
+    let root = Path::new(CORPUS);
+    if !root.exists() {
+        println!("corpus {CORPUS} absent; skipped");
+        return;
+    }
+    let mut files = 0;
+    let mut refused = 0;
+    for sub in ["g5", "g6"] {
+        let mut entries: Vec<_> = std::fs::read_dir(root.join(sub))
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .collect();
+        entries.sort();
+        for path in entries {
+            let text = std::fs::read_to_string(&path).unwrap();
+            let program = gcode::parse(&text).unwrap_or_else(|e| panic!("{}:{e}", path.display()));
+            let blocks = match program.to_core_blocks(&gcode::CoreOptions::default()) {
+                Ok(b) => b.len(),
+                Err(e) => {
+                    println!("{}: conversion refused: {e}", path.display());
+                    refused += 1;
+                    0
+                }
+            };
+            let nurbs = program
+                .blocks
+                .iter()
+                .filter(|b| matches!(b.kind, gcode::BlockKind::Nurbs(_)))
+                .count();
+            println!(
+                "{}: {} blocks, {nurbs} NURBS, {blocks} core blocks",
+                path.display(),
+                program.blocks.len()
+            );
+            assert!(nurbs > 0, "{}: no NURBS", path.display());
+            files += 1;
+        }
+    }
+    println!("{files} files parsed, {refused} refused by the conversion");
+    assert_eq!(files, 55, "g5 has 15 programs, g6 40");
+}

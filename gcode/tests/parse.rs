@@ -1,0 +1,512 @@
+//! Lexing, modal state, arcs, parameters, units and errors.
+
+use gcode::{
+    ArcMove, BlockKind, Feed, LinearMove, ParseErrorKind, PathControl, Plane, Program, parse,
+};
+
+fn blocks(text: &str) -> Vec<BlockKind> {
+    parse(text)
+        .unwrap_or_else(|e| panic!("{e}"))
+        .blocks
+        .into_iter()
+        .map(|b| b.kind)
+        .collect()
+}
+
+fn ends(text: &str) -> Vec<[f64; 3]> {
+    parse(text)
+        .unwrap_or_else(|e| panic!("{e}"))
+        .end_points()
+        .collect()
+}
+
+fn arcs(text: &str) -> Vec<ArcMove> {
+    blocks(text)
+        .into_iter()
+        .filter_map(|b| match b {
+            BlockKind::Arc(a) => Some(a),
+            _ => None,
+        })
+        .collect()
+}
+
+/// (line, column, kind) of the error `text` gives.
+fn error(text: &str) -> (u32, u32, ParseErrorKind) {
+    let e = parse(text).expect_err("should be refused");
+    (e.line, e.column, e.kind)
+}
+
+fn close(a: [f64; 3], b: [f64; 3]) -> bool {
+    a.iter().zip(&b).all(|(x, y)| (x - y).abs() < 1e-12)
+}
+
+#[test]
+fn words_are_case_insensitive_with_comments_line_numbers_and_blanks() {
+    let text = "%\n\n   \t\nn10 g1 x1 y2 z3 f100 (comment) ; rest\nN20 G1 X 1 0 Y.5 Z-.25\n/G1 X99\nG1X+1.Y-0.5Z0.\n%\nG1 X500\n";
+    assert_eq!(
+        ends(text),
+        [[1.0, 2.0, 3.0], [10.0, 0.5, -0.25], [1.0, -0.5, 0.0]]
+    );
+    let p = parse(text).unwrap();
+    assert_eq!(
+        p.blocks.iter().map(|b| b.line).collect::<Vec<_>>(),
+        [4, 5, 7]
+    );
+}
+
+#[test]
+fn crlf_line_ends_are_accepted() {
+    assert_eq!(
+        ends("G1 X1 F1\r\nX2\r\n"),
+        [[1.0, 0.0, 0.0], [2.0, 0.0, 0.0]]
+    );
+}
+
+#[test]
+fn program_stops_at_m2_and_m30() {
+    let b = blocks("G1 X1 F10\nM2\nG1 X2 ( never read )\n");
+    assert_eq!(b.len(), 2);
+    assert_eq!(b[1], BlockKind::ProgramEnd);
+    assert_eq!(blocks("M30\nthis is not g-code").len(), 1);
+}
+
+#[test]
+fn modal_motion_and_distance_modes() {
+    let text = "G0 X1 Y1\nX2\nG1 F60 Y3\nG91 X1 Y1\nZ-1\nG90 X0\n";
+    assert_eq!(
+        ends(text),
+        [
+            [1.0, 1.0, 0.0],
+            [2.0, 1.0, 0.0],
+            [2.0, 3.0, 0.0],
+            [3.0, 4.0, 0.0],
+            [3.0, 4.0, -1.0],
+            [0.0, 4.0, -1.0]
+        ]
+    );
+    let b = blocks(text);
+    assert!(matches!(b[0], BlockKind::Rapid(_)));
+    assert!(matches!(
+        b[2],
+        BlockKind::Linear(LinearMove {
+            feed: Feed::PerMinute(60.0),
+            ..
+        })
+    ));
+}
+
+#[test]
+fn inches_are_converted_to_millimetres() {
+    let b = blocks("G20 G1 X1 Y-2 F10\nG2 X2 Y-1 I0.5 J0.5\nG21 G1 X1\n");
+    assert_eq!(
+        b[0],
+        BlockKind::Linear(LinearMove {
+            start: [0.0; 3],
+            end: [25.4, -50.8, 0.0],
+            feed: Feed::PerMinute(254.0)
+        })
+    );
+    let BlockKind::Arc(a) = &b[1] else { panic!() };
+    assert!(close(a.centre, [38.1, -38.1, 0.0]));
+    assert_eq!(a.end, [50.8, -25.4, 0.0]);
+    // The feed stays what it was physically after G21.
+    assert!(
+        matches!(b[2], BlockKind::Linear(LinearMove { feed: Feed::PerMinute(f), .. }) if f == 254.0)
+    );
+}
+
+#[test]
+fn metamorphic_inch_program_is_the_mm_program_scaled() {
+    let prog = "G0 X1 Y2\nG1 Z-0.5 F12\nG2 X3 Y2 I1 J0\nG3 X1 Y2 R1\nG1 X0.5 Y0.25\n";
+    let mm = parse(&format!("G21\n{prog}")).unwrap();
+    let inch = parse(&format!("G20\n{prog}")).unwrap();
+    for (a, b) in mm.end_points().zip(inch.end_points()) {
+        for i in 0..3 {
+            assert!((a[i] * 25.4 - b[i]).abs() < 1e-12);
+        }
+    }
+}
+
+#[test]
+fn metamorphic_incremental_equals_absolute() {
+    let abs = ends("G90 G0 X1 Y1\nG1 X4 Y5 F100\nG2 X8 Y5 I2 J0\nG1 Z-2\n");
+    let inc = ends("G91 G0 X1 Y1\nG1 X3 Y4 F100\nG2 X4 Y0 I2 J0\nG1 Z-2\n");
+    assert_eq!(abs, inc);
+}
+
+#[test]
+fn centre_format_arcs_in_three_planes() {
+    let a = arcs("G17 G2 X10 Y0 I5 J0 F100\nG18 G3 Z10 X10 K5 I0\nG19 G2 Y10 Z10 J5 K0\n");
+    assert_eq!(a[0].centre, [5.0, 0.0, 0.0]);
+    assert!(a[0].clockwise);
+    assert_eq!(a[0].plane, Plane::Xy);
+    assert_eq!(a[1].start, [10.0, 0.0, 0.0]);
+    assert_eq!(a[1].centre, [10.0, 0.0, 5.0]);
+    assert_eq!(a[1].plane, Plane::Zx);
+    assert_eq!(a[2].centre, [10.0, 5.0, 10.0]);
+}
+
+#[test]
+fn radius_format_picks_the_short_or_long_arc_by_sign() {
+    // From (0,0) to (10,0) with R5: the centre is the midpoint either way.
+    let a = arcs("G2 X10 R5 F100\n");
+    assert!(close(a[0].centre, [5.0, 0.0, 0.0]));
+    // R ±10 to (10,0): centre on the perpendicular bisector, below for G2 R+.
+    let h = (100.0f64 - 25.0).sqrt();
+    let a = arcs("G2 X10 R10 F100\nG0 X0\nG2 X10 R-10\nG0 X0\nG3 X10 R10\n");
+    assert!(close(a[0].centre, [5.0, -h, 0.0]));
+    assert!(close(a[1].centre, [5.0, h, 0.0]));
+    assert!(close(a[2].centre, [5.0, h, 0.0]));
+}
+
+#[test]
+fn full_circles_helices_and_turns() {
+    let a = arcs("G0 X1 Y0\nG3 I-1 J0 F100\nG2 X1 Y0 Z-3 I-1 J0 P3\n");
+    assert_eq!(a[0].end, a[0].start);
+    assert_eq!(a[0].extra_turns, 0);
+    assert_eq!(a[1].end, [1.0, 0.0, -3.0]);
+    assert_eq!(a[1].extra_turns, 2);
+    assert_eq!(a[1].centre, [0.0, 0.0, 0.0]);
+}
+
+#[test]
+fn absolute_arc_centres_with_g90_1() {
+    let a = arcs("G0 X10 Y10\nG90.1 G2 X20 Y10 I15 J10 F100\nG91.1 G2 X30 Y10 I5 J0\n");
+    assert_eq!(a[0].centre, [15.0, 10.0, 0.0]);
+    assert_eq!(a[1].centre, [25.0, 10.0, 0.0]);
+}
+
+#[test]
+fn radius_mismatch_follows_linuxcncs_tolerance() {
+    // r = 10 vs 10.02: 0.2 % relative but under 0.0283 mm absolute — accepted.
+    assert_eq!(arcs("G0 X-10\nG2 X10.02 Y0 I10 J0 F100\n").len(), 1);
+    // r = 10 vs 10.05: 0.5 % and 0.05 mm — refused.
+    let (line, col, kind) = error("G0 X-10\nG2 X10.05 Y0 I10 J0 F100\n");
+    assert_eq!((line, col), (2, 1));
+    assert!(matches!(kind, ParseErrorKind::BadArc(_)), "{kind:?}");
+    // A big arc may differ by 0.1 %: r = 1000 vs 1000.9 is accepted.
+    assert_eq!(arcs("G0 X-1000\nG2 X1000.9 Y0 I1000 J0 F100\n").len(), 1);
+    // In inches the absolute tolerance is 0.00283 in: 0.002 in over 1 in accepted.
+    assert_eq!(arcs("G20 G0 X-1\nG2 X1.002 Y0 I1 J0 F10\n").len(), 1);
+}
+
+#[test]
+fn arc_radius_too_small_to_reach_is_refused() {
+    let (l, c, k) = error("G2 X10 R4 F100\n");
+    assert_eq!((l, c), (1, 8));
+    assert!(matches!(k, ParseErrorKind::BadArc(_)));
+}
+
+#[test]
+fn parameters_are_set_at_the_end_of_the_line() {
+    // "#1=5 G1 X#1" reads the old #1 (RS274/NGC); the next line sees 5.
+    assert_eq!(
+        ends("#1=2\n#1=5 G1 X#1 F1\nX#1\n"),
+        [[2.0, 0.0, 0.0], [5.0, 0.0, 0.0]]
+    );
+}
+
+#[test]
+fn expressions_operators_and_functions() {
+    let v = |e: &str| ends(&format!("G0 X[{e}]\n"))[0][0];
+    assert_eq!(v("1 + 2 * 3"), 7.0);
+    assert_eq!(v("2 ** 3 * 2"), 16.0);
+    assert_eq!(v("10 - 4 - 3"), 3.0);
+    assert_eq!(v("7 MOD 3"), 1.0);
+    assert_eq!(v("-7 MOD 3"), 2.0);
+    assert_eq!(v("[1 + 2] * 3"), 9.0);
+    assert_eq!(v("2 GT 1"), 1.0);
+    assert_eq!(v("2 LE 1"), 0.0);
+    assert_eq!(v("1 EQ 1 AND 0"), 0.0);
+    assert_eq!(v("1 EQ 1 OR 0"), 1.0);
+    assert_eq!(v("1 XOR 1"), 0.0);
+    assert!((v("SIN[30]") - 0.5).abs() < 1e-15);
+    assert!((v("COS[60]") - 0.5).abs() < 1e-15);
+    assert!((v("TAN[45]") - 1.0).abs() < 1e-15);
+    assert!((v("ASIN[1]") - 90.0).abs() < 1e-12);
+    assert!((v("ACOS[0]") - 90.0).abs() < 1e-12);
+    assert!((v("ATAN[1]/[-1]") - 135.0).abs() < 1e-12);
+    assert_eq!(v("SQRT[16]"), 4.0);
+    assert_eq!(v("ABS[-3]"), 3.0);
+    assert!((v("EXP[LN[5]]") - 5.0).abs() < 1e-14);
+    assert_eq!(v("ROUND[2.5]"), 3.0);
+    assert_eq!(v("FIX[-2.5]"), -3.0);
+    assert_eq!(v("FUP[2.1]"), 3.0);
+    assert_eq!(
+        ends("#<Depth>=-2\n#<depth>=[#<DEPTH>*2]\nG0 Z#<depth>\n")[0][2],
+        -4.0
+    );
+    assert_eq!(ends("#3=7\n#2=3\nG0 X##2 Y-#3\n")[0], [7.0, -7.0, 0.0]);
+}
+
+#[test]
+fn modal_and_aux_blocks() {
+    let b = blocks("G64 P0.01 Q0.02\nG61\nG61.1\nT3 M6\nS1000 M3\nM5\nG4 P0.5\nG96 S200 M4\n");
+    assert_eq!(
+        b[0],
+        BlockKind::PathControl(PathControl::Blend {
+            path_tolerance: Some(0.01),
+            naive_cam_tolerance: Some(0.02)
+        })
+    );
+    assert_eq!(b[1], BlockKind::PathControl(PathControl::ExactPath));
+    assert_eq!(b[2], BlockKind::PathControl(PathControl::ExactStop));
+    assert_eq!(b[3], BlockKind::ToolChange { tool: 3 });
+    assert_eq!(
+        b[4],
+        BlockKind::Spindle {
+            speed: 1000.0,
+            rotation: gcode::SpindleRotation::Clockwise,
+            constant_surface_speed: false
+        }
+    );
+    assert!(matches!(
+        b[5],
+        BlockKind::Spindle {
+            rotation: gcode::SpindleRotation::Stopped,
+            ..
+        }
+    ));
+    assert_eq!(b[6], BlockKind::Dwell { seconds: 0.5 });
+    assert!(matches!(
+        b[7],
+        BlockKind::Spindle {
+            constant_surface_speed: true,
+            speed: 200.0,
+            ..
+        }
+    ));
+    // G64 P in inches is converted.
+    assert_eq!(
+        blocks("G20 G64 P0.001\n")[0],
+        BlockKind::PathControl(PathControl::Blend {
+            path_tolerance: Some(0.0254),
+            naive_cam_tolerance: None
+        })
+    );
+}
+
+#[test]
+fn inverse_time_feed() {
+    let b = blocks("G93 G1 X10 F2\nG94 F600 G1 X0\n");
+    assert!(matches!(
+        b[0],
+        BlockKind::Linear(LinearMove {
+            feed: Feed::InverseTime(2.0),
+            ..
+        })
+    ));
+    assert!(matches!(
+        b[1],
+        BlockKind::Linear(LinearMove {
+            feed: Feed::PerMinute(600.0),
+            ..
+        })
+    ));
+    let (l, _, k) = error("G93 G1 X10 F2\nX20\n");
+    assert_eq!(l, 2);
+    assert!(matches!(k, ParseErrorKind::MissingArgument(_)));
+}
+
+#[test]
+fn bezier_g5_and_g5_1() {
+    let b = blocks("F100\nG5 X10 Y0 I2 J2 P-2 Q2\nG5 X20 Y0 P-2 Q-2\nG5.1 X30 Y0 I5 J5\n");
+    let BlockKind::Nurbs(c) = &b[0] else {
+        panic!("{b:?}")
+    };
+    assert_eq!(c.degree, 3);
+    assert_eq!(
+        c.points,
+        [
+            [0.0, 0.0, 0.0],
+            [2.0, 2.0, 0.0],
+            [8.0, 2.0, 0.0],
+            [10.0, 0.0, 0.0]
+        ]
+    );
+    assert_eq!(c.knots, [0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0]);
+    // The second G5 without I J continues tangentially: I J = −(previous P Q).
+    let BlockKind::Nurbs(c) = &b[1] else { panic!() };
+    assert_eq!(c.points[1], [12.0, -2.0, 0.0]);
+    let BlockKind::Nurbs(c) = &b[2] else { panic!() };
+    assert_eq!(c.degree, 2);
+    assert_eq!(
+        c.points,
+        [[20.0, 0.0, 0.0], [25.0, 5.0, 0.0], [30.0, 0.0, 0.0]]
+    );
+}
+
+#[test]
+fn g6_2_with_real_knots_and_start_away_from_the_curve() {
+    // The curve starts at (1,0); LinuxCNC feeds there in a straight line first.
+    let b = blocks(
+        "G1 X0 F100\nG6.2 X1 Y0 R1 K0 P3 Q1\nX2 Y1 R2 K0\nX3 Y0 R1 K0\nG6.2 K0.5\nG6.2 K0.5\nG6.2 K0.5\n",
+    );
+    assert!(matches!(
+        b[1],
+        BlockKind::Linear(LinearMove {
+            start: [0.0, 0.0, 0.0],
+            end: [1.0, 0.0, 0.0],
+            ..
+        })
+    ));
+    let BlockKind::Nurbs(c) = &b[2] else { panic!() };
+    assert_eq!(c.knots, [0.0, 0.0, 0.0, 0.5, 0.5, 0.5]);
+    assert_eq!(c.weights, [1.0, 2.0, 1.0]);
+}
+
+#[test]
+fn every_error_class_names_line_and_column() {
+    use ParseErrorKind as K;
+    type Case = (&'static str, u32, u32, fn(&K) -> bool);
+    let cases: Vec<Case> = vec![
+        ("G1 X1 E5", 1, 7, |k| matches!(k, K::UnknownWord('E'))),
+        ("G0 X1\nG7 X2", 2, 1, |k| matches!(k, K::UnknownCode(_))),
+        ("M123", 1, 1, |k| matches!(k, K::UnknownCode(_))),
+        ("G0 X1 X2", 1, 7, |k| matches!(k, K::DuplicateWord('X'))),
+        ("G0 G1 X2 F1", 1, 4, |k| {
+            matches!(k, K::ModalGroupConflict { .. })
+        }),
+        ("G20 G21", 1, 5, |k| {
+            matches!(k, K::ModalGroupConflict { .. })
+        }),
+        ("M3 M5", 1, 4, |k| matches!(k, K::ModalGroupConflict { .. })),
+        ("G2 X10 F1", 1, 1, |k| matches!(k, K::MissingArgument(_))),
+        ("G2 X10 R5 I5 F1", 1, 8, |k| {
+            matches!(k, K::ConflictingArguments(_))
+        }),
+        ("G1 X10 I5 F1", 1, 8, |k| {
+            matches!(k, K::ConflictingArguments(_))
+        }),
+        ("G17 G2 X10 K5 F1", 1, 12, |k| {
+            matches!(k, K::ConflictingArguments(_))
+        }),
+        ("X10", 1, 1, |k| matches!(k, K::MissingArgument(_))),
+        ("G1 X10", 1, 1, |k| matches!(k, K::MissingArgument(_))),
+        ("G4", 1, 1, |k| matches!(k, K::MissingArgument(_))),
+        ("G0 X1 (open", 1, 7, |k| matches!(k, K::Expression(_))),
+        ("G0 X[1/0]", 1, 7, |k| matches!(k, K::Expression(_))),
+        ("G0 X[1+2", 1, 5, |k| matches!(k, K::Expression(_))),
+        ("G0 X#<nope>", 1, 5, |k| matches!(k, K::Expression(_))),
+        ("G0 X[SQRT[-1]]", 1, 6, |k| matches!(k, K::Expression(_))),
+        ("G0 X1.2.3", 1, 8, |k| matches!(k, K::UnexpectedChar('.'))),
+        ("G0 X-", 1, 6, |k| matches!(k, K::BadNumber)),
+        ("G0 X1 é", 1, 7, |k| matches!(k, K::UnexpectedChar('é'))),
+        ("O100 sub", 1, 1, |k| matches!(k, K::Unsupported(_))),
+        ("G0 A10", 1, 4, |k| matches!(k, K::Unsupported(_))),
+        ("G1 X0 F-1", 1, 7, |k| matches!(k, K::BadValue(_))),
+        ("G2 X0 Y0 I1 P0 F1", 1, 13, |k| matches!(k, K::BadValue(_))),
+        ("G1 F10\nG0 X1\n%", 3, 1, |k| {
+            matches!(k, K::UnexpectedChar('%'))
+        }),
+        // NURBS: knot count (P4 needs 4 trailing knots after 4 points: here the
+        // curve ends early with too few points), decreasing knots, weight <= 0.
+        (
+            "F1\nG6.2 X0 Y0 R1 K0 P3 Q1\nX1 Y1 R1 K2\nX2 Y0 R1 K1\nG6.2 K3\nG6.2 K3\nG6.2 K3",
+            4,
+            10,
+            |k| {
+                matches!(
+                    k,
+                    K::InvalidNurbs(interp_core::NurbsError::DecreasingKnot { .. })
+                )
+            },
+        ),
+        ("F1\nG6.2 X0 Y0 R1 K0 P3 Q1\nX1 Y1 R0 K0", 3, 7, |k| {
+            matches!(k, K::BadValue(_))
+        }),
+        (
+            "F1\nG6.2 X0 Y0 R1 K0 P7 Q1\nX1 Y1 R1 K0\nX2 Y0 R1 K0\nX3 Y1 R1 K0\nX4 Y0 R1 K0\nX5 Y1 R1 K0\nX6 Y0 R1 K0\nG6.2 K1\nG6.2 K1\nG6.2 K1\nG6.2 K1\nG6.2 K1\nG6.2 K1\nG6.2 K1\n",
+            2,
+            1,
+            |k| {
+                matches!(
+                    k,
+                    K::InvalidNurbs(interp_core::NurbsError::Degree { degree: 6 })
+                )
+            },
+        ),
+        (
+            "F1\nG6.2 X0 Y0 R1 K0 P3 Q1\nX1 Y1 R1 K0\nX2 Y0 R1",
+            4,
+            1,
+            |k| matches!(k, K::MissingArgument(_)),
+        ),
+        ("F1\nG6.2 X0 Y0 R1 K0 Q1", 2, 1, |k| {
+            matches!(k, K::MissingArgument(_))
+        }),
+        ("F1\nG6.2 X0 Y0 R1 K0 P3 Q1\nG1 X3", 3, 1, |k| {
+            matches!(k, K::NurbsSequence(_))
+        }),
+        ("F1\nG6.2 X0 Y0 R1 K0 P3 Q1\nX1 Y1 R1 K0", 2, 1, |k| {
+            matches!(k, K::NurbsSequence(_))
+        }),
+        ("F1\nG5.2 X1 Y1 P0\n", 2, 12, |k| {
+            matches!(k, K::BadValue(_))
+        }),
+        ("F1\nG5.2 X1 P1\n", 2, 1, |k| {
+            matches!(k, K::MissingArgument(_))
+        }),
+        ("F1\nG5.3", 2, 1, |k| matches!(k, K::NurbsSequence(_))),
+        ("F1\nG5.2 X1 Y1 P1 L4\nX2 Y0 P1\nG5.3", 4, 1, |k| {
+            matches!(k, K::NurbsSequence(_))
+        }),
+        ("F1\nG5.2 X1 Y1 P1\nX2 Y0 P1\nM2", 4, 1, |k| {
+            matches!(k, K::NurbsSequence(_))
+        }),
+    ];
+    for (text, line, col, check) in cases {
+        let e = parse(text).expect_err(text);
+        assert!(check(&e.kind), "{text:?}: {e}");
+        assert_eq!((e.line, e.column), (line, col), "{text:?}: {e}");
+        assert!(e.to_string().starts_with(&format!("{line}:{col}: ")), "{e}");
+    }
+}
+
+#[test]
+fn error_display_is_line_colon_column_colon_message() {
+    let e = parse("G0 X1\nG1 X1 X2 F1\n").unwrap_err();
+    assert_eq!(e.to_string(), "2:7: duplicate word 'X' on one line");
+}
+
+#[test]
+fn hostile_inputs_are_errors_not_panics() {
+    let deep = format!("G0 X{}1{}", "[".repeat(10_000), "]".repeat(10_000));
+    assert!(matches!(
+        parse(&deep).unwrap_err().kind,
+        ParseErrorKind::Expression(_)
+    ));
+    let minus = format!("G0 X{}1", "-".repeat(10_000));
+    assert!(parse(&minus).is_err());
+    assert!(parse("G0 X1e400").is_err());
+    assert!(parse("G0 X[10**400]").is_err());
+    assert!(parse("#99999=1").is_err());
+    assert!(parse("G0 X#-1").is_err());
+    assert!(parse("G99999999999999999999").is_err());
+    assert_eq!(parse("").unwrap(), Program::default());
+}
+
+#[test]
+fn numbers_read_exactly_as_rusts_float_parser() {
+    // The fast path and the fallback must agree bit for bit.
+    for s in [
+        "0.1",
+        "1.",
+        ".5",
+        "123456.789",
+        "-0.000001",
+        "9007199254740991",
+        "9007199254740993",
+        "0.30000000000000004",
+        "1.0000000000000000000000001",
+        "123456789012345678901234567890",
+        "-.75",
+        "+2.5",
+        "00001.2500",
+        "0.0000000000000000000000123",
+    ] {
+        let want: f64 = s.parse().unwrap();
+        let got = ends(&format!("G0 X{s}"))[0][0];
+        assert_eq!(got.to_bits(), want.to_bits(), "{s}");
+    }
+}

@@ -1,0 +1,258 @@
+//! `parse(emit(p)) == p` on random programs, and on the fixture programs.
+//! Numbers are written in shortest round-trip form, so equality is exact.
+
+use gcode::{
+    ArcMove, BlockKind, Feed, LinearMove, NurbsMove, PathControl, Plane, Point, Program,
+    ProgramBlock, RapidMove, SpindleRotation, emit, parse,
+};
+use proptest::prelude::*;
+
+/// Program with line numbers cleared (they are not what emit preserves).
+fn without_lines(p: &Program) -> Vec<BlockKind> {
+    p.blocks
+        .iter()
+        .map(|b| match &b.kind {
+            BlockKind::Nurbs(n) => BlockKind::Nurbs(NurbsMove {
+                first_line: 0,
+                ..n.clone()
+            }),
+            k => k.clone(),
+        })
+        .collect()
+}
+
+fn coord() -> impl Strategy<Value = f64> {
+    prop_oneof![
+        -1000.0..1000.0f64,
+        (-100_000i32..100_000).prop_map(|i| f64::from(i) / 1000.0)
+    ]
+}
+
+fn point() -> impl Strategy<Value = Point> {
+    (coord(), coord(), coord()).prop_map(|(x, y, z)| [x, y, z])
+}
+
+fn feed() -> impl Strategy<Value = Feed> {
+    prop_oneof![
+        4 => (1.0..20_000.0f64).prop_map(Feed::PerMinute),
+        1 => (0.01..100.0f64).prop_map(Feed::InverseTime),
+    ]
+}
+
+fn plane() -> impl Strategy<Value = Plane> {
+    prop_oneof![Just(Plane::Xy), Just(Plane::Zx), Just(Plane::Yz)]
+}
+
+/// One step of a random program, resolved against the current position.
+#[derive(Debug, Clone)]
+enum Step {
+    Rapid(Point),
+    Linear(Point, Feed),
+    Arc {
+        plane: Plane,
+        radius: f64,
+        a0: f64,
+        a1: f64,
+        rise: f64,
+        clockwise: bool,
+        turns: u32,
+        feed: Feed,
+    },
+    Nurbs {
+        plane: Plane,
+        degree: usize,
+        pts: Vec<Point>,
+        weights: Vec<f64>,
+        interior: Vec<f64>,
+        feed: Feed,
+    },
+    Dwell(f64),
+    Spindle(f64, u8, bool),
+    Tool(u32),
+    Path(u8, Option<f64>, Option<f64>),
+}
+
+fn step() -> impl Strategy<Value = Step> {
+    prop_oneof![
+        2 => point().prop_map(Step::Rapid),
+        4 => (point(), feed()).prop_map(|(p, f)| Step::Linear(p, f)),
+        3 => (plane(), 0.1..500.0f64, -7.0..7.0f64, -7.0..7.0f64, prop_oneof![Just(0.0), -50.0..50.0f64], any::<bool>(), 0u32..3, feed())
+            .prop_map(|(plane, radius, a0, a1, rise, clockwise, turns, feed)| Step::Arc { plane, radius, a0, a1, rise, clockwise, turns, feed }),
+        2 => (plane(), 1usize..=5).prop_flat_map(|(plane, degree)| {
+            ((degree + 1)..40usize).prop_flat_map(move |n| {
+                (
+                    proptest::collection::vec(point(), n),
+                    proptest::collection::vec(0.05..20.0f64, n + 1),
+                    proptest::collection::btree_set(1u32..100_000, n - degree - 1),
+                    feed(),
+                )
+                    .prop_map(move |(pts, weights, interior, feed)| Step::Nurbs {
+                        plane,
+                        degree,
+                        pts,
+                        weights,
+                        interior: interior.into_iter().map(|k| f64::from(k) / 997.0).collect(),
+                        feed,
+                    })
+            })
+        }),
+        1 => (0.0..100.0f64).prop_map(Step::Dwell),
+        1 => (0.0..30_000.0f64, 0u8..3, any::<bool>()).prop_map(|(s, r, c)| Step::Spindle(s, r, c)),
+        1 => (0u32..1000).prop_map(Step::Tool),
+        1 => (0u8..3, proptest::option::of(0.0..1.0f64), proptest::option::of(0.0..1.0f64)).prop_map(|(m, p, q)| Step::Path(m, p, q)),
+    ]
+}
+
+fn build(steps: &[Step], end: bool) -> Program {
+    let mut pos = [0.0; 3];
+    let mut blocks = Vec::new();
+    let mut push = |kind| blocks.push(ProgramBlock { line: 0, kind });
+    for s in steps {
+        match s.clone() {
+            Step::Rapid(p) => {
+                push(BlockKind::Rapid(RapidMove { start: pos, end: p }));
+                pos = p;
+            }
+            Step::Linear(p, feed) => {
+                push(BlockKind::Linear(LinearMove {
+                    start: pos,
+                    end: p,
+                    feed,
+                }));
+                pos = p;
+            }
+            Step::Arc {
+                plane,
+                radius,
+                a0,
+                a1,
+                rise,
+                clockwise,
+                turns,
+                feed,
+            } => {
+                let (a, b, n) = plane.axes();
+                let mut centre = pos;
+                centre[a] = pos[a] - radius * a0.cos();
+                centre[b] = pos[b] - radius * a0.sin();
+                let mut end = centre;
+                end[a] = centre[a] + radius * a1.cos();
+                end[b] = centre[b] + radius * a1.sin();
+                end[n] = pos[n] + rise;
+                push(BlockKind::Arc(ArcMove {
+                    start: pos,
+                    end,
+                    centre,
+                    plane,
+                    clockwise,
+                    extra_turns: turns,
+                    feed,
+                }));
+                pos = end;
+            }
+            Step::Nurbs {
+                plane,
+                degree,
+                mut pts,
+                weights,
+                interior,
+                feed,
+            } => {
+                pts[0] = pos;
+                let mut knots = vec![0.0; degree + 1];
+                knots.extend(interior);
+                knots.extend(vec![interior_end(&knots); degree + 1]);
+                let weights = weights[..pts.len()].to_vec();
+                pos = pts[pts.len() - 1];
+                push(BlockKind::Nurbs(NurbsMove {
+                    first_line: 0,
+                    plane,
+                    degree,
+                    points: pts,
+                    weights,
+                    knots,
+                    feed,
+                }));
+            }
+            Step::Dwell(s) => push(BlockKind::Dwell { seconds: s }),
+            Step::Spindle(speed, r, css) => push(BlockKind::Spindle {
+                speed,
+                rotation: [
+                    SpindleRotation::Clockwise,
+                    SpindleRotation::CounterClockwise,
+                    SpindleRotation::Stopped,
+                ][r as usize],
+                constant_surface_speed: css,
+            }),
+            Step::Tool(t) => push(BlockKind::ToolChange { tool: t }),
+            Step::Path(m, p, q) => push(BlockKind::PathControl(match m {
+                0 => PathControl::ExactPath,
+                1 => PathControl::ExactStop,
+                _ => PathControl::Blend {
+                    path_tolerance: p.or(q.map(|_| 0.5)),
+                    naive_cam_tolerance: q,
+                },
+            })),
+        }
+    }
+    if end {
+        push(BlockKind::ProgramEnd);
+    }
+    Program { blocks }
+}
+
+/// A knot past every interior knot (the end of the clamped vector).
+fn interior_end(knots: &[f64]) -> f64 {
+    knots.last().copied().unwrap_or(0.0).max(0.0) + 1.0
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(300))]
+
+    #[test]
+    fn emitted_programs_parse_back_to_the_same_blocks(steps in proptest::collection::vec(step(), 0..25), end in any::<bool>()) {
+        let program = build(&steps, end);
+        let text = emit(&program);
+        let back = parse(&text).map_err(|e| TestCaseError::fail(format!("{e}\n{text}")))?;
+        prop_assert_eq!(without_lines(&back), without_lines(&program), "{}", text);
+    }
+
+    /// Arbitrary text never panics the parser (the fuzzer does this at length).
+    #[test]
+    fn random_text_never_panics(text in "[GgMmXYZIJKRPQLFST#\\[\\]()=+*/ .;%0-9\n-]{0,200}") {
+        if let Ok(p) = parse(&text) {
+            let _ = p.to_core_blocks(&gcode::CoreOptions::default());
+            let _ = parse(&emit(&p));
+        }
+    }
+}
+
+#[test]
+fn fixture_programs_round_trip() {
+    for text in [
+        include_str!("programs/curva_farfalla-q1.ngc"),
+        include_str!("programs/curva_mazatrol-q1-xy-yz-zx.ngc"),
+        include_str!("programs/trident-xy-yz-zx.ngc"),
+        include_str!("programs/cam-arcs.ngc"),
+        include_str!("programs/cam-inch-incremental.ngc"),
+        include_str!("programs/cam-params.ngc"),
+        include_str!("programs/cam-pocket.ngc"),
+    ] {
+        let p = parse(text).unwrap();
+        let text2 = emit(&p);
+        let q = parse(&text2).unwrap_or_else(|e| panic!("{e}\n{text2}"));
+        assert_eq!(without_lines(&q), without_lines(&p), "{text2}");
+    }
+}
+
+#[test]
+fn emitted_g6_2_reads_as_linuxcnc_does() {
+    let p = parse(include_str!("programs/curva_farfalla-q1.ngc")).unwrap();
+    let text = emit(&p);
+    // Order 5: five trailing knot lines, P5 on the first G6.2 line.
+    assert_eq!(text.matches("G6.2 K47\n").count(), 5);
+    assert!(
+        text.contains("G6.2 X54.493 Y52.139 Z-1 R1 K0 P5 Q1 F290\n"),
+        "{text}"
+    );
+}
