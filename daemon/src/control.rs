@@ -9,7 +9,6 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use heapless::spsc::{Consumer, Producer};
-use interp_core::interp::JOIN_TOLERANCE;
 use interp_core::{Block, RunState};
 use serde::Serialize;
 use tokio::io::{AsyncBufRead, AsyncBufReadExt, AsyncRead, AsyncWrite, AsyncWriteExt, BufReader};
@@ -45,6 +44,8 @@ pub struct Control {
     pub errors: AtomicU64,
     /// Last refused block reported by the RT thread.
     pub last_refusal: Mutex<Option<String>>,
+    /// The trace recorder's queue, if recording (taken at shutdown).
+    pub recorder: Mutex<Option<traces::RecordTx>>,
 }
 
 /// The streaming side: the RT thread's block queue and where the next block starts.
@@ -53,8 +54,12 @@ pub struct Stream {
     pub blocks: Producer<'static, Block>,
     /// End of the last accepted block (`None`: where the machine is).
     pub tail: Option<[f64; 3]>,
-    /// Next default block id.
+    /// Id of the next interpolator segment (from 1 in each program).
     pub next_id: u32,
+    /// Blocks accepted in this program.
+    pub index: u32,
+    /// `end` was sent: the next block starts a new program.
+    pub ended: bool,
 }
 
 impl core::fmt::Debug for Control {
@@ -196,12 +201,18 @@ impl Control {
     }
 
     /// Parses, checks and queues one block; waits while the RT queue is full.
-    async fn block(&self, b: &crate::protocol::JsonBlock) -> Result<String, String> {
+    async fn block(&self, b: &traces::InputBlock) -> Result<String, String> {
         let epoch = self.abort_epoch.load(Ordering::Acquire);
         let mut s = self.stream.lock().await;
+        if s.tail.is_none() || s.ended {
+            // A new program: segment ids from 1, as `simulate` numbers them.
+            s.next_id = 1;
+            s.index = 0;
+            s.ended = false;
+        }
         let start = s.tail.unwrap_or_else(|| self.status.position());
-        let id = b.id.unwrap_or(s.next_id);
-        let pieces = b.to_blocks(start, id, JOIN_TOLERANCE)?;
+        let id = s.next_id;
+        let (pieces, info) = crate::protocol::expand(b, start, id)?;
         let n = pieces.len();
         let end = pieces.last().map(|p| {
             let e = interp_core::Curve::end_point(&p.path);
@@ -225,9 +236,30 @@ impl Control {
             }
         }
         s.tail = end;
-        s.next_id = id.wrapping_add(1).max(1);
+        s.next_id = id + n as u32;
+        s.index += 1;
         self.blocks_accepted.fetch_add(1, Ordering::AcqRel);
-        Ok(format!("ok block {id} pieces {n}"))
+        if let Ok(rec) = self.recorder.lock()
+            && let Some(tx) = rec.as_ref()
+        {
+            let at = self.status.ticks.load(Ordering::Acquire);
+            let msg = traces::messages::BlockMsg {
+                index: s.index - 1,
+                block: b.clone(),
+                segments: info,
+                accepted_at_seq: at,
+            };
+            // Non-RT side: a full recorder queue is counted by the recorder.
+            let _ = tx.try_push(traces::Record::Block(
+                Box::new(msg),
+                at as f64 * self.period.as_secs_f64(),
+            ));
+        }
+        Ok(format!(
+            "ok block {} segments {id}..={}",
+            s.index,
+            id + n as u32 - 1
+        ))
     }
 }
 
@@ -372,6 +404,7 @@ async fn handle(ctl: &Control, req: Request, mid_program: &mut bool) -> Result<S
         }
         Request::End => {
             ctl.command(Command::End).await;
+            ctl.stream.lock().await.ended = true;
             *mid_program = false;
             Ok("ok end".into())
         }

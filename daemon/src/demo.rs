@@ -512,7 +512,6 @@ impl<F: FnMut(&Setpoint)> Recorder<'_, F> {
 /// The butterfly as one protocol line: a JSON NURBS at `feed_mm_min`.
 pub(crate) fn butterfly_request(feed_mm_min: f64) -> String {
     crate::protocol::nurbs_json(
-        FIRST_BLOCK_ID,
         feed_mm_min,
         butterfly::BUTTERFLY_DEGREE,
         &butterfly::BUTTERFLY_POINTS,
@@ -530,12 +529,9 @@ fn butterfly_blocks(feed_mm_min: f64) -> Result<Vec<Block>> {
     else {
         bail!("the butterfly request is not a block");
     };
-    b.to_blocks(
-        butterfly::START,
-        FIRST_BLOCK_ID,
-        interp_core::interp::JOIN_TOLERANCE,
-    )
-    .map_err(|e| anyhow!("splitting the butterfly NURBS into blocks: {e}"))
+    crate::protocol::expand(&b, butterfly::START, FIRST_BLOCK_ID)
+        .map(|(blocks, _)| blocks)
+        .map_err(|e| anyhow!("splitting the butterfly NURBS into blocks: {e}"))
 }
 
 fn point3(p: Vec3) -> [f64; 3] {

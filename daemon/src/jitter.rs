@@ -134,8 +134,8 @@ fn bare_loop(args: &JitterArgs) -> Result<(LoopFigures, Vec<String>)> {
 
 /// The jitter program: the butterfly and a line back to its start, `loops` times.
 fn program(loops: usize) -> Vec<String> {
-    let back =
-        serde_json::json!({"feed": FEED_MM_MIN, "line": {"end": butterfly::START}}).to_string();
+    let back = serde_json::json!({"feed": FEED_MM_MIN, "kind": "line", "end": butterfly::START})
+        .to_string();
     let fly = crate::demo::butterfly_request(FEED_MM_MIN);
     (0..loops)
         .flat_map(|_| [fly.clone(), back.clone()])

@@ -16,9 +16,12 @@ mod histogram;
 mod jitter;
 mod protocol;
 mod publish;
+mod replay;
 mod rt;
 mod send;
 mod serve;
+mod simulate;
+mod trace_cmd;
 mod watch;
 
 use anyhow::Result;
@@ -44,6 +47,12 @@ enum Command {
     Watch(watch::WatchArgs),
     /// Measure wake lateness and tick+publish time: the full pipeline vs a bare loop.
     Jitter(jitter::JitterArgs),
+    /// Run a program through the interpolator with no clock; print a summary, write a trace.
+    Simulate(simulate::SimulateArgs),
+    /// Re-simulate a trace's blocks and compare every setpoint bit for bit.
+    Replay(replay::ReplayArgs),
+    /// Summarise or plot a recorded trace.
+    Trace(trace_cmd::TraceArgs),
 }
 
 fn main() -> Result<()> {
@@ -53,6 +62,9 @@ fn main() -> Result<()> {
         Command::Send(args) => send::main(&args),
         Command::Watch(args) => watch::main(&args),
         Command::Jitter(args) => jitter::main(&args),
+        Command::Simulate(args) => simulate::main(&args),
+        Command::Replay(args) => replay::main(&args),
+        Command::Trace(args) => trace_cmd::main(&args),
     }
 }
 
@@ -73,7 +85,7 @@ mod tests {
         let cli = Cli::try_parse_from(["interpd", "demo", "--fast", "--json", "--feed", "3000"])
             .expect("demo flags parse");
         let Command::Demo(args) = cli.command else {
-            panic!("not demo")
+            panic!("expected demo");
         };
         assert!(args.fast && args.json);
         assert_eq!(args.feed, 3000.0);

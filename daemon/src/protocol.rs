@@ -1,13 +1,14 @@
 //! The control plane's line protocol (see `docs/daemon.md`): one request per
 //! line, exactly one reply line per request.
 //!
-//! Requests: a JSON block (`{"feed": …, "line"|"arc"|"nurbs": …}`), or one of
+//! Requests: a JSON block (`{"feed": …, "kind": "line"|"arc"|"nurbs", …}`,
+//! the JSON block form of `traces`, see `docs/traces.md`), or one of
 //! `start`, `hold`, `resume`, `override X`, `end`, `abort`, `status`,
 //! `auth TOKEN`. Replies: `ok …`, `status {json}` or `err LINE PROBLEM`.
 
-use interp_core::nurbs::{MAX_CTRL, split_program_curve};
-use interp_core::{Arc, Block, Line, Path, Vec3};
-use serde::Deserialize;
+use interp_core::Block;
+use interp_core::nurbs::MAX_CTRL;
+use traces::{InputBlock, PathSpec, Program};
 
 /// Longest request line, bytes (newline excluded). Longer lines are refused
 /// with an error and skipped up to their newline.
@@ -21,8 +22,8 @@ pub const PIECE_CTRL: usize = MAX_CTRL;
 /// One parsed request.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Request {
-    /// A motion block.
-    Block(Box<JsonBlock>),
+    /// A motion block (the `traces` JSON block form).
+    Block(Box<InputBlock>),
     /// Cycle start.
     Start,
     /// Feed hold.
@@ -43,70 +44,6 @@ pub enum Request {
     Nothing,
 }
 
-/// A motion block as JSON. Exactly one of `line`, `arc`, `nurbs`. Its start
-/// is the end of the previous block (or where the machine is).
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct JsonBlock {
-    /// Id reported in the setpoints (default: a running count from 1).
-    #[serde(default)]
-    pub id: Option<u32>,
-    /// Programmed feed, mm/min (as G-code `F`).
-    pub feed: f64,
-    /// A straight line.
-    #[serde(default)]
-    pub line: Option<JsonLine>,
-    /// A circular arc or helix.
-    #[serde(default)]
-    pub arc: Option<JsonArc>,
-    /// A rational NURBS (any number of control points up to [`MAX_BLOCK_CTRL`]).
-    #[serde(default)]
-    pub nurbs: Option<JsonNurbs>,
-}
-
-/// `{"end": [x, y, z]}`.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct JsonLine {
-    /// End point, mm.
-    pub end: [f64; 3],
-}
-
-/// Counter-clockwise about `axis` (pass `-axis` for clockwise).
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct JsonArc {
-    /// End point, mm.
-    pub end: [f64; 3],
-    /// Centre, mm.
-    pub centre: [f64; 3],
-    /// Rotation axis (default +Z).
-    #[serde(default = "default_axis")]
-    pub axis: [f64; 3],
-    /// Extra full turns.
-    #[serde(default)]
-    pub turns: u32,
-}
-
-fn default_axis() -> [f64; 3] {
-    [0.0, 0.0, 1.0]
-}
-
-/// Degree, control points, optional weights (default all 1), knots.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct JsonNurbs {
-    /// Degree 1..=5.
-    pub degree: usize,
-    /// Control points, mm; the first must be the previous block's end.
-    pub points: Vec<[f64; 3]>,
-    /// Weights (positive), one per point.
-    #[serde(default)]
-    pub weights: Option<Vec<f64>>,
-    /// Knot vector, `points + degree + 1` values, clamped.
-    pub knots: Vec<f64>,
-}
-
 /// Parses one request line (without its newline).
 pub fn parse(line: &str) -> Result<Request, String> {
     let t = line.trim();
@@ -114,7 +51,7 @@ pub fn parse(line: &str) -> Result<Request, String> {
         return Ok(Request::Nothing);
     }
     if t.starts_with('{') {
-        let b: JsonBlock =
+        let b: InputBlock =
             serde_json::from_str(t).map_err(|e| format!("invalid JSON block: {e}"))?;
         return Ok(Request::Block(Box::new(b)));
     }
@@ -150,102 +87,71 @@ pub fn parse(line: &str) -> Result<Request, String> {
     }
 }
 
-fn vec3(p: [f64; 3]) -> Vec3 {
-    Vec3::new(p[0], p[1], p[2])
-}
-
-fn finite3(p: &[f64; 3]) -> bool {
-    p.iter().all(|c| c.is_finite())
-}
-
-impl JsonBlock {
-    /// The interpolator blocks of this block starting at `start` (pieces of at
-    /// most [`PIECE_CTRL`] control points for a NURBS), with id `id`.
-    pub fn to_blocks(&self, start: [f64; 3], id: u32, join_tol: f64) -> Result<Vec<Block>, String> {
-        if !(self.feed.is_finite() && self.feed > 0.0) {
-            return Err(format!(
-                "feed must be a positive number of mm/min, got {}",
-                self.feed
-            ));
-        }
-        let feed = self.feed / 60.0;
-        let kinds = [
-            self.line.is_some(),
-            self.arc.is_some(),
-            self.nurbs.is_some(),
-        ];
-        if kinds.iter().filter(|k| **k).count() != 1 {
-            return Err("a block needs exactly one of \"line\", \"arc\", \"nurbs\"".into());
-        }
-        let s = vec3(start);
-        if let Some(l) = &self.line {
-            if !finite3(&l.end) {
-                return Err("line.end is not finite".into());
-            }
-            let line = Line::new(s, vec3(l.end)).map_err(|e| format!("line: {e}"))?;
-            return Ok(vec![Block::new(id, Path::Line(line), feed)]);
-        }
-        if let Some(a) = &self.arc {
-            let arc = Arc::from_centre(s, vec3(a.end), vec3(a.centre), vec3(a.axis), a.turns)
-                .map_err(|e| format!("arc: {e}"))?;
-            return Ok(vec![Block::new(id, Path::Arc(arc), feed)]);
-        }
-        let n = self.nurbs.as_ref().ok_or("no geometry")?;
-        if n.points.len() > MAX_BLOCK_CTRL {
-            return Err(format!(
-                "nurbs has {} control points, at most {MAX_BLOCK_CTRL} per block",
-                n.points.len()
-            ));
-        }
-        let first = n.points.first().ok_or("nurbs.points is empty")?;
-        if !finite3(first) {
-            return Err("nurbs.points[0] is not finite".into());
-        }
-        let gap = (vec3(*first) - s).norm();
-        if !(gap <= join_tol) {
-            return Err(format!(
-                "nurbs starts {gap:.6} mm from the previous end {start:?} (tolerance {join_tol} mm)"
-            ));
-        }
-        let ones;
-        let weights = match &n.weights {
-            Some(w) => w.as_slice(),
-            None => {
-                ones = vec![1.0; n.points.len()];
-                ones.as_slice()
-            }
-        };
-        let mut out = Vec::new();
-        split_program_curve(n.degree, &n.points, weights, &n.knots, PIECE_CTRL, |c| {
-            out.push(Block::new(id, Path::Nurbs(c), feed));
-            Ok::<(), core::convert::Infallible>(())
-        })
-        .map_err(|e| format!("nurbs: {e}"))?;
-        Ok(out)
+/// Expands one JSON block (the `traces` JSON block form) that starts at
+/// `start` into interpolator blocks with ids from `first_id` (a NURBS is split
+/// into pieces of at most [`PIECE_CTRL`] control points, exactly as
+/// `interpd simulate` and `interpd replay` do). Also returns the segment info
+/// recorded with the block.
+pub fn expand(
+    block: &InputBlock,
+    start: [f64; 3],
+    first_id: u32,
+) -> Result<(Vec<Block>, Vec<traces::messages::SegmentInfo>), String> {
+    if let PathSpec::Nurbs { points, .. } = &block.path
+        && points.len() > MAX_BLOCK_CTRL
+    {
+        return Err(format!(
+            "nurbs has {} control points, at most {MAX_BLOCK_CTRL} per block",
+            points.len()
+        ));
     }
+    let program = Program {
+        start: Some(start),
+        blocks: vec![block.clone()],
+    };
+    let mut e = program
+        .expand(PIECE_CTRL, first_id)
+        .map_err(|e| e.kind.to_string())?;
+    let b = e.blocks.pop().ok_or("the block expanded to nothing")?;
+    Ok((b.segments, b.info))
 }
 
-/// JSON of a block for the protocol (used by `send` and `demo` to stream
-/// programs built in memory).
+/// The JSON line of a block.
+pub fn block_json(b: &InputBlock) -> String {
+    serde_json::to_string(b).unwrap_or_default()
+}
+
+/// The JSON line of a NURBS block (used by `demo` and `jitter`).
 pub fn nurbs_json(
-    id: u32,
     feed_mm_min: f64,
     degree: usize,
     points: &[[f64; 3]],
     weights: &[f64],
     knots: &[f64],
 ) -> String {
-    serde_json::json!({
-        "id": id,
-        "feed": feed_mm_min,
-        "nurbs": {"degree": degree, "points": points, "weights": weights, "knots": knots},
+    block_json(&InputBlock {
+        source_line: None,
+        feed: feed_mm_min,
+        mrr: None,
+        path: PathSpec::Nurbs {
+            degree,
+            points: points.to_vec(),
+            weights: Some(weights.to_vec()),
+            knots: knots.to_vec(),
+        },
     })
-    .to_string()
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn block(line: &str) -> InputBlock {
+        match parse(line) {
+            Ok(Request::Block(b)) => *b,
+            other => panic!("not a block: {other:?}"),
+        }
+    }
 
     #[test]
     fn commands_parse_and_bad_lines_name_the_problem() {
@@ -264,76 +170,49 @@ mod tests {
         assert!(parse("jump").unwrap_err().contains("unknown request"));
         assert!(parse("{\"feed\": 1").unwrap_err().contains("invalid JSON"));
         assert!(
-            parse(r#"{"feed": 1, "line": {"end": [1,2,3]}, "colour": 1}"#)
+            parse(r#"{"feed": 1, "kind": "spline", "end": [1,2,3]}"#)
                 .unwrap_err()
-                .contains("colour")
+                .contains("spline")
         );
     }
 
     #[test]
-    fn blocks_convert_and_check_their_geometry() {
-        let Request::Block(b) =
-            parse(r#"{"id": 3, "feed": 600, "line": {"end": [10, 0, 0]}}"#).unwrap()
-        else {
-            panic!("not a block")
-        };
-        let bs = b.to_blocks([0.0; 3], 3, 1e-6).unwrap();
+    fn blocks_expand_and_check_their_geometry() {
+        let b = block(r#"{"feed": 600, "kind": "line", "end": [10, 0, 0]}"#);
+        let (bs, info) = expand(&b, [0.0; 3], 3).unwrap();
         assert_eq!(bs.len(), 1);
+        assert_eq!((bs[0].id, info[0].block_id), (3, 3));
         assert_eq!(bs[0].feed, 10.0);
         assert!((bs[0].path.length() - 10.0).abs() < 1e-12);
-        // Zero length, bad feed, two kinds.
-        assert!(b.to_blocks([10.0, 0.0, 0.0], 3, 1e-6).is_err());
-        let Request::Block(bad) = parse(r#"{"feed": -1, "line": {"end": [1, 0, 0]}}"#).unwrap()
-        else {
-            panic!()
-        };
-        assert!(
-            bad.to_blocks([0.0; 3], 1, 1e-6)
-                .unwrap_err()
-                .contains("feed")
-        );
-        let Request::Block(two) =
-            parse(r#"{"feed": 1, "line": {"end": [1, 0, 0]}, "arc": {"end": [1,0,0], "centre": [0,0,0]}}"#)
-                .unwrap()
-        else {
-            panic!()
-        };
-        assert!(
-            two.to_blocks([0.0; 3], 1, 1e-6)
-                .unwrap_err()
-                .contains("exactly one")
-        );
+        // Zero length, bad feed.
+        assert!(expand(&b, [10.0, 0.0, 0.0], 1).is_err());
+        let bad = block(r#"{"feed": -1, "kind": "line", "end": [1, 0, 0]}"#);
+        assert!(expand(&bad, [0.0; 3], 1).unwrap_err().contains("feed"));
     }
 
     #[test]
     fn a_long_nurbs_is_split_into_pieces_of_the_same_curve() {
-        use interp_core::Curve;
         use interp_core::samples::butterfly::*;
+        use interp_core::{Curve, Vec3};
         let line = nurbs_json(
-            1,
             600.0,
             BUTTERFLY_DEGREE,
             &BUTTERFLY_POINTS,
             &BUTTERFLY_WEIGHTS,
             &BUTTERFLY_KNOTS,
         );
-        let Request::Block(b) = parse(&line).unwrap() else {
-            panic!()
-        };
-        let pieces = b.to_blocks(START, 1, 1e-6).unwrap();
+        let b = block(&line);
+        let (pieces, _) = expand(&b, START, 1).unwrap();
         assert!(pieces.len() >= 2);
-        for w in pieces.windows(2) {
+        for (k, w) in pieces.windows(2).enumerate() {
             let gap = (w[0].path.end_point() - w[1].path.start_point()).norm();
             assert!(gap < 1e-9, "{gap}");
+            assert_eq!(w[1].id, w[0].id + 1, "piece {k}");
         }
         let end = pieces.last().unwrap().path.end_point();
-        let want = vec3(BUTTERFLY_POINTS[50]);
+        let want = Vec3::from(BUTTERFLY_POINTS[50]);
         assert!((end - want).norm() < 1e-9);
-        // Starting elsewhere is refused with the distance.
-        assert!(
-            b.to_blocks([0.0; 3], 1, 1e-6)
-                .unwrap_err()
-                .contains("starts")
-        );
+        // Starting elsewhere is refused.
+        assert!(expand(&b, [0.0; 3], 1).is_err());
     }
 }

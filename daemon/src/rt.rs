@@ -76,16 +76,16 @@ pub struct PushFailure {
 /// One tick for the recorder.
 #[derive(Clone, Copy, Debug)]
 pub struct TickRecord {
-    /// Publisher sequence number.
-    pub seq: u64,
     /// The setpoint.
     pub setpoint: Setpoint,
     /// Wake time minus deadline, ns.
     pub lateness_ns: u64,
     /// Tick + publish time, ns.
     pub compute_ns: u64,
-    /// Time in `push` this tick, ns (0 when no block was pushed).
-    pub push_ns: u64,
+    /// Interpolator segments queued after the tick.
+    pub queue_depth: u32,
+    /// Whether the interpolator ticked (false while waiting for `start`).
+    pub ticked: bool,
 }
 
 /// Live counters of the RT thread (written by it, read by anyone).
@@ -486,7 +486,8 @@ impl Loop {
             }
 
             let t0 = now_ns();
-            if self.started || self.aborting {
+            let ticked = self.started || self.aborting;
+            if ticked {
                 last = self.ip.tick();
                 if self.aborting && last.state != RunState::Stopping {
                     self.aborting = false;
@@ -506,11 +507,11 @@ impl Loop {
                 compute.record(tick_ns);
             }
             let rec = TickRecord {
-                seq,
                 setpoint: last,
                 lateness_ns: (wake - next).max(0) as u64,
                 compute_ns: tick_ns,
-                push_ns,
+                queue_depth: self.ip.queued_segments() as u32,
+                ticked,
             };
             if self.records.enqueue(rec).is_err() {
                 self.status.recorder_drops.fetch_add(1, Ordering::Relaxed);

@@ -19,6 +19,8 @@ use tokio::io::{AsyncBufReadExt, AsyncRead, AsyncWrite, AsyncWriteExt, BufReader
 
 use crate::serve::DEFAULT_PORT;
 
+/// Speed of rapid moves (G0) when a G-code program is converted, mm/s.
+const RAPID_SPEED_MM_S: f64 = 100.0;
 /// Requests in flight at most.
 pub const WINDOW: usize = 8;
 /// No reply for this long while requests are in flight means back-pressure.
@@ -29,7 +31,8 @@ const POLL: Duration = Duration::from_millis(50);
 /// Options of `interpd send`.
 #[derive(Clone, Debug, clap::Args)]
 pub struct SendArgs {
-    /// The program: JSON blocks, one per line (`.jsonl`); blank lines and `#` comments are skipped.
+    /// The program: G-code (`.ngc`/`.nc`), a JSON program (`.json`), or JSON
+    /// blocks one per line (`.jsonl`; blank lines and `#` comments skipped).
     pub program: PathBuf,
     /// TCP address of the server.
     #[arg(long, default_value_t = SocketAddr::from(([127, 0, 0, 1], DEFAULT_PORT)))]
@@ -65,8 +68,23 @@ enum Expect {
     Other,
 }
 
-/// Reads the program's request lines.
+/// Reads the program's request lines: G-code (`.ngc`, `.nc`) and JSON
+/// programs (`.json`, `{"start": …, "blocks": […]}`) are converted here to the
+/// JSON block form, as `interpd simulate` reads them; anything else is taken
+/// as JSON blocks, one per line.
 pub fn program_lines(path: &PathBuf) -> Result<Vec<String>> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or_default();
+    if matches!(ext, "ngc" | "nc" | "json") {
+        let program = crate::simulate::load_program(path, RAPID_SPEED_MM_S)?;
+        return Ok(program
+            .blocks
+            .iter()
+            .map(crate::protocol::block_json)
+            .collect());
+    }
     let text =
         std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
     Ok(text

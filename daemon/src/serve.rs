@@ -70,6 +70,12 @@ pub struct ServeArgs {
     /// Start position X Y Z, mm.
     #[arg(long, num_args = 3, value_names = ["X", "Y", "Z"], allow_negative_numbers = true)]
     pub position: Option<Vec<f64>>,
+    /// Record the run to this MCAP trace (config, blocks, setpoints, loop
+    /// timing, events) through the `traces` recorder; `interpd replay` of it
+    /// reproduces the setpoints of the first program bit for bit when that
+    /// program was queued before `start`.
+    #[arg(long, value_name = "PATH")]
+    pub record: Option<PathBuf>,
     /// Print the final summary as JSON.
     #[arg(long)]
     pub json: bool,
@@ -92,6 +98,7 @@ impl ServeArgs {
             cpu: None,
             autostart: false,
             position: None,
+            record: None,
             json: false,
         }
     }
@@ -153,6 +160,12 @@ pub struct ServeSummary {
     pub publish_failures: u64,
     /// Scheduling refused (normal scheduling was used).
     pub scheduling_warnings: Vec<String>,
+    /// The MCAP trace written, if any.
+    pub trace: Option<PathBuf>,
+    /// Messages written to it (setpoints, loop timing, blocks, events, config).
+    pub trace_messages: u64,
+    /// Records the trace recorder had no room for.
+    pub trace_overflows: u64,
 }
 
 /// A running service.
@@ -266,12 +279,45 @@ pub fn start(
         service: args.service.clone(),
         autostart: args.autostart,
     };
+    // The trace recorder (traces crate): its own thread and bounded queue.
+    let (trace_tx, trace_rec) = match &args.record {
+        Some(path) => {
+            let file = std::fs::File::create(path)
+                .with_context(|| format!("creating the trace {}", path.display()))?;
+            let writer = traces::TraceWriter::new(
+                std::io::BufWriter::new(file),
+                traces::TraceCompression::default(),
+            )
+            .map_err(|e| anyhow!("starting the trace {}: {e}", path.display()))?;
+            let (tx, rec) = traces::Recorder::spawn(writer, TRACE_QUEUE)
+                .context("starting the trace recorder")?;
+            let config = traces::messages::ConfigMsg {
+                format_version: traces::messages::FORMAT_VERSION,
+                writer: format!("interpd serve {}", env!("CARGO_PKG_VERSION")),
+                source: "interpd serve".into(),
+                realtime: true,
+                interp: cfg,
+                start: position,
+                max_ctrl_per_block: crate::protocol::PIECE_CTRL,
+                segment_queue: interp_core::interp::DEFAULT_QUEUE,
+            };
+            let _ = tx.try_push(traces::Record::Config(Box::new(config)));
+            (Some(tx), Some(rec))
+        }
+        None => (None, None),
+    };
+    let on_tick = match (&trace_tx, on_tick) {
+        (Some(tx), None) => Some(trace_sink(tx.clone())),
+        (_, f) => f,
+    };
     let rt = crate::rt::spawn(cfg, position, opts)?;
     let control = Arc::new(Control {
         stream: tokio::sync::Mutex::new(Stream {
             blocks: rt.blocks,
             tail: None,
             next_id: 1,
+            index: 0,
+            ended: false,
         }),
         commands: Mutex::new(rt.commands),
         failures: Mutex::new(rt.failures),
@@ -283,9 +329,11 @@ pub fn start(
         blocks_accepted: AtomicU64::new(0),
         errors: AtomicU64::new(0),
         last_refusal: Mutex::new(None),
+        recorder: Mutex::new(trace_tx.clone()),
     });
     let rt_done = Arc::new(AtomicBool::new(false));
     let recorder = spawn_recorder(rt.records, Arc::clone(&rt_done), on_tick)?;
+    drop(trace_tx);
 
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
@@ -317,6 +365,7 @@ pub fn start(
     let rt_thread = rt.thread;
     let sock = socket.clone();
     let json = args.json;
+    let record_path = args.record.clone();
     let thread = std::thread::Builder::new()
         .name("interpd-control".into())
         .spawn(move || -> Result<ServeSummary> {
@@ -365,6 +414,22 @@ pub fn start(
             let recorded = recorder
                 .join()
                 .map_err(|_| anyhow!("the recorder thread panicked"))?;
+            // The last producer of the trace queue; then the trace is finished.
+            if let Ok(mut tx) = ctl.recorder.lock() {
+                tx.take();
+            }
+            let (trace_messages, trace_overflows) = match trace_rec {
+                Some(rec) => {
+                    let (w, report) = rec.join().map_err(|e| anyhow!("writing the trace: {e}"))?;
+                    let mut f = w
+                        .into_inner()
+                        .map_err(|e| anyhow!("writing the trace: {e}"))?;
+                    use std::io::Write;
+                    f.flush().context("writing the trace")?;
+                    (report_messages(&report), report.overflows)
+                }
+                None => (0, 0),
+            };
             if let Some(p) = &sock {
                 let _ = std::fs::remove_file(p);
             }
@@ -382,6 +447,9 @@ pub fn start(
                 recorded,
                 publish_failures: status.publish_failures.load(Ordering::Acquire),
                 scheduling_warnings: report.scheduling_warnings,
+                trace: record_path,
+                trace_messages,
+                trace_overflows,
             };
             let _ = json;
             Ok(summary)
@@ -392,6 +460,39 @@ pub fn start(
         socket,
         shutdown: Some(tx),
         thread: Some(thread),
+    })
+}
+
+fn report_messages(r: &traces::recorder::RecorderReport) -> u64 {
+    let w = &r.written;
+    w.config + w.blocks + w.setpoints + w.loop_timing + w.events
+}
+
+/// Records the trace queue holds (about two seconds at 1 kHz of setpoints and timing).
+const TRACE_QUEUE: usize = 4096;
+
+/// The recorder thread's hand-off to the trace: every tick of the first
+/// program (up to its first `done`) as a setpoint and its loop timing.
+fn trace_sink(tx: traces::RecordTx) -> Box<dyn FnMut(&TickRecord) + Send> {
+    let mut done = false;
+    Box::new(move |r: &TickRecord| {
+        if !r.ticked || done {
+            return;
+        }
+        let sp = r.setpoint;
+        let timing = traces::LoopTimingMsg {
+            seq: sp.seq,
+            wake_lateness_ns: Some(r.lateness_ns as i64),
+            tick_compute_ns: Some(r.compute_ns),
+            queue_depth: r.queue_depth,
+        };
+        // Full: counted by the traces recorder and written as an overflow event.
+        let _ = tx.try_push(traces::Record::Setpoint(sp));
+        let _ = tx.try_push(traces::Record::LoopTiming(timing, sp.time));
+        done = matches!(
+            sp.state,
+            interp_core::RunState::Done | interp_core::RunState::Fault
+        );
     })
 }
 
@@ -462,6 +563,14 @@ pub fn print_summary(s: &ServeSummary) {
         "  overruns {}, recorder drops {}, recorded {}, publish failures {}",
         s.overruns, s.recorder_drops, s.recorded, s.publish_failures
     );
+    if let Some(t) = &s.trace {
+        println!(
+            "  trace {}: {} messages, {} records dropped (queue full)",
+            t.display(),
+            s.trace_messages,
+            s.trace_overflows
+        );
+    }
     for w in &s.scheduling_warnings {
         println!("  warning: {w}");
     }

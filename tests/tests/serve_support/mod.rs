@@ -256,9 +256,10 @@ pub fn wait_child(mut c: Child, what: &str) -> std::process::Output {
     }
 }
 
-/// A JSON line block.
-pub fn line_to(end: [f64; 3], feed_mm_min: f64, id: u32) -> String {
-    serde_json::json!({"id": id, "feed": feed_mm_min, "line": {"end": end}}).to_string()
+/// A JSON line block (the `traces` JSON block form). `_n` is the block's
+/// number in the test, for the reader only.
+pub fn line_to(end: [f64; 3], feed_mm_min: f64, _n: u32) -> String {
+    serde_json::json!({"feed": feed_mm_min, "kind": "line", "end": end}).to_string()
 }
 
 /// Distance from `p` to the segment `a`–`b`.

@@ -1,0 +1,203 @@
+//! `interpd simulate`, `replay` and `trace` as a user runs them.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn interpd(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_interpd"))
+        .args(args)
+        .env_remove("RUST_BACKTRACE")
+        .output()
+        .expect("interpd runs")
+}
+
+fn golden(name: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../tests/golden")
+        .join(name)
+        .display()
+        .to_string()
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("interpd-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&d).expect("temp dir");
+    d.join(name)
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+#[test]
+fn simulate_writes_a_trace_that_replays_and_summarises_alike() {
+    let out = tmp("line_arc.mcap");
+    let o = interpd(&[
+        "simulate",
+        &golden("line_arc.json"),
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let sim: serde_json::Value = serde_json::from_slice(&o.stdout).expect("one JSON object");
+    assert!(sim["setpoints"].as_u64().unwrap() > 100);
+    for k in [
+        "duration_s",
+        "max_feed_mm_s",
+        "max_chord_error_mm",
+        "max_tangential_accel_mm_s2",
+        "max_tangential_jerk_mm_s3",
+        "max_centripetal_accel_mm_s2",
+    ] {
+        assert!(sim[k].as_f64().is_some_and(|v| v > 0.0), "{k}: {sim}");
+    }
+    let o = interpd(&["trace", "summary", out.to_str().unwrap(), "--json"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let summary: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON");
+    assert_eq!(sim, summary);
+    let o = interpd(&["replay", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("bit-identical"), "{}", text(&o));
+    let plots = tmp("plots");
+    let o = interpd(&[
+        "trace",
+        "plot",
+        out.to_str().unwrap(),
+        "--out",
+        plots.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(plots.join("feed.png").is_file() && plots.join("path_xy.svg").is_file());
+}
+
+#[test]
+fn replay_of_an_altered_trace_exits_non_zero_naming_seq_and_field() {
+    let out = tmp("alter.mcap");
+    let o = interpd(&[
+        "simulate",
+        &golden("nurbs_mrr.json"),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let mut t = traces::Trace::open(&out).expect("reads");
+    let k = 700;
+    t.setpoints[k].feed = f64::from_bits(t.setpoints[k].feed.to_bits() ^ 1);
+    let seq = t.setpoints[k].seq;
+    let mut w = traces::TraceWriter::new(
+        std::io::BufWriter::new(std::fs::File::create(&out).unwrap()),
+        Default::default(),
+    )
+    .unwrap();
+    w.config(t.config.as_ref().unwrap()).unwrap();
+    for b in &t.blocks {
+        w.block(b, 0.0).unwrap();
+    }
+    for s in &t.setpoints {
+        w.setpoint(&s.to_setpoint()).unwrap();
+    }
+    w.finish().unwrap();
+    let o = interpd(&["replay", out.to_str().unwrap()]);
+    assert!(!o.status.success());
+    let msg = text(&o);
+    assert!(
+        msg.contains(&format!("seq {seq}")) && msg.contains("field `feed`"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn configuration_layers_and_errors() {
+    let cfg = tmp("cfg.toml");
+    std::fs::write(
+        &cfg,
+        "[interp]\nmax-path-accel = 500.0\n[simulate]\nmax-ctrl-per-block = 12\n",
+    )
+    .unwrap();
+    let o = interpd(&[
+        "simulate",
+        &golden("line_arc.json"),
+        "--config",
+        cfg.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let s: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let a = s["max_tangential_accel_mm_s2"].as_f64().unwrap();
+    assert!(a <= 500.0 * (1.0 + 1e-9) && a > 400.0, "{a}");
+    // --set beats the file, flags beat --set.
+    let o = interpd(&[
+        "simulate",
+        &golden("line_arc.json"),
+        "--config",
+        cfg.to_str().unwrap(),
+        "--set",
+        "max-path-accel=800",
+        "--json",
+    ]);
+    let s: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(s["max_tangential_accel_mm_s2"].as_f64().unwrap() > 500.0 * 1.01);
+    let o = interpd(&[
+        "simulate",
+        &golden("line_arc.json"),
+        "--set",
+        "max-path-accel=800",
+        "--max-accel",
+        "300",
+        "--json",
+    ]);
+    let s: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(s["max_tangential_accel_mm_s2"].as_f64().unwrap() <= 300.0 * (1.0 + 1e-9));
+    // Unknown keys and bad values are named.
+    std::fs::write(&cfg, "[interp]\nmax-path-acel = 500.0\n").unwrap();
+    let o = interpd(&[
+        "simulate",
+        &golden("line_arc.json"),
+        "--config",
+        cfg.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(text(&o).contains("interp.max-path-acel"), "{}", text(&o));
+    let o = interpd(&["simulate", &golden("line_arc.json"), "--set", "period=-1"]);
+    assert!(!o.status.success());
+    assert!(text(&o).contains("period"), "{}", text(&o));
+    let bad = tmp("bad.json");
+    std::fs::write(&bad, "{\"blocks\": [{\"kind\": \"line\", \"feed\": -5, \"source_line\": 3, \"end\": [1, 0, 0]}]}").unwrap();
+    let o = interpd(&["simulate", bad.to_str().unwrap()]);
+    assert!(!o.status.success());
+    assert!(
+        text(&o).contains("source line 3") && text(&o).contains("feed"),
+        "{}",
+        text(&o)
+    );
+}
+
+#[test]
+fn a_damaged_trace_is_refused_with_what_was_recovered() {
+    let out = tmp("cut.mcap");
+    let o = interpd(&[
+        "simulate",
+        &golden("line_arc.json"),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let bytes = std::fs::read(&out).unwrap();
+    std::fs::write(&out, &bytes[..bytes.len() / 2]).unwrap();
+    for cmd in [&["replay"][..], &["trace", "summary"][..]] {
+        let mut args = cmd.to_vec();
+        args.push(out.to_str().unwrap());
+        let o = interpd(&args);
+        assert!(!o.status.success());
+        let msg = text(&o);
+        assert!(
+            msg.contains("truncated or corrupted") && msg.contains("recovered"),
+            "{msg}"
+        );
+    }
+}

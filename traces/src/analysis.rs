@@ -1,0 +1,424 @@
+//! Quantities derived from setpoints and the exact blocks: curvature, chord
+//! error, MRR, tangential acceleration and jerk, centripetal acceleration, and
+//! the run summary that `interpd simulate` and `interpd trace summary` print.
+//!
+//! Both compute it with the same [`Analyzer`] (simulate as the run goes,
+//! trace summary from the file), so the two agree exactly.
+
+use std::collections::BTreeMap;
+use std::fmt;
+
+use interp_core::feed::{relative_mrr, signed_curvature};
+use interp_core::metrics::chord_error_between;
+use interp_core::{Block, Curve, RunState, Setpoint, Vec3};
+use serde::Serialize;
+
+use crate::blocks::{BlockError, Program};
+use crate::messages::{BlockMsg, ConfigMsg, EventKind};
+use crate::reader::Trace;
+
+/// Samples per tick in the chord-error search (then golden section), as `interpd demo`.
+pub const CHORD_SAMPLES: usize = 16;
+
+/// Derived values at one setpoint.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Sample {
+    /// The setpoint's `seq`.
+    pub seq: u64,
+    /// Machine time, s.
+    pub time: f64,
+    /// Commanded feed, mm/s.
+    pub feed: f64,
+    /// Curvature of the path at the setpoint, 1/mm.
+    pub curvature: f64,
+    /// Largest distance between the exact path and the chord from the previous setpoint, mm.
+    pub chord_error: f64,
+    /// `Δfeed/Ts`, mm/s².
+    pub tangential_accel: f64,
+    /// `Δ(tangential accel)/Ts`, mm/s³.
+    pub jerk: f64,
+    /// `feed²·curvature`, mm/s².
+    pub centripetal_accel: f64,
+    /// MRR relative to straight cutting at the programmed feed (eq. 18–22),
+    /// for blocks with MRR parameters.
+    pub mrr: Option<f64>,
+}
+
+/// What a run did, from its setpoints and blocks.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Summary {
+    /// Where the program came from.
+    pub source: String,
+    /// Input blocks.
+    pub input_blocks: usize,
+    /// Interpolator blocks (segments) they became.
+    pub segments: usize,
+    /// Setpoints.
+    pub setpoints: u64,
+    /// Setpoints missing from the sequence (dropped by a full queue).
+    pub missing_setpoints: u64,
+    /// Machine time of the last setpoint, s.
+    pub duration_s: f64,
+    /// Path length travelled, mm.
+    pub length_mm: f64,
+    /// Largest commanded feed, mm/s.
+    pub max_feed_mm_s: f64,
+    /// The same, mm/min.
+    pub max_feed_mm_min: f64,
+    /// Largest chord error, mm.
+    pub max_chord_error_mm: f64,
+    /// `seq` of the setpoint ending that tick.
+    pub max_chord_error_seq: u64,
+    /// The configured chord tolerance, mm.
+    pub chord_tolerance_mm: f64,
+    /// Largest |tangential acceleration|, mm/s².
+    pub max_tangential_accel_mm_s2: f64,
+    /// Largest |tangential jerk|, mm/s³.
+    pub max_tangential_jerk_mm_s3: f64,
+    /// Largest centripetal acceleration, mm/s².
+    pub max_centripetal_accel_mm_s2: f64,
+    /// Smallest and largest relative MRR while cutting (feed > 0) on blocks
+    /// with MRR parameters, if any.
+    pub relative_mrr_range: Option<[f64; 2]>,
+    /// State of the last setpoint.
+    pub final_state: String,
+    /// X Y Z of the last setpoint, mm.
+    pub final_point: [f64; 3],
+    /// Events by kind.
+    pub events: BTreeMap<String, u64>,
+    /// Largest wake lateness, µs (real-time runs only).
+    pub max_wake_lateness_us: Option<f64>,
+}
+
+/// Computes [`Sample`]s tick by tick and keeps the [`Summary`] maxima.
+#[derive(Debug)]
+pub struct Analyzer {
+    period: f64,
+    segments: BTreeMap<u32, Block>,
+    prev: Setpoint,
+    prev_accel: f64,
+    summary: Summary,
+    mrr_range: Option<[f64; 2]>,
+}
+
+fn p3(sp: &Setpoint) -> Vec3 {
+    Vec3::new(sp.axes[0], sp.axes[1], sp.axes[2])
+}
+
+impl Analyzer {
+    /// For a run under `config` over `segments` (the interpolator blocks).
+    pub fn new<'a>(
+        config: &ConfigMsg,
+        input_blocks: usize,
+        segments: impl IntoIterator<Item = &'a Block>,
+    ) -> Self {
+        let segments: BTreeMap<u32, Block> = segments.into_iter().map(|b| (b.id, *b)).collect();
+        let prev = Setpoint {
+            axes: config.start,
+            ..Setpoint::default()
+        };
+        Analyzer {
+            period: config.interp.period,
+            summary: Summary {
+                source: config.source.clone(),
+                input_blocks,
+                segments: segments.len(),
+                setpoints: 0,
+                missing_setpoints: 0,
+                duration_s: 0.0,
+                length_mm: 0.0,
+                max_feed_mm_s: 0.0,
+                max_feed_mm_min: 0.0,
+                max_chord_error_mm: 0.0,
+                max_chord_error_seq: 0,
+                chord_tolerance_mm: config.interp.chord_tolerance,
+                max_tangential_accel_mm_s2: 0.0,
+                max_tangential_jerk_mm_s3: 0.0,
+                max_centripetal_accel_mm_s2: 0.0,
+                relative_mrr_range: None,
+                final_state: "idle".into(),
+                final_point: [config.start[0], config.start[1], config.start[2]],
+                events: BTreeMap::new(),
+                max_wake_lateness_us: None,
+            },
+            segments,
+            prev,
+            prev_accel: 0.0,
+            mrr_range: None,
+        }
+    }
+
+    /// Chord error of the tick from `a` to `b` over the blocks between.
+    fn chord_error(&self, a: &Setpoint, b: &Setpoint) -> f64 {
+        let (pa, pb) = (p3(a), p3(b));
+        let mut worst = 0.0f64;
+        let first = a.block_id.max(1);
+        if b.block_id < first {
+            return 0.0;
+        }
+        for (&id, seg) in self.segments.range(first..=b.block_id) {
+            let u0 = if id == a.block_id {
+                a.u
+            } else {
+                seg.path.u_start()
+            };
+            let u1 = if id == b.block_id {
+                b.u
+            } else {
+                seg.path.u_end()
+            };
+            worst = worst.max(chord_error_between(
+                &seg.path,
+                u0,
+                u1,
+                pa,
+                pb,
+                CHORD_SAMPLES,
+            ));
+        }
+        worst
+    }
+
+    /// Derived values at `sp`, the setpoint after the last one pushed.
+    pub fn push(&mut self, sp: &Setpoint) -> Sample {
+        let ts = self.period;
+        // A gap (dropped setpoints) spans several ticks.
+        let ticks = sp.seq.saturating_sub(self.prev.seq).max(1);
+        let dt = ts * ticks as f64;
+        let accel = (sp.feed - self.prev.feed) / dt;
+        let jerk = (accel - self.prev_accel) / dt;
+        let (curvature, mrr) = match self.segments.get(&sp.block_id) {
+            Some(seg) => {
+                let d = seg.path.eval(sp.u, 2);
+                let mrr = seg.mrr.map(|m| {
+                    let ks = signed_curvature(&d, m.tool_side);
+                    relative_mrr(sp.feed, seg.feed, ks, m.tool_radius, m.depth_of_cut)
+                });
+                (d.curvature(), mrr)
+            }
+            None => (0.0, None),
+        };
+        let chord_error = if ticks == 1 {
+            self.chord_error(&self.prev, sp)
+        } else {
+            0.0
+        };
+        let s = Sample {
+            seq: sp.seq,
+            time: sp.time,
+            feed: sp.feed,
+            curvature,
+            chord_error,
+            tangential_accel: accel,
+            jerk,
+            centripetal_accel: sp.feed * sp.feed * curvature,
+            mrr,
+        };
+        let m = &mut self.summary;
+        m.setpoints += 1;
+        m.missing_setpoints += ticks - 1;
+        m.duration_s = sp.time;
+        m.length_mm += (p3(sp) - p3(&self.prev)).norm();
+        m.max_feed_mm_s = m.max_feed_mm_s.max(sp.feed);
+        m.max_feed_mm_min = m.max_feed_mm_s * 60.0;
+        if chord_error > m.max_chord_error_mm {
+            m.max_chord_error_mm = chord_error;
+            m.max_chord_error_seq = sp.seq;
+        }
+        m.max_tangential_accel_mm_s2 = m.max_tangential_accel_mm_s2.max(accel.abs());
+        m.max_tangential_jerk_mm_s3 = m.max_tangential_jerk_mm_s3.max(jerk.abs());
+        m.max_centripetal_accel_mm_s2 = m.max_centripetal_accel_mm_s2.max(s.centripetal_accel);
+        if let (Some(r), true) = (mrr, sp.feed > 0.0) {
+            let range = self.mrr_range.get_or_insert([r, r]);
+            range[0] = range[0].min(r);
+            range[1] = range[1].max(r);
+        }
+        m.final_state = state_name(sp.state).into();
+        m.final_point = [sp.axes[0], sp.axes[1], sp.axes[2]];
+        self.prev = *sp;
+        self.prev_accel = accel;
+        s
+    }
+
+    /// Counts an event.
+    pub fn event(&mut self, kind: EventKind) {
+        let name = serde_json::to_value(kind)
+            .ok()
+            .and_then(|v| v.as_str().map(str::to_owned))
+            .unwrap_or_default();
+        *self.summary.events.entry(name).or_insert(0) += 1;
+    }
+
+    /// Notes a wake lateness, ns.
+    pub fn lateness(&mut self, ns: i64) {
+        let us = ns as f64 / 1e3;
+        let m = &mut self.summary.max_wake_lateness_us;
+        *m = Some(m.map_or(us, |x| x.max(us)));
+    }
+
+    /// The summary so far.
+    pub fn summary(&self) -> Summary {
+        Summary {
+            relative_mrr_range: self.mrr_range,
+            ..self.summary.clone()
+        }
+    }
+}
+
+/// Lower-case name of a state, as in the setpoint channel's JSON but lower case.
+pub fn state_name(s: RunState) -> &'static str {
+    match s {
+        RunState::Idle => "idle",
+        RunState::Running => "running",
+        RunState::Holding => "holding",
+        RunState::Stopping => "stopping",
+        RunState::Done => "done",
+        RunState::Fault => "fault",
+    }
+}
+
+/// Why a trace cannot be analysed or replayed.
+#[derive(Debug, thiserror::Error)]
+pub enum TraceProgramError {
+    /// The trace has no `/interpd/config` message.
+    #[error("the trace has no /interpd/config message")]
+    NoConfig,
+    /// The blocks are not numbered 0, 1, 2, … in order.
+    #[error("/interpd/blocks message {found} where block {expected} was expected")]
+    BlockOrder {
+        /// Index expected.
+        expected: usize,
+        /// Index found.
+        found: u32,
+    },
+    /// A recorded block no longer expands.
+    #[error(transparent)]
+    Block(#[from] BlockError),
+    /// The recorded split differs from today's split of the same block.
+    #[error("block {index} splits into {today:?} today but {recorded:?} in the trace")]
+    Split {
+        /// The block.
+        index: usize,
+        /// Segment ids and parameter ranges now.
+        today: Vec<(u32, f64, f64)>,
+        /// As recorded.
+        recorded: Vec<(u32, f64, f64)>,
+    },
+}
+
+/// The program a trace ran (from its config and block messages).
+pub fn program_of(trace: &Trace) -> Result<(ConfigMsg, Program), TraceProgramError> {
+    let config = trace.config.clone().ok_or(TraceProgramError::NoConfig)?;
+    for (k, b) in trace.blocks.iter().enumerate() {
+        if b.index as usize != k {
+            return Err(TraceProgramError::BlockOrder {
+                expected: k,
+                found: b.index,
+            });
+        }
+    }
+    let [x, y, z, ..] = config.start;
+    let program = Program {
+        start: Some([x, y, z]),
+        blocks: trace.blocks.iter().map(|b| b.block.clone()).collect(),
+    };
+    Ok((config, program))
+}
+
+fn split_key(b: &BlockMsg) -> Vec<(u32, f64, f64)> {
+    b.segments
+        .iter()
+        .map(|s| (s.block_id, s.u_start, s.u_end))
+        .collect()
+}
+
+/// Derived samples and the summary of a recorded run.
+pub fn analyse(trace: &Trace) -> Result<(Summary, Vec<Sample>), TraceProgramError> {
+    let (config, program) = program_of(trace)?;
+    let expanded = program.expand(config.max_ctrl_per_block, crate::sim::FIRST_BLOCK_ID)?;
+    for (eb, rec) in expanded.blocks.iter().zip(&trace.blocks) {
+        let today: Vec<_> = eb
+            .info
+            .iter()
+            .map(|s| (s.block_id, s.u_start, s.u_end))
+            .collect();
+        let recorded = split_key(rec);
+        if today != recorded {
+            return Err(TraceProgramError::Split {
+                index: eb.index,
+                today,
+                recorded,
+            });
+        }
+    }
+    let mut an = Analyzer::new(&config, expanded.blocks.len(), expanded.segments());
+    let samples = trace
+        .setpoints
+        .iter()
+        .map(|m| an.push(&m.to_setpoint()))
+        .collect();
+    for e in &trace.events {
+        an.event(e.kind);
+    }
+    for t in &trace.loop_timing {
+        if let Some(ns) = t.wake_lateness_ns {
+            an.lateness(ns);
+        }
+    }
+    Ok((an.summary(), samples))
+}
+
+impl fmt::Display for Summary {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(f, "run of {}", self.source)?;
+        writeln!(
+            f,
+            "  program       {} input blocks, {} segments",
+            self.input_blocks, self.segments
+        )?;
+        writeln!(
+            f,
+            "  setpoints     {} ({} missing), {:.6} s, {:.6} mm travelled",
+            self.setpoints, self.missing_setpoints, self.duration_s, self.length_mm
+        )?;
+        writeln!(
+            f,
+            "  feed          max {:.6} mm/s ({:.3} mm/min)",
+            self.max_feed_mm_s, self.max_feed_mm_min
+        )?;
+        writeln!(
+            f,
+            "  chord error   max {:.6e} mm at seq {} (tolerance {} mm)",
+            self.max_chord_error_mm, self.max_chord_error_seq, self.chord_tolerance_mm
+        )?;
+        writeln!(
+            f,
+            "  tangential    max |accel| {:.3} mm/s², max |jerk| {:.6e} mm/s³",
+            self.max_tangential_accel_mm_s2, self.max_tangential_jerk_mm_s3
+        )?;
+        writeln!(
+            f,
+            "  centripetal   max accel {:.3} mm/s²",
+            self.max_centripetal_accel_mm_s2
+        )?;
+        match self.relative_mrr_range {
+            Some([lo, hi]) => writeln!(f, "  MRR           relative {lo:.4} .. {hi:.4}")?,
+            None => writeln!(f, "  MRR           no block carries MRR parameters")?,
+        }
+        writeln!(
+            f,
+            "  final         {} at ({}, {}, {})",
+            self.final_state, self.final_point[0], self.final_point[1], self.final_point[2]
+        )?;
+        let ev: Vec<String> = self
+            .events
+            .iter()
+            .map(|(k, n)| format!("{k} {n}"))
+            .collect();
+        writeln!(f, "  events        {}", ev.join(", "))?;
+        if let Some(l) = self.max_wake_lateness_us {
+            writeln!(f, "  wake lateness max {l:.1} µs")?;
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,362 @@
+//! The JSON block form of a program: lines, arcs and NURBS with their feed
+//! (mm/min) and optional constant-MRR parameters.
+//!
+//! `interpd simulate` reads it until G-code input is wired in, the
+//! `/interpd/blocks` channel records each block in it, and the daemon's
+//! control plane reuses it for JSON blocks. See `docs/traces.md` for the
+//! format. [`expand`] turns a program into interpolator blocks, splitting long
+//! NURBS with `interp_core::nurbs::split_program_curve` and recording how.
+
+use interp_core::interp::JOIN_TOLERANCE;
+use interp_core::nurbs::{SplitError, split_program_curve};
+use interp_core::path::{MrrParams, PathError, ToolSide};
+use interp_core::{Arc, Block, Curve, Line, NurbsError, Path, Vec3};
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use crate::messages::SegmentInfo;
+
+/// Seconds per minute: feeds are programmed in mm/min, the core works in mm/s.
+const SECONDS_PER_MINUTE: f64 = 60.0;
+
+/// A program in the JSON block form.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Program {
+    /// Start point X Y Z, mm. Default: the first point of the first block if it
+    /// is a NURBS, else the origin.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub start: Option<[f64; 3]>,
+    /// The blocks, in order; each starts where the previous one ends.
+    pub blocks: Vec<InputBlock>,
+}
+
+/// One block as given.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct InputBlock {
+    /// Line of the source program this block came from, if known (1-based).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub source_line: Option<u32>,
+    /// Programmed feed, mm/min.
+    pub feed: f64,
+    /// Constant-MRR law parameters (seed eq. 23); absent: the law is off for this block.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mrr: Option<MrrSpec>,
+    /// The geometry.
+    #[serde(flatten)]
+    pub path: PathSpec,
+}
+
+/// Geometry of a block; it starts where the previous block ends.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
+pub enum PathSpec {
+    /// Straight line to `end`.
+    Line {
+        /// End point X Y Z, mm.
+        end: [f64; 3],
+    },
+    /// Circular (or helical) arc to `end` about `centre`.
+    Arc {
+        /// End point X Y Z, mm.
+        end: [f64; 3],
+        /// Centre X Y Z, mm (its component along `axis` is ignored).
+        centre: [f64; 3],
+        /// Axis of the arc's plane (default +Z, the G17 plane).
+        #[serde(default = "default_axis")]
+        axis: [f64; 3],
+        /// Clockwise about `axis` (G2) instead of counter-clockwise (G3).
+        #[serde(default)]
+        clockwise: bool,
+        /// Extra full turns.
+        #[serde(default)]
+        turns: u32,
+    },
+    /// Rational NURBS of degree 1..=5 with a clamped knot vector. Its first
+    /// control point must be the previous block's end.
+    Nurbs {
+        /// Degree.
+        degree: usize,
+        /// Control points X Y Z, mm.
+        points: Vec<[f64; 3]>,
+        /// One positive weight per control point (default all 1).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        weights: Option<Vec<f64>>,
+        /// `points.len() + degree + 1` knots, clamped at both ends.
+        knots: Vec<f64>,
+    },
+}
+
+fn default_axis() -> [f64; 3] {
+    [0.0, 0.0, 1.0]
+}
+
+/// Constant-MRR parameters of a block.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct MrrSpec {
+    /// Tool radius `rt`, mm.
+    pub tool_radius: f64,
+    /// Depth of cut `δ`, mm.
+    pub depth_of_cut: f64,
+    /// Where the tool is relative to the material.
+    pub tool_side: ToolSideSpec,
+}
+
+/// Which side the tool is on (sign of the curvature in the MRR law).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum ToolSideSpec {
+    /// A fixed direction from the material towards the tool (e.g. `[0, 0, 1]`).
+    Direction([f64; 3]),
+    /// Tool left of the path in the plane with this normal (G41).
+    LeftOfPath([f64; 3]),
+    /// Tool right of the path in the plane with this normal (G42).
+    RightOfPath([f64; 3]),
+}
+
+impl From<MrrSpec> for MrrParams {
+    fn from(m: MrrSpec) -> Self {
+        MrrParams {
+            tool_radius: m.tool_radius,
+            depth_of_cut: m.depth_of_cut,
+            tool_side: match m.tool_side {
+                ToolSideSpec::Direction(v) => ToolSide::Direction(v),
+                ToolSideSpec::LeftOfPath(v) => ToolSide::LeftOfPath(v),
+                ToolSideSpec::RightOfPath(v) => ToolSide::RightOfPath(v),
+            },
+        }
+    }
+}
+
+/// What is wrong with one block.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum BlockErrorKind {
+    /// `feed` is not a positive finite number.
+    #[error("feed must be a positive number of mm/min, got {0}")]
+    Feed(f64),
+    /// A field of the MRR parameters is not usable.
+    #[error("mrr.{0} must be a finite number (tool_radius > 0, depth_of_cut >= 0)")]
+    Mrr(&'static str),
+    /// The line or arc is invalid.
+    #[error("{0}")]
+    Path(PathError),
+    /// The NURBS is invalid.
+    #[error("invalid NURBS: {0}")]
+    Nurbs(NurbsError),
+    /// The block does not start where the previous one ends.
+    #[error(
+        "starts at {start:?}, but the previous block ends at {previous_end:?} ({gap:e} mm apart)"
+    )]
+    Discontinuous {
+        /// Its start, mm.
+        start: [f64; 3],
+        /// The previous end, mm.
+        previous_end: [f64; 3],
+        /// Distance, mm.
+        gap: f64,
+    },
+}
+
+/// A block of a program that cannot be used.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("block {index}{}: {kind}", source_line.map(|l| format!(" (source line {l})")).unwrap_or_default())]
+pub struct BlockError {
+    /// Position in the program, from 0.
+    pub index: usize,
+    /// Its source line, if known.
+    pub source_line: Option<u32>,
+    /// What is wrong.
+    pub kind: BlockErrorKind,
+}
+
+/// One input block and the interpolator blocks it became.
+#[derive(Clone, Debug)]
+pub struct ExpandedBlock {
+    /// Position in the program, from 0.
+    pub index: usize,
+    /// The block as given.
+    pub input: InputBlock,
+    /// Interpolator blocks, in order (consecutive ids).
+    pub segments: Vec<Block>,
+    /// How it was split.
+    pub info: Vec<SegmentInfo>,
+}
+
+/// A program ready for the interpolator.
+#[derive(Clone, Debug)]
+pub struct Expanded {
+    /// Start point, mm.
+    pub start: [f64; 3],
+    /// The blocks.
+    pub blocks: Vec<ExpandedBlock>,
+}
+
+impl Expanded {
+    /// Every interpolator block, in order.
+    pub fn segments(&self) -> impl Iterator<Item = &Block> {
+        self.blocks.iter().flat_map(|b| b.segments.iter())
+    }
+}
+
+fn v3(p: [f64; 3]) -> Vec3 {
+    Vec3::new(p[0], p[1], p[2])
+}
+
+fn a3(p: Vec3) -> [f64; 3] {
+    [p.x, p.y, p.z]
+}
+
+impl Program {
+    /// The start point ([`Program::start`] or its default).
+    pub fn start_point(&self) -> [f64; 3] {
+        if let Some(s) = self.start {
+            return s;
+        }
+        match self.blocks.first().map(|b| &b.path) {
+            Some(PathSpec::Nurbs { points, .. }) if !points.is_empty() => points[0],
+            _ => [0.0; 3],
+        }
+    }
+
+    /// Checks every block and cuts it into interpolator blocks with ids from
+    /// `first_id`; NURBS longer than `max_ctrl` control points are split.
+    pub fn expand(&self, max_ctrl: usize, first_id: u32) -> Result<Expanded, BlockError> {
+        let start = self.start_point();
+        let mut at = v3(start);
+        let mut id = first_id;
+        let mut out = Vec::with_capacity(self.blocks.len());
+        for (index, input) in self.blocks.iter().enumerate() {
+            let err = |kind| BlockError {
+                index,
+                source_line: input.source_line,
+                kind,
+            };
+            let segments = expand_block(input, at, max_ctrl, &mut id).map_err(err)?;
+            let info = segments
+                .iter()
+                .map(|b| SegmentInfo {
+                    block_id: b.id,
+                    u_start: b.path.u_start(),
+                    u_end: b.path.u_end(),
+                    control_points: match &b.path {
+                        Path::Nurbs(n) => n.control_count(),
+                        _ => 0,
+                    },
+                    length: b.path.length(),
+                })
+                .collect();
+            if let Some(last) = segments.last() {
+                at = last.path.end_point();
+            }
+            out.push(ExpandedBlock {
+                index,
+                input: input.clone(),
+                segments,
+                info,
+            });
+        }
+        Ok(Expanded { start, blocks: out })
+    }
+}
+
+fn expand_block(
+    input: &InputBlock,
+    at: Vec3,
+    max_ctrl: usize,
+    id: &mut u32,
+) -> Result<Vec<Block>, BlockErrorKind> {
+    if !(input.feed.is_finite() && input.feed > 0.0) {
+        return Err(BlockErrorKind::Feed(input.feed));
+    }
+    let feed = input.feed / SECONDS_PER_MINUTE;
+    let mrr = match input.mrr {
+        None => None,
+        Some(m) => {
+            if !(m.tool_radius.is_finite() && m.tool_radius > 0.0) {
+                return Err(BlockErrorKind::Mrr("tool_radius"));
+            }
+            if !(m.depth_of_cut.is_finite() && m.depth_of_cut >= 0.0) {
+                return Err(BlockErrorKind::Mrr("depth_of_cut"));
+            }
+            let dir = match m.tool_side {
+                ToolSideSpec::Direction(v)
+                | ToolSideSpec::LeftOfPath(v)
+                | ToolSideSpec::RightOfPath(v) => v3(v),
+            };
+            if !(dir.iter().all(|c| c.is_finite()) && dir.norm() > 0.0) {
+                return Err(BlockErrorKind::Mrr("tool_side"));
+            }
+            Some(MrrParams::from(m))
+        }
+    };
+    let block = |id: u32, path: Path| Block {
+        id,
+        path,
+        feed,
+        mrr,
+    };
+    let check_start = |start: Vec3| {
+        let gap = (start - at).norm();
+        if gap <= JOIN_TOLERANCE {
+            Ok(())
+        } else {
+            Err(BlockErrorKind::Discontinuous {
+                start: a3(start),
+                previous_end: a3(at),
+                gap,
+            })
+        }
+    };
+    let mut out = Vec::new();
+    match &input.path {
+        PathSpec::Line { end } => {
+            let l = Line::new(at, v3(*end)).map_err(BlockErrorKind::Path)?;
+            out.push(block(*id, Path::Line(l)));
+            *id += 1;
+        }
+        PathSpec::Arc {
+            end,
+            centre,
+            axis,
+            clockwise,
+            turns,
+        } => {
+            let axis = if *clockwise { -v3(*axis) } else { v3(*axis) };
+            let a = Arc::from_centre(at, v3(*end), v3(*centre), axis, *turns)
+                .map_err(BlockErrorKind::Path)?;
+            out.push(block(*id, Path::Arc(a)));
+            *id += 1;
+        }
+        PathSpec::Nurbs {
+            degree,
+            points,
+            weights,
+            knots,
+        } => {
+            let ones;
+            let w: &[f64] = match weights {
+                Some(w) => w,
+                None => {
+                    ones = vec![1.0; points.len()];
+                    &ones
+                }
+            };
+            let mut first = true;
+            split_program_curve(*degree, points, w, knots, max_ctrl, |n| {
+                if first {
+                    first = false;
+                    check_start(n.start_point())?;
+                }
+                out.push(block(*id, Path::Nurbs(n)));
+                *id += 1;
+                Ok(())
+            })
+            .map_err(|e| match e {
+                SplitError::Invalid(n) => BlockErrorKind::Nurbs(n),
+                SplitError::Sink(k) => k,
+            })?;
+        }
+    }
+    Ok(out)
+}

@@ -1,0 +1,268 @@
+//! Running a program through the interpolator with no clock.
+//!
+//! `interpd simulate` and `interpd replay` both call [`run`]: same program +
+//! same [`ConfigMsg`] ⇒ the same setpoints, bit for bit. The driving order is
+//! part of that contract: blocks are pushed in order; when the interpolator
+//! refuses one because its queue or look-ahead is full, it ticks once and the
+//! push is tried again; after the last block, `finish()` and tick until done.
+
+use interp_core::interp::{DEFAULT_QUEUE, PushError};
+use interp_core::{Interpolator, RunState, Setpoint};
+use serde::{Deserialize, Serialize};
+
+use crate::blocks::{BlockError, Program};
+use crate::messages::{BlockMsg, ConfigMsg, EventKind, EventMsg, FORMAT_VERSION};
+
+/// Id of the first interpolator block.
+pub const FIRST_BLOCK_ID: u32 = 1;
+
+/// Settings of a simulation besides `InterpConfig` (TOML section `[simulate]`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, rename_all = "kebab-case", deny_unknown_fields)]
+pub struct SimSettings {
+    /// Control points per segment when long NURBS are split. Default 20
+    /// (as `interpd demo`); at most `interp_core::nurbs::MAX_CTRL`.
+    pub max_ctrl_per_block: usize,
+    /// The run is abandoned after this much machine time, s. Default 3600.
+    pub max_machine_time: f64,
+}
+
+impl Default for SimSettings {
+    fn default() -> Self {
+        SimSettings {
+            max_ctrl_per_block: 20,
+            max_machine_time: 3600.0,
+        }
+    }
+}
+
+/// What a simulation hands its sink, in order.
+#[derive(Debug)]
+pub enum SimItem<'a> {
+    /// The configuration (first).
+    Config(&'a ConfigMsg),
+    /// An input block, once all its segments were accepted.
+    Block(&'a BlockMsg),
+    /// One tick's setpoint and the segments queued after it.
+    Tick {
+        /// The setpoint.
+        setpoint: &'a Setpoint,
+        /// Interpolator segments queued after the tick.
+        queue_depth: u32,
+    },
+    /// An event.
+    Event(&'a EventMsg),
+}
+
+/// Why a simulation stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum SimError<E> {
+    /// The configuration was refused.
+    #[error("configuration refused: {0}")]
+    Config(String),
+    /// A block of the program is invalid.
+    #[error(transparent)]
+    Block(#[from] BlockError),
+    /// The interpolator refused a block.
+    #[error("block {index}{}: segment {block_id} refused by the interpolator: {reason}",
+        source_line.map(|l| format!(" (source line {l})")).unwrap_or_default())]
+    Push {
+        /// Position of the input block.
+        index: usize,
+        /// Its source line.
+        source_line: Option<u32>,
+        /// Id of the segment.
+        block_id: u32,
+        /// Why.
+        reason: String,
+    },
+    /// The run did not end within `max_machine_time`.
+    #[error("the run did not end within {seconds} s of machine time ({ticks} ticks)")]
+    Timeout {
+        /// Ticks run.
+        ticks: u64,
+        /// The limit, s.
+        seconds: f64,
+    },
+    /// The sink failed.
+    #[error(transparent)]
+    Sink(E),
+}
+
+/// How a simulation ended.
+#[derive(Clone, Copy, Debug)]
+pub struct SimOutcome {
+    /// The last setpoint.
+    pub last: Setpoint,
+    /// Input blocks run.
+    pub blocks: usize,
+    /// Interpolator blocks (segments) pushed.
+    pub segments: usize,
+    /// The interpolator's counters.
+    pub stats: interp_core::interp::Stats,
+}
+
+/// The configuration message for a program run with `interp` and `settings`.
+pub fn config_for(
+    program: &Program,
+    interp: interp_core::InterpConfig,
+    settings: &SimSettings,
+    writer: &str,
+    source: &str,
+) -> ConfigMsg {
+    let [x, y, z] = program.start_point();
+    ConfigMsg {
+        format_version: FORMAT_VERSION,
+        writer: writer.to_owned(),
+        source: source.to_owned(),
+        realtime: false,
+        interp,
+        start: [x, y, z, 0.0, 0.0, 0.0],
+        max_ctrl_per_block: settings.max_ctrl_per_block,
+        segment_queue: DEFAULT_QUEUE,
+    }
+}
+
+/// Runs `program` under `config`, handing everything to `sink`.
+pub fn run<E>(
+    config: &ConfigMsg,
+    program: &Program,
+    max_machine_time: f64,
+    mut sink: impl FnMut(SimItem<'_>) -> Result<(), E>,
+) -> Result<SimOutcome, SimError<E>> {
+    if config.segment_queue != DEFAULT_QUEUE {
+        return Err(SimError::Config(format!(
+            "segment-queue {} (this build runs {DEFAULT_QUEUE})",
+            config.segment_queue
+        )));
+    }
+    let mut ip: Box<Interpolator> = Box::new(
+        Interpolator::new(config.interp, config.start)
+            .map_err(|e| SimError::Config(e.to_string()))?,
+    );
+    let expanded = program.expand(config.max_ctrl_per_block, FIRST_BLOCK_ID)?;
+    let period = config.interp.period;
+    let max_ticks = if max_machine_time.is_finite() && max_machine_time > 0.0 {
+        (max_machine_time / period).ceil() as u64
+    } else {
+        return Err(SimError::Config(format!(
+            "max-machine-time must be a positive number of seconds, got {max_machine_time}"
+        )));
+    };
+    sink(SimItem::Config(config)).map_err(SimError::Sink)?;
+
+    let mut last = Setpoint::default();
+    // One tick: hand it on; a fault ends the run.
+    let tick = |ip: &mut Interpolator,
+                last: &mut Setpoint,
+                sink: &mut dyn FnMut(SimItem<'_>) -> Result<(), E>|
+     -> Result<bool, SimError<E>> {
+        if last.seq >= max_ticks {
+            return Err(SimError::Timeout {
+                ticks: last.seq,
+                seconds: max_machine_time,
+            });
+        }
+        *last = ip.tick();
+        sink(SimItem::Tick {
+            setpoint: last,
+            queue_depth: ip.queued_segments() as u32,
+        })
+        .map_err(SimError::Sink)?;
+        Ok(last.state != RunState::Fault)
+    };
+
+    let mut segments = 0usize;
+    let mut faulted = false;
+    'blocks: for (k, eb) in expanded.blocks.iter().enumerate() {
+        if k == 0 {
+            let ev = EventMsg::new(EventKind::Start, 0, 0.0);
+            sink(SimItem::Event(&ev)).map_err(SimError::Sink)?;
+        }
+        for seg in &eb.segments {
+            loop {
+                match ip.push(seg) {
+                    Ok(()) => break,
+                    Err(PushError::Full { .. } | PushError::ProfileFull)
+                        if ip.queued_segments() > 0 =>
+                    {
+                        if !tick(&mut ip, &mut last, &mut sink)? {
+                            faulted = true;
+                            break 'blocks;
+                        }
+                    }
+                    Err(e) => {
+                        return Err(SimError::Push {
+                            index: eb.index,
+                            source_line: eb.input.source_line,
+                            block_id: seg.id,
+                            reason: e.to_string(),
+                        });
+                    }
+                }
+            }
+            segments += 1;
+        }
+        let msg = BlockMsg {
+            index: eb.index as u32,
+            block: eb.input.clone(),
+            segments: eb.info.clone(),
+            accepted_at_seq: last.seq,
+        };
+        sink(SimItem::Block(&msg)).map_err(SimError::Sink)?;
+    }
+    if !faulted {
+        ip.finish();
+        while !matches!(ip.state(), RunState::Done | RunState::Fault) {
+            if !tick(&mut ip, &mut last, &mut sink)? {
+                break;
+            }
+        }
+    }
+    let kind = if last.state == RunState::Fault {
+        EventKind::Fault
+    } else {
+        EventKind::Done
+    };
+    let ev = EventMsg::new(kind, last.seq, last.time);
+    sink(SimItem::Event(&ev)).map_err(SimError::Sink)?;
+    Ok(SimOutcome {
+        last,
+        blocks: expanded.blocks.len(),
+        segments,
+        stats: ip.stats(),
+    })
+}
+
+/// Runs `program` like [`run`] and writes everything to `writer` (config,
+/// blocks at the time they were accepted, setpoints, loop timing with the
+/// queue depth and no clock readings, events). `also` sees every item first.
+pub fn record<W: std::io::Write + std::io::Seek>(
+    config: &ConfigMsg,
+    program: &Program,
+    max_machine_time: f64,
+    writer: &mut crate::writer::TraceWriter<W>,
+    mut also: impl FnMut(&SimItem<'_>),
+) -> Result<SimOutcome, SimError<crate::writer::WriteError>> {
+    let period = config.interp.period;
+    run(config, program, max_machine_time, |item| {
+        also(&item);
+        match item {
+            SimItem::Config(c) => writer.config(c),
+            SimItem::Block(b) => writer.block(b, b.accepted_at_seq as f64 * period),
+            SimItem::Tick {
+                setpoint,
+                queue_depth,
+            } => {
+                writer.setpoint(setpoint)?;
+                let timing = crate::messages::LoopTimingMsg {
+                    seq: setpoint.seq,
+                    queue_depth,
+                    ..Default::default()
+                };
+                writer.loop_timing(&timing, setpoint.time)
+            }
+            SimItem::Event(e) => writer.event(e),
+        }
+    })
+}
