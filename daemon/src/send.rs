@@ -172,7 +172,7 @@ impl Progress {
 
 fn bar(done: usize, total: usize) -> String {
     const W: usize = 30;
-    let f = if total == 0 { W } else { done * W / total };
+    let f = (done * W).checked_div(total).unwrap_or(W);
     format!("[{}{}]", "#".repeat(f), ".".repeat(W - f))
 }
 

@@ -19,6 +19,9 @@ use crate::histogram::Histogram;
 use crate::publish::{DEFAULT_SERVICE, remove_dead_nodes, state_name};
 use crate::rt::{RtOptions, RtReport, TickRecord};
 
+/// What the recorder thread calls for every tick the RT thread handed it.
+pub type TickSink = Box<dyn FnMut(&TickRecord) + Send>;
+
 /// Default TCP port of the control plane.
 pub const DEFAULT_PORT: u16 = 47_110;
 /// Default SCHED_FIFO priority of the RT thread.
@@ -212,7 +215,7 @@ fn default_socket() -> PathBuf {
 fn spawn_recorder(
     mut rx: Consumer<'static, TickRecord>,
     rt_done: Arc<AtomicBool>,
-    sink: Option<Box<dyn FnMut(&TickRecord) + Send>>,
+    sink: Option<TickSink>,
 ) -> Result<JoinHandle<u64>> {
     std::thread::Builder::new()
         .name("interpd-recorder".into())
@@ -243,7 +246,7 @@ pub fn start(
     args: &ServeArgs,
     cfg: InterpConfig,
     handle_signals: bool,
-    on_tick: Option<Box<dyn FnMut(&TickRecord) + Send>>,
+    on_tick: Option<TickSink>,
 ) -> Result<Service> {
     if !args.listen.is_loopback() {
         if !args.allow_remote {
@@ -473,7 +476,7 @@ const TRACE_QUEUE: usize = 4096;
 
 /// The recorder thread's hand-off to the trace: every tick of the first
 /// program (up to its first `done`) as a setpoint and its loop timing.
-fn trace_sink(tx: traces::RecordTx) -> Box<dyn FnMut(&TickRecord) + Send> {
+fn trace_sink(tx: traces::RecordTx) -> TickSink {
     let mut done = false;
     Box::new(move |r: &TickRecord| {
         if !r.ticked || done {
