@@ -12,9 +12,13 @@
 //! Nothing in the loop allocates; a full queue is counted, never waited on
 //! (except with `--fast`, which has no deadlines and must not lose setpoints).
 //!
-//! No SCHED_FIFO, mlockall, iceoryx2 or MCAP here: those are the RT-thread issue's.
+//! Then (unless `--no-service`) the same program goes through the service as a
+//! user would run it: `interpd serve` started in-process on a private iceoryx2
+//! service name, the butterfly streamed over its TCP control plane as one JSON
+//! NURBS line, and an iceoryx2 subscriber that runs the same checks on every
+//! published setpoint. The served run must be gapless and give the same
+//! setpoint digest as the direct run, bit for bit (same blocks and config).
 
-use core::convert::Infallible;
 use core::fmt;
 use core::sync::atomic::{AtomicBool, Ordering};
 use std::fs::File;
@@ -31,8 +35,6 @@ use serde::Serialize;
 use crate::clock::{minimise_timer_slack, now_ns, sleep_until_ns};
 use crate::histogram::Histogram;
 
-/// Control points per block when the butterfly is split.
-const MAX_CTRL_PER_BLOCK: usize = 20;
 /// Id of the first block.
 const FIRST_BLOCK_ID: u32 = 1;
 /// Slots of the loop → recorder queue (one is kept free): four seconds at 1 kHz.
@@ -85,11 +87,20 @@ pub struct DemoArgs {
     /// Write every setpoint to this CSV file (seq,time,x,y,z,feed,u,s,block_id,state).
     #[arg(long, value_name = "PATH")]
     pub csv: Option<PathBuf>,
+    /// Skip the second run through the service (RT thread, iceoryx2, TCP control plane).
+    #[arg(long)]
+    pub no_service: bool,
+    /// Normal scheduling for the service run (no SCHED_FIFO, mlockall or pinning).
+    #[arg(long)]
+    pub no_rt: bool,
 }
 
 /// Runs the demo, prints the summary, and fails if any check failed.
 pub fn main(args: &DemoArgs) -> Result<()> {
-    let summary = run(args, |_| {})?;
+    let mut summary = run(args, |_| {})?;
+    if !args.no_service {
+        summary.service = Some(crate::demo_service::run(args, &summary)?);
+    }
     if args.json {
         println!(
             "{}",
@@ -97,6 +108,11 @@ pub fn main(args: &DemoArgs) -> Result<()> {
         );
     } else {
         print!("{summary}");
+    }
+    if let Some(svc) = &summary.service
+        && let Some(why) = svc.failure(&summary.setpoint_digest)
+    {
+        bail!("the run through the service failed: {why}");
     }
     if !summary.chord_error_within_tolerance {
         bail!(
@@ -176,18 +192,18 @@ impl Violations {
 /// The loop's own subscriber: checks each setpoint against the previous one and
 /// keeps the running maxima and digest. Fixed size; `check` never allocates.
 #[derive(Clone, Debug)]
-struct Subscriber {
+pub(crate) struct Subscriber {
     ts: f64,
     feed_limit: f64,
     accel_limit: f64,
     prev_seq: u64,
     prev_feed: f64,
     prev_point: [f64; 3],
-    max_feed: f64,
+    pub(crate) max_feed: f64,
     max_chord_speed: f64,
-    max_accel: f64,
-    digest: u64,
-    violations: Violations,
+    pub(crate) max_accel: f64,
+    pub(crate) digest: u64,
+    pub(crate) violations: Violations,
 }
 
 /// FNV-1a, 64 bit.
@@ -216,7 +232,7 @@ fn digest_setpoint(mut h: u64, sp: &Setpoint) -> u64 {
 }
 
 impl Subscriber {
-    fn new(ts: f64, feed_limit: f64, accel_limit: f64, start: [f64; 3]) -> Self {
+    pub(crate) fn new(ts: f64, feed_limit: f64, accel_limit: f64, start: [f64; 3]) -> Self {
         Subscriber {
             ts,
             feed_limit,
@@ -233,7 +249,7 @@ impl Subscriber {
     }
 
     #[inline]
-    fn check(&mut self, sp: &Setpoint) {
+    pub(crate) fn check(&mut self, sp: &Setpoint) {
         let v = &mut self.violations;
         let mut bad = false;
         if sp.seq != self.prev_seq.wrapping_add(1) {
@@ -422,9 +438,20 @@ fn state_name(s: RunState) -> &'static str {
 }
 
 impl<F: FnMut(&Setpoint)> Recorder<'_, F> {
-    fn block(&self, id: u32) -> Option<&Block> {
-        let i = id.checked_sub(FIRST_BLOCK_ID)? as usize;
-        self.blocks.get(i).filter(|b| b.id == id)
+    /// The piece of block `id` whose parameter range holds both `u0` and `u1`
+    /// (a split NURBS keeps the id and the parameters of the whole curve).
+    fn block(&self, id: u32, u0: f64, u1: f64) -> Option<&Block> {
+        self.blocks.iter().find(|b| {
+            b.id == id
+                && match &b.path {
+                    interp_core::Path::Nurbs(n) => {
+                        let k = n.knots();
+                        let (lo, hi) = (k[0], k[k.len() - 1]);
+                        (lo..=hi).contains(&u0) && (lo..=hi).contains(&u1)
+                    }
+                    _ => true,
+                }
+        })
     }
 
     /// Takes one setpoint; returns false once it has failed (then the loop should stop).
@@ -433,7 +460,7 @@ impl<F: FnMut(&Setpoint)> Recorder<'_, F> {
         if let Some(prev) = self.prev
             && prev.seq + 1 == sp.seq
             && prev.block_id == sp.block_id
-            && let Some(block) = self.block(sp.block_id)
+            && let Some(block) = self.block(sp.block_id, prev.u, sp.u)
         {
             let a = Vec3::new(prev.axes[0], prev.axes[1], prev.axes[2]);
             let b = Vec3::new(sp.axes[0], sp.axes[1], sp.axes[2]);
@@ -482,15 +509,29 @@ impl<F: FnMut(&Setpoint)> Recorder<'_, F> {
     }
 }
 
-/// The butterfly as blocks at `feed` mm/s.
-fn butterfly_blocks(feed: f64) -> Result<Vec<Block>> {
-    let mut blocks = Vec::new();
-    butterfly::for_each_block(feed, FIRST_BLOCK_ID, MAX_CTRL_PER_BLOCK, |b| {
-        blocks.push(b);
-        Ok::<(), Infallible>(())
-    })
-    .context("splitting the butterfly NURBS into blocks")?;
-    Ok(blocks)
+/// The butterfly as one protocol line: a JSON NURBS at `feed_mm_min`.
+pub(crate) fn butterfly_request(feed_mm_min: f64) -> String {
+    crate::protocol::nurbs_json(
+        feed_mm_min,
+        butterfly::BUTTERFLY_DEGREE,
+        &butterfly::BUTTERFLY_POINTS,
+        &butterfly::BUTTERFLY_WEIGHTS,
+        &butterfly::BUTTERFLY_KNOTS,
+    )
+}
+
+/// The butterfly as the service gets it: its protocol line parsed and split
+/// exactly as the control plane does, so both runs get the same blocks.
+fn butterfly_blocks(feed_mm_min: f64) -> Result<Vec<Block>> {
+    let line = butterfly_request(feed_mm_min);
+    let crate::protocol::Request::Block(b) =
+        crate::protocol::parse(&line).map_err(|e| anyhow!("butterfly request: {e}"))?
+    else {
+        bail!("the butterfly request is not a block");
+    };
+    crate::protocol::expand(&b, butterfly::START, FIRST_BLOCK_ID)
+        .map(|(blocks, _)| blocks)
+        .map_err(|e| anyhow!("splitting the butterfly NURBS into blocks: {e}"))
 }
 
 fn point3(p: Vec3) -> [f64; 3] {
@@ -623,6 +664,8 @@ pub struct Summary {
     pub interpolator: InterpStats,
     /// Where the setpoints were written.
     pub csv: Option<PathBuf>,
+    /// The second run, through the service (`None` with `--no-service`).
+    pub service: Option<crate::demo_service::ServiceRun>,
 }
 
 /// The program queued in an interpolator, and everything the loop needs.
@@ -653,7 +696,7 @@ impl Prepared {
             ..InterpConfig::default()
         };
         let feed = args.feed / 60.0;
-        let blocks = butterfly_blocks(feed)?;
+        let blocks = butterfly_blocks(args.feed)?;
         let (first, last) = match (blocks.first(), blocks.last()) {
             (Some(f), Some(l)) => (f, l),
             _ => bail!("the butterfly gave no blocks"),
@@ -838,6 +881,7 @@ pub fn run(args: &DemoArgs, on_setpoint: impl FnMut(&Setpoint)) -> Result<Summar
             max_newton_iters: stats.max_newton_iters,
         },
         csv: args.csv.clone(),
+        service: None,
     })
 }
 
@@ -933,6 +977,9 @@ impl fmt::Display for Summary {
         writeln!(f, "  digest      {}", self.setpoint_digest)?;
         if let Some(path) = &self.csv {
             writeln!(f, "  csv         {}", path.display())?;
+        }
+        if let Some(svc) = &self.service {
+            write!(f, "{}", svc.display(&self.setpoint_digest))?;
         }
         Ok(())
     }

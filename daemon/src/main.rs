@@ -9,14 +9,23 @@
 //! the fixed-period interpolator loop (see [`demo`]).
 
 mod clock;
+mod control;
 mod demo;
+mod demo_service;
 mod histogram;
 mod plan_gouge;
 mod plan_raster;
 mod plan_setup;
+mod jitter;
+mod protocol;
+mod publish;
 mod replay;
+mod rt;
+mod send;
+mod serve;
 mod simulate;
 mod trace_cmd;
+mod watch;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -33,6 +42,14 @@ struct Cli {
 enum Command {
     /// Stream the bundled butterfly NURBS through the interpolator loop and print a summary.
     Demo(demo::DemoArgs),
+    /// Run the service: RT loop publishing setpoints over iceoryx2, control plane on TCP and a Unix socket.
+    Serve(serve::ServeArgs),
+    /// Stream a program to a running `interpd serve` with back-pressure.
+    Send(send::SendArgs),
+    /// Subscribe to the setpoints (iceoryx2) and report gaps.
+    Watch(watch::WatchArgs),
+    /// Measure wake lateness and tick+publish time: the full pipeline vs a bare loop.
+    Jitter(jitter::JitterArgs),
     /// Run a program through the interpolator with no clock; print a summary, write a trace.
     Simulate(simulate::SimulateArgs),
     /// Re-simulate a trace's blocks and compare every setpoint bit for bit.
@@ -60,6 +77,10 @@ enum PlanCommand {
 fn main() -> Result<()> {
     match Cli::parse().command {
         Command::Demo(args) => demo::main(&args),
+        Command::Serve(args) => serve::main(&args),
+        Command::Send(args) => send::main(&args),
+        Command::Watch(args) => watch::main(&args),
+        Command::Jitter(args) => jitter::main(&args),
         Command::Simulate(args) => simulate::main(&args),
         Command::Replay(args) => replay::main(&args),
         Command::Trace(args) => trace_cmd::main(&args),

@@ -1,0 +1,268 @@
+//! `interpd jitter --seconds N`: the full pipeline (a long program
+//! interpolating, publishing to a subscriber process, the recorder thread
+//! draining) and, in the same run, a bare loop with the same scheduling that
+//! only sleeps to its deadlines. Prints p50/p99/p99.9/max of wake lateness and
+//! of tick+publish compute for both.
+
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result, anyhow, bail};
+use interp_core::InterpConfig;
+use interp_core::samples::butterfly;
+use serde::Serialize;
+
+use crate::clock::{now_ns, sleep_until_ns};
+use crate::histogram::Histogram;
+use crate::rt::RtOptions;
+use crate::serve::{DEFAULT_PRIORITY, Percentiles, ServeArgs};
+
+/// Programmed feed of the jitter program, mm/min.
+const FEED_MM_MIN: f64 = 6000.0;
+/// Repetitions of the butterfly per second of run (it takes well over 0.2 s each).
+const LOOPS_PER_SECOND: f64 = 5.0;
+/// Extra time the subscriber process listens, s.
+const SUBSCRIBER_GRACE_S: f64 = 3.0;
+
+/// Options of `interpd jitter`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct JitterArgs {
+    /// Seconds for each of the two loops.
+    #[arg(long, default_value_t = 10.0)]
+    pub seconds: f64,
+    /// Period, µs.
+    #[arg(long, value_name = "US", default_value_t = 1000,
+          value_parser = clap::value_parser!(u32).range(250..=10_000))]
+    pub period_us: u32,
+    /// SCHED_FIFO priority.
+    #[arg(long, default_value_t = DEFAULT_PRIORITY,
+          value_parser = clap::value_parser!(i32).range(1..=99))]
+    pub priority: i32,
+    /// Normal scheduling for both loops.
+    #[arg(long)]
+    pub no_rt: bool,
+    /// CPU for the RT thread (default: the last one).
+    #[arg(long)]
+    pub cpu: Option<usize>,
+    /// Print the result as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// One loop's figures.
+#[derive(Debug, Serialize)]
+pub struct LoopFigures {
+    /// Wake lateness, µs.
+    pub lateness_us: Option<Percentiles>,
+    /// Tick + publish (bare: two clock reads), µs.
+    pub compute_us: Option<Percentiles>,
+    /// Push + tick + publish on ticks with a push, µs (full pipeline only).
+    pub compute_with_push_us: Option<Percentiles>,
+    /// Missed periods.
+    pub overruns: u64,
+}
+
+/// What `jitter` reports.
+#[derive(Debug, Serialize)]
+pub struct JitterReport {
+    /// Seconds per loop.
+    pub seconds: f64,
+    /// Period, µs.
+    pub period_us: u32,
+    /// The bare loop.
+    pub bare: LoopFigures,
+    /// The full pipeline.
+    pub full: LoopFigures,
+    /// Samples the subscriber process received.
+    pub subscriber_received: u64,
+    /// Samples it missed.
+    pub subscriber_gaps: u64,
+    /// Ticks the recorder had no room for.
+    pub recorder_drops: u64,
+    /// Full-pipeline p99 lateness / bare-loop p99 lateness.
+    pub p99_lateness_ratio: Option<f64>,
+    /// Scheduling refused.
+    pub scheduling_warnings: Vec<String>,
+}
+
+fn bare_loop(args: &JitterArgs) -> Result<(LoopFigures, Vec<String>)> {
+    let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let opts = RtOptions {
+        period_ns: i64::from(args.period_us) * 1000,
+        fifo_priority: (!args.no_rt).then_some(args.priority),
+        cpu: (!args.no_rt).then(|| args.cpu.unwrap_or(cpus - 1)),
+        lock_memory: !args.no_rt,
+        service: String::new(),
+        autostart: false,
+    };
+    let seconds = args.seconds;
+    std::thread::Builder::new()
+        .name("interpd-bare".into())
+        .spawn(move || {
+            let warnings = crate::rt::apply_scheduling(&opts);
+            let (mut late, mut comp) = (Histogram::new(), Histogram::new());
+            let mut overruns = 0u64;
+            let end = now_ns() + (seconds * 1e9) as i64;
+            let mut next = now_ns();
+            while next < end {
+                next += opts.period_ns;
+                sleep_until_ns(next);
+                let wake = now_ns();
+                late.record((wake - next).max(0) as u64);
+                let t1 = now_ns();
+                comp.record((t1 - wake).max(0) as u64);
+                if t1 > next + opts.period_ns {
+                    let missed = (t1 - next) / opts.period_ns;
+                    overruns += missed as u64;
+                    next += (missed - 1).max(0) * opts.period_ns;
+                }
+            }
+            (
+                LoopFigures {
+                    lateness_us: Percentiles::of(&late),
+                    compute_us: Percentiles::of(&comp),
+                    compute_with_push_us: None,
+                    overruns,
+                },
+                warnings,
+            )
+        })
+        .context("spawning the bare loop")?
+        .join()
+        .map_err(|_| anyhow!("the bare loop panicked"))
+}
+
+/// The jitter program: the butterfly and a line back to its start, `loops` times.
+fn program(loops: usize) -> Vec<String> {
+    let back = serde_json::json!({"feed": FEED_MM_MIN, "kind": "line", "end": butterfly::START})
+        .to_string();
+    let fly = crate::demo::butterfly_request(FEED_MM_MIN);
+    (0..loops)
+        .flat_map(|_| [fly.clone(), back.clone()])
+        .collect()
+}
+
+/// Runs `jitter`.
+pub fn main(args: &JitterArgs) -> Result<()> {
+    if !(args.seconds.is_finite() && args.seconds > 0.0) {
+        bail!("--seconds must be positive");
+    }
+    let (bare, mut warnings) = bare_loop(args)?;
+
+    let service = format!("interpd/jitter/{}", std::process::id());
+    let exe = std::env::current_exe().context("locating the interpd binary")?;
+    let child = Command::new(exe)
+        .args(["watch", "--service", &service, "--json", "--seconds"])
+        .arg(format!("{}", args.seconds + SUBSCRIBER_GRACE_S))
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .context("starting the subscriber process (interpd watch)")?;
+    // Let the subscriber open the service before the first sample.
+    std::thread::sleep(Duration::from_millis(500));
+
+    let mut sargs = ServeArgs::in_process(&service);
+    sargs.period_us = args.period_us;
+    sargs.priority = args.priority;
+    sargs.no_rt = args.no_rt;
+    sargs.cpu = args.cpu;
+    sargs.position = Some(butterfly::START.to_vec());
+    let svc = crate::serve::start(&sargs, InterpConfig::default(), false, None)?;
+    let addr = svc.addr;
+    let lines = program((args.seconds * LOOPS_PER_SECOND).ceil() as usize + 1);
+    let send_args = crate::send::SendArgs {
+        program: "jitter".into(),
+        addr,
+        socket: None,
+        token: None,
+        no_wait: false,
+        json: false,
+        quiet: true,
+    };
+    let streamer = std::thread::spawn(move || -> Result<()> {
+        tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()?
+            .block_on(async {
+                let s = tokio::net::TcpStream::connect(addr).await?;
+                // Aborted at shutdown: the outcome does not matter here.
+                let _ = crate::send::stream(s, &lines, &send_args).await;
+                Ok(())
+            })
+    });
+    let t0 = Instant::now();
+    while t0.elapsed().as_secs_f64() < args.seconds {
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let summary = svc.shutdown()?;
+    let _ = streamer.join();
+    let out = child
+        .wait_with_output()
+        .context("waiting for the subscriber")?;
+    let sub: serde_json::Value = serde_json::from_slice(&out.stdout)
+        .map_err(|e| anyhow!("reading the subscriber's summary: {e}"))?;
+    warnings.extend(summary.scheduling_warnings.iter().cloned());
+    warnings.dedup();
+    let ratio = match (bare.lateness_us, summary.lateness_us) {
+        (Some(b), Some(f)) if b.p99 > 0.0 => Some(f.p99 / b.p99),
+        _ => None,
+    };
+    let report = JitterReport {
+        seconds: args.seconds,
+        period_us: args.period_us,
+        bare,
+        full: LoopFigures {
+            lateness_us: summary.lateness_us,
+            compute_us: summary.tick_publish_us,
+            compute_with_push_us: summary.tick_publish_with_push_us,
+            overruns: summary.overruns,
+        },
+        subscriber_received: sub["received"].as_u64().unwrap_or(0),
+        subscriber_gaps: sub["gaps"].as_u64().unwrap_or(u64::MAX),
+        recorder_drops: summary.recorder_drops,
+        p99_lateness_ratio: ratio,
+        scheduling_warnings: warnings,
+    };
+    if args.json {
+        println!("{}", serde_json::to_string(&report)?);
+    } else {
+        print_report(&report);
+    }
+    Ok(())
+}
+
+fn print_report(r: &JitterReport) {
+    println!(
+        "interpd jitter: {} s per loop, period {} µs",
+        r.seconds, r.period_us
+    );
+    let row = |name: &str, p: &Option<Percentiles>| match p {
+        Some(p) => println!(
+            "  {name:<32} p50 {:8.1}  p99 {:8.1}  p99.9 {:8.1}  max {:8.1} µs  ({} samples)",
+            p.p50, p.p99, p.p999, p.max, p.samples
+        ),
+        None => println!("  {name:<32} -"),
+    };
+    row("bare loop: wake lateness", &r.bare.lateness_us);
+    row("bare loop: compute (clock reads)", &r.bare.compute_us);
+    row("full pipeline: wake lateness", &r.full.lateness_us);
+    row("full pipeline: tick+publish", &r.full.compute_us);
+    row(
+        "full pipeline: push+tick+publish",
+        &r.full.compute_with_push_us,
+    );
+    println!(
+        "  overruns: bare {}, full {}; recorder drops {}; subscriber {} samples, {} missing",
+        r.bare.overruns,
+        r.full.overruns,
+        r.recorder_drops,
+        r.subscriber_received,
+        r.subscriber_gaps
+    );
+    if let Some(x) = r.p99_lateness_ratio {
+        println!("  p99 lateness full / bare: {x:.2}");
+    }
+    for w in &r.scheduling_warnings {
+        println!("  warning: {w}");
+    }
+}

@@ -1,0 +1,565 @@
+//! The RT thread: one `Interpolator`, a fixed period with absolute deadlines,
+//! one iceoryx2 sample per tick, and nothing else.
+//!
+//! It talks to the rest of the process only through fixed-capacity SPSC
+//! queues (`heapless::spsc`) and atomics:
+//!
+//! - blocks in ([`BLOCK_SLOTS`]): already parsed, validated and split by the
+//!   control plane; at most one is pushed per tick, and only when the
+//!   interpolator has room (a refused push waits for the next tick);
+//! - commands in ([`CMD_SLOTS`]): start, hold, resume, override, end, abort,
+//!   applied between ticks;
+//! - push errors out ([`EVENT_SLOTS`]): a block the interpolator refused;
+//! - setpoints and timing out to the recorder thread ([`RECORD_SLOTS`]): a
+//!   full queue is counted, never waited on;
+//! - [`RtStatus`]: atomics the control plane reads for `status`.
+//!
+//! `push` is the interpolator's non-RT half (sampling, erosion, backward
+//! pass); it runs on this thread between ticks because `interp-core` keeps
+//! both halves in one struct. Its cost is measured apart from the tick's
+//! (`tick_with_push`), see `docs/daemon.md`.
+
+use core::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
+use std::sync::Arc;
+use std::sync::mpsc;
+use std::thread::JoinHandle;
+
+use anyhow::{Context, Result, anyhow};
+use heapless::spsc::{Consumer, Producer, Queue};
+use interp_core::interp::PushError;
+use interp_core::{Block, InterpConfig, Interpolator, RunState, Setpoint};
+
+use crate::clock::{minimise_timer_slack, now_ns, sleep_until_ns};
+use crate::histogram::Histogram;
+use crate::publish::SetpointPublisher;
+
+/// Blocks queued between the control plane and the RT thread (one slot is kept free).
+pub const BLOCK_SLOTS: usize = 16;
+/// Commands queued towards the RT thread.
+pub const CMD_SLOTS: usize = 64;
+/// Refused blocks reported back.
+pub const EVENT_SLOTS: usize = 64;
+/// Setpoints queued for the recorder: four seconds at 1 kHz.
+pub const RECORD_SLOTS: usize = 4096;
+/// Stack of the RT thread: the interpolator is built on it before it is
+/// boxed, and `push` keeps up to ~45 KiB of paths on it.
+pub const RT_STACK_BYTES: usize = 32 << 20;
+/// Stack prefaulted after `mlockall`, so the first deep `push` does not page-fault.
+const PREFAULT_STACK_BYTES: usize = 512 << 10;
+
+/// An operator command, applied between two ticks.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Command {
+    /// Cycle start: let the queued program move.
+    Start,
+    /// Feed hold.
+    Hold,
+    /// Leave a feed hold.
+    Resume,
+    /// Feed override, 1 = 100 % (validated by the sender).
+    Override(f64),
+    /// The program ends after the blocks already sent.
+    End,
+    /// Stop on the path within the limits, flush everything queued.
+    Abort,
+}
+
+/// A block the interpolator refused (all its parts before it were queued).
+#[derive(Clone, Copy, Debug)]
+pub struct PushFailure {
+    /// The block's id.
+    pub id: u32,
+    /// Why.
+    pub error: PushError,
+}
+
+/// One tick for the recorder.
+#[derive(Clone, Copy, Debug)]
+pub struct TickRecord {
+    /// The setpoint.
+    pub setpoint: Setpoint,
+    /// Wake time minus deadline, ns.
+    pub lateness_ns: u64,
+    /// Tick + publish time, ns.
+    pub compute_ns: u64,
+    /// Interpolator segments queued after the tick.
+    pub queue_depth: u32,
+    /// Whether the interpolator ticked (false while waiting for `start`).
+    pub ticked: bool,
+}
+
+/// Live counters of the RT thread (written by it, read by anyone).
+#[derive(Debug, Default)]
+pub struct RtStatus {
+    /// `RunState as u8` of the last setpoint.
+    pub state: AtomicU32,
+    /// Samples published.
+    pub published: AtomicU64,
+    /// Interpolator ticks.
+    pub ticks: AtomicU64,
+    /// Block id of the last setpoint.
+    pub block_id: AtomicU32,
+    /// Last X Y Z (f64 bits).
+    pub position: [AtomicU64; 3],
+    /// Last feed (f64 bits), mm/s.
+    pub feed: AtomicU64,
+    /// Last arc length (f64 bits), mm.
+    pub s: AtomicU64,
+    /// Applied feed override (f64 bits).
+    pub feed_override: AtomicU64,
+    /// Blocks (pieces) pushed into the interpolator.
+    pub blocks_pushed: AtomicU64,
+    /// Blocks refused by the interpolator.
+    pub blocks_refused: AtomicU64,
+    /// Segments queued in the interpolator.
+    pub queued_segments: AtomicU32,
+    /// Missed periods.
+    pub overruns: AtomicU64,
+    /// Ticks not handed to the recorder (its queue was full).
+    pub recorder_drops: AtomicU64,
+    /// Samples whose publish failed.
+    pub publish_failures: AtomicU64,
+    /// Aborts fully applied (queue flushed).
+    pub aborts: AtomicU64,
+    /// Whether `start` was given for the current program.
+    pub started: AtomicBool,
+    /// Whether `end` was given and applied (`Interpolator::finish`).
+    pub finished: AtomicBool,
+    /// The RT thread is in its loop.
+    pub running: AtomicBool,
+}
+
+impl RtStatus {
+    /// Last published state.
+    pub fn run_state(&self) -> RunState {
+        crate::publish::run_state(self.state.load(Ordering::Acquire))
+    }
+    /// Last X Y Z.
+    pub fn position(&self) -> [f64; 3] {
+        [0, 1, 2].map(|i| f64::from_bits(self.position[i].load(Ordering::Acquire)))
+    }
+}
+
+/// How the RT thread is scheduled.
+#[derive(Clone, Debug)]
+pub struct RtOptions {
+    /// Period, ns.
+    pub period_ns: i64,
+    /// SCHED_FIFO priority (1..=99); `None` keeps normal scheduling.
+    pub fifo_priority: Option<i32>,
+    /// CPU to pin the thread to; `None` leaves affinity alone.
+    pub cpu: Option<usize>,
+    /// Lock all memory (`mlockall`).
+    pub lock_memory: bool,
+    /// iceoryx2 service name.
+    pub service: String,
+    /// Start with `start` already given (the first program moves at once).
+    pub autostart: bool,
+}
+
+/// What the RT thread hands back when it stops.
+#[derive(Debug)]
+pub struct RtReport {
+    /// Wake lateness, ns.
+    pub lateness: Histogram,
+    /// Tick + publish compute, ns (ticks without a push).
+    pub compute: Histogram,
+    /// Push + tick + publish, ns (ticks with a push).
+    pub compute_with_push: Histogram,
+    /// Missed periods.
+    pub overruns: u64,
+    /// Scheduling that was asked for but refused (warnings already printed).
+    pub scheduling_warnings: Vec<String>,
+    /// The last setpoint.
+    pub last: Setpoint,
+    /// Samples published.
+    pub published: u64,
+}
+
+/// The non-RT ends of the RT thread's queues.
+pub struct RtHandles {
+    /// Blocks to push.
+    pub blocks: Producer<'static, Block>,
+    /// Commands.
+    pub commands: Producer<'static, Command>,
+    /// Refused blocks.
+    pub failures: Consumer<'static, PushFailure>,
+    /// Recorder feed.
+    pub records: Consumer<'static, TickRecord>,
+    /// Live counters.
+    pub status: Arc<RtStatus>,
+    /// Set to stop the loop (after an abort has brought the machine to rest).
+    pub stop: Arc<AtomicBool>,
+    /// The thread.
+    pub thread: JoinHandle<RtReport>,
+}
+
+impl core::fmt::Debug for RtHandles {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("RtHandles")
+            .field("status", &self.status)
+            .finish_non_exhaustive()
+    }
+}
+
+/// Queues live for the whole process: leaked once per RT thread (a few MB).
+fn leak<T, const N: usize>() -> &'static mut Queue<T, N> {
+    Box::leak(Box::new(Queue::new()))
+}
+
+/// Starts the RT thread: builds the interpolator (at rest at `position`) and
+/// the publisher on it, then runs the loop until `stop`.
+pub fn spawn(cfg: InterpConfig, position: [f64; 6], opts: RtOptions) -> Result<RtHandles> {
+    let (blocks_tx, blocks_rx) = leak::<Block, BLOCK_SLOTS>().split();
+    let (cmd_tx, cmd_rx) = leak::<Command, CMD_SLOTS>().split();
+    let (fail_tx, fail_rx) = leak::<PushFailure, EVENT_SLOTS>().split();
+    let (rec_tx, rec_rx) = leak::<TickRecord, RECORD_SLOTS>().split();
+    let status = Arc::new(RtStatus::default());
+    let stop = Arc::new(AtomicBool::new(false));
+    let (ready_tx, ready_rx) = mpsc::channel::<Result<()>>();
+    let st = Arc::clone(&status);
+    let sp = Arc::clone(&stop);
+    let thread = std::thread::Builder::new()
+        .name("interpd-rt".into())
+        .stack_size(RT_STACK_BYTES)
+        .spawn(move || {
+            let mut warnings = apply_scheduling(&opts);
+            let setup = (|| -> Result<(Box<Interpolator>, SetpointPublisher)> {
+                let ip = Box::new(
+                    Interpolator::new(cfg, position)
+                        .map_err(|e| anyhow!("{e:?}"))
+                        .context("configuring the interpolator")?,
+                );
+                let publisher = SetpointPublisher::new(&opts.service)?;
+                Ok((ip, publisher))
+            })();
+            let (ip, publisher) = match setup {
+                Ok(x) => {
+                    let _ = ready_tx.send(Ok(()));
+                    x
+                }
+                Err(e) => {
+                    let _ = ready_tx.send(Err(e));
+                    return RtReport {
+                        lateness: Histogram::new(),
+                        compute: Histogram::new(),
+                        compute_with_push: Histogram::new(),
+                        overruns: 0,
+                        scheduling_warnings: core::mem::take(&mut warnings),
+                        last: Setpoint::default(),
+                        published: 0,
+                    };
+                }
+            };
+            let ctx = Loop {
+                ip,
+                publisher,
+                blocks: blocks_rx,
+                commands: cmd_rx,
+                failures: fail_tx,
+                records: rec_tx,
+                status: st,
+                stop: sp,
+                period_ns: opts.period_ns,
+                started: opts.autostart,
+                autostart: opts.autostart,
+                position,
+                aborting: false,
+            };
+            let mut report = ctx.run();
+            report.scheduling_warnings = warnings;
+            report
+        })
+        .context("spawning the RT thread")?;
+    match ready_rx.recv() {
+        Ok(Ok(())) => {}
+        Ok(Err(e)) => {
+            let _ = thread.join();
+            return Err(e);
+        }
+        Err(_) => {
+            let _ = thread.join();
+            return Err(anyhow!("the RT thread died while starting"));
+        }
+    }
+    Ok(RtHandles {
+        blocks: blocks_tx,
+        commands: cmd_tx,
+        failures: fail_rx,
+        records: rec_rx,
+        status,
+        stop,
+        thread,
+    })
+}
+
+/// SCHED_FIFO, affinity and `mlockall` as asked; returns a warning per refusal
+/// (also printed: the loop then runs with normal scheduling).
+pub(crate) fn apply_scheduling(opts: &RtOptions) -> Vec<String> {
+    let mut warnings = Vec::new();
+    let mut warn = |w: String| {
+        eprintln!("interpd: warning: {w}");
+        warnings.push(w);
+    };
+    if !minimise_timer_slack() {
+        warn("could not set the RT thread's timer slack to 1 ns".into());
+    }
+    #[cfg(target_os = "linux")]
+    {
+        if opts.lock_memory {
+            // SAFETY: mlockall takes flags only.
+            let rc = unsafe { libc::mlockall(libc::MCL_CURRENT | libc::MCL_FUTURE) };
+            if rc != 0 {
+                warn(format!(
+                    "mlockall failed ({}): pages may fault in the RT loop",
+                    std::io::Error::last_os_error()
+                ));
+            } else {
+                prefault_stack();
+            }
+        }
+        if let Some(cpu) = opts.cpu {
+            // SAFETY: a zeroed cpu_set_t is an empty set; CPU_SET writes inside it;
+            // pid 0 is the calling thread.
+            let rc = unsafe {
+                let mut set: libc::cpu_set_t = core::mem::zeroed();
+                libc::CPU_SET(cpu, &mut set);
+                libc::sched_setaffinity(0, core::mem::size_of::<libc::cpu_set_t>(), &set)
+            };
+            if rc != 0 {
+                warn(format!(
+                    "cannot pin the RT thread to CPU {cpu} ({})",
+                    std::io::Error::last_os_error()
+                ));
+            }
+        }
+        if let Some(prio) = opts.fifo_priority {
+            let param = libc::sched_param {
+                sched_priority: prio,
+            };
+            // SAFETY: `param` is a valid sched_param; pthread_self is this thread.
+            let rc = unsafe {
+                libc::pthread_setschedparam(libc::pthread_self(), libc::SCHED_FIFO, &param)
+            };
+            if rc != 0 {
+                warn(format!(
+                    "SCHED_FIFO priority {prio} refused ({}): running with normal scheduling \
+                     (give the binary CAP_SYS_NICE or raise RLIMIT_RTPRIO)",
+                    std::io::Error::from_raw_os_error(rc)
+                ));
+            }
+        }
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        let _ = opts;
+        warn("SCHED_FIFO, mlockall and affinity are only implemented on Linux".into());
+    }
+    warnings
+}
+
+#[cfg(target_os = "linux")]
+#[inline(never)]
+fn prefault_stack() {
+    let mut buf = [0u8; PREFAULT_STACK_BYTES];
+    // Touch every page; black_box keeps the writes.
+    for i in (0..buf.len()).step_by(4096) {
+        buf[i] = 1;
+    }
+    core::hint::black_box(&buf);
+}
+
+struct Loop {
+    ip: Box<Interpolator>,
+    publisher: SetpointPublisher,
+    blocks: Consumer<'static, Block>,
+    commands: Consumer<'static, Command>,
+    failures: Producer<'static, PushFailure>,
+    records: Producer<'static, TickRecord>,
+    status: Arc<RtStatus>,
+    stop: Arc<AtomicBool>,
+    period_ns: i64,
+    started: bool,
+    autostart: bool,
+    position: [f64; 6],
+    /// An abort is bringing the machine to rest (ticks go on without `start`).
+    aborting: bool,
+}
+
+impl Loop {
+    /// Applies the queued commands. Returns nothing; an abort flushes the blocks.
+    fn apply_commands(&mut self, end_requested: &mut bool, pending: &mut Option<Block>) {
+        while let Some(c) = self.commands.dequeue() {
+            match c {
+                Command::Start => self.started = true,
+                Command::Hold => self.ip.feed_hold(),
+                Command::Resume => self.ip.resume(),
+                Command::Override(x) => {
+                    // The control plane checked the range; a refusal leaves the old value.
+                    let _ = self.ip.set_feed_override(x);
+                }
+                Command::End => *end_requested = true,
+                Command::Abort => {
+                    self.ip.abort();
+                    *pending = None;
+                    while self.blocks.dequeue().is_some() {}
+                    *end_requested = false;
+                    // Tick until at rest; `start` is needed again after that.
+                    self.aborting = true;
+                    self.status.aborts.fetch_add(1, Ordering::AcqRel);
+                }
+            }
+        }
+    }
+
+    fn run(mut self) -> RtReport {
+        let mut lateness = Histogram::new();
+        let mut compute = Histogram::new();
+        let mut compute_with_push = Histogram::new();
+        let mut overruns = 0u64;
+        let mut pending: Option<Block> = None;
+        let mut end_requested = false;
+        // Segments completed when the interpolator last refused `pending` for room.
+        let mut refused_at: Option<u64> = None;
+        // The setpoint published while nothing moves: where the machine is.
+        let mut last = Setpoint {
+            axes: self.position,
+            ..Setpoint::default()
+        };
+        self.status.running.store(true, Ordering::Release);
+        let mut next = now_ns();
+        loop {
+            next += self.period_ns;
+            sleep_until_ns(next);
+            let wake = now_ns();
+            lateness.record((wake - next).max(0) as u64);
+            if self.stop.load(Ordering::Acquire) {
+                break;
+            }
+            self.apply_commands(&mut end_requested, &mut pending);
+            if pending.is_none() {
+                refused_at = None; // an abort dropped the refused block
+            }
+
+            // At most one push per tick, only when there is room.
+            let mut push_ns = 0u64;
+            if pending.is_none() {
+                pending = self.blocks.dequeue();
+            }
+            // After a refusal for room, retry only once a segment was
+            // completed: a refused push costs a large part of a full one.
+            let room_maybe = refused_at.is_none_or(|n| self.ip.stats().segments_done > n);
+            if let Some(b) = pending
+                && room_maybe
+            {
+                if self.ip.state() == RunState::Done {
+                    // A new program after a finished one: leave Done, wait for `start`.
+                    self.ip.abort();
+                    self.started = self.autostart;
+                    last.state = self.ip.state();
+                    self.status.finished.store(false, Ordering::Release);
+                }
+                let t0 = now_ns();
+                let r = self.ip.push(&b);
+                push_ns = (now_ns() - t0).max(0) as u64;
+                match r {
+                    Ok(()) => {
+                        pending = None;
+                        refused_at = None;
+                        self.status.blocks_pushed.fetch_add(1, Ordering::AcqRel);
+                    }
+                    Err(PushError::Full { .. } | PushError::ProfileFull) => {
+                        refused_at = Some(self.ip.stats().segments_done);
+                    }
+                    Err(PushError::Aborting) => {}
+                    Err(error) => {
+                        pending = None;
+                        refused_at = None;
+                        self.status.blocks_refused.fetch_add(1, Ordering::AcqRel);
+                        let _ = self.failures.enqueue(PushFailure { id: b.id, error });
+                    }
+                }
+            } else if pending.is_none() && end_requested && self.blocks.peek().is_none() {
+                self.ip.finish();
+                end_requested = false;
+                self.status.finished.store(true, Ordering::Release);
+            }
+
+            let t0 = now_ns();
+            let ticked = self.started || self.aborting;
+            if ticked {
+                last = self.ip.tick();
+                if self.aborting && last.state != RunState::Stopping {
+                    self.aborting = false;
+                    self.started = self.autostart;
+                }
+            } else {
+                // Waiting for `start`: the last point again, unticked, so that
+                // a program queued before `start` runs as it would in simulate.
+                last.feed = 0.0;
+            }
+            let seq = self.publisher.publish(&last);
+            let t1 = now_ns();
+            let tick_ns = (t1 - t0).max(0) as u64;
+            if push_ns > 0 {
+                compute_with_push.record(push_ns + tick_ns);
+            } else {
+                compute.record(tick_ns);
+            }
+            let rec = TickRecord {
+                setpoint: last,
+                lateness_ns: (wake - next).max(0) as u64,
+                compute_ns: tick_ns,
+                queue_depth: self.ip.queued_segments() as u32,
+                ticked,
+            };
+            if self.records.enqueue(rec).is_err() {
+                self.status.recorder_drops.fetch_add(1, Ordering::Relaxed);
+            }
+            self.publish_status(&last, seq);
+
+            // A missed period is counted and skipped, never hidden: the next
+            // deadline is the first one still ahead.
+            let end = now_ns();
+            if end > next + self.period_ns {
+                let missed = (end - next) / self.period_ns;
+                overruns += missed as u64;
+                next += (missed - 1).max(0) * self.period_ns;
+                self.status.overruns.store(overruns, Ordering::Release);
+            }
+        }
+        self.status.running.store(false, Ordering::Release);
+        self.status
+            .publish_failures
+            .store(self.publisher.failures(), Ordering::Release);
+        RtReport {
+            lateness,
+            compute,
+            compute_with_push,
+            overruns,
+            scheduling_warnings: Vec::new(),
+            last,
+            published: self.status.published.load(Ordering::Acquire),
+        }
+    }
+
+    fn publish_status(&self, sp: &Setpoint, seq: u64) {
+        let s = &self.status;
+        s.state.store(sp.state as u32, Ordering::Release);
+        s.ticks.store(sp.seq, Ordering::Release);
+        s.block_id.store(sp.block_id, Ordering::Release);
+        for i in 0..3 {
+            s.position[i].store(sp.axes[i].to_bits(), Ordering::Release);
+        }
+        s.feed.store(sp.feed.to_bits(), Ordering::Release);
+        s.s.store(sp.s.to_bits(), Ordering::Release);
+        s.feed_override
+            .store(self.ip.feed_override().to_bits(), Ordering::Release);
+        s.queued_segments
+            .store(self.ip.queued_segments() as u32, Ordering::Release);
+        s.started.store(self.started, Ordering::Release);
+        s.publish_failures
+            .store(self.publisher.failures(), Ordering::Relaxed);
+        s.published.store(seq, Ordering::Release);
+    }
+}

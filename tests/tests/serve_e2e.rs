@@ -1,0 +1,374 @@
+//! End-to-end: `interpd serve` with `interpd send` and `interpd watch` (an
+//! iceoryx2 subscriber) as separate processes, over TCP and the Unix socket.
+
+mod serve_support;
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::os::unix::fs::PermissionsExt;
+use std::time::{Duration, Instant};
+
+use serve_support::*;
+
+/// Setpoints must lie on the programmed polyline this closely, mm.
+const ON_PATH_TOL: f64 = 1e-9;
+
+/// A polyline with corners (full stops) and a Z move, from the origin.
+const POLYLINE: [[f64; 3]; 4] = [
+    [0.0, 0.0, 0.0],
+    [8.0, 0.0, 0.0],
+    [8.0, 4.0, 0.0],
+    [0.0, 4.0, 1.5],
+];
+
+#[test]
+fn streamed_program_is_published_gapless_on_the_path_and_ends_at_rest_at_its_end() {
+    let dir = temp_dir("e2e");
+    let service = service_name("e2e");
+    let trace = dir.join("run.mcap");
+    let srv = Server::start(
+        &service,
+        &["--no-socket", "--record", trace.to_str().unwrap()],
+    );
+    let csv = dir.join("setpoints.csv");
+    let watcher = watch(&service, &csv);
+    std::thread::sleep(Duration::from_millis(300)); // let the subscriber connect
+    let program = dir.join("poly.jsonl");
+    let mut text = String::from("# a polyline\n");
+    for (i, p) in POLYLINE[1..].iter().enumerate() {
+        text.push_str(&line_to(*p, 3000.0, i as u32 + 1));
+        text.push('\n');
+    }
+    std::fs::write(&program, text).unwrap();
+    let out = std::process::Command::new(interpd())
+        .args(["send", "--json", "--addr"])
+        .arg(format!("127.0.0.1:{}", srv.port))
+        .arg(&program)
+        .output()
+        .expect("interpd send");
+    assert!(
+        out.status.success(),
+        "send failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let status: serde_json::Value =
+        serde_json::from_slice(&out.stdout).expect("send --json prints the status");
+    assert_eq!(status["state"], "done", "{status}");
+    assert_eq!(status["blocks_accepted"], 3);
+
+    let w = wait_child(watcher, "interpd watch");
+    assert!(
+        w.status.success(),
+        "watch: {}",
+        String::from_utf8_lossy(&w.stdout)
+    );
+    let summary: serde_json::Value = serde_json::from_slice(&w.stdout).unwrap();
+    assert_eq!(summary["gaps"], 0);
+    let rows = read_csv(&csv);
+    assert!(rows.len() > 100, "{} rows", rows.len());
+    // Gapless publisher sequence, and ticks that advance by one once moving.
+    for w in rows.windows(2) {
+        assert_eq!(w[1].seq, w[0].seq + 1, "gap after {:?}", w[0]);
+        if w[0].tick > 0 {
+            assert_eq!(w[1].tick, w[0].tick + 1);
+        }
+    }
+    // Every point on the polyline.
+    let mut max_off = 0.0f64;
+    for r in &rows {
+        let d = POLYLINE
+            .windows(2)
+            .map(|s| dist_to_segment(r.p, s[0], s[1]))
+            .fold(f64::INFINITY, f64::min);
+        max_off = max_off.max(d);
+    }
+    assert!(
+        max_off <= ON_PATH_TOL,
+        "a setpoint is {max_off} mm off the path"
+    );
+    // At rest, exactly at the end, done; it moved through every block.
+    let last = rows.last().unwrap();
+    assert_eq!(last.state, "done");
+    assert_eq!(last.p, POLYLINE[3]);
+    assert_eq!(last.feed, 0.0);
+    let ids: std::collections::BTreeSet<u32> = rows.iter().map(|r| r.block_id).collect();
+    assert!(
+        ids.contains(&1) && ids.contains(&2) && ids.contains(&3),
+        "{ids:?}"
+    );
+
+    let (st, text) = srv.stop();
+    assert!(st.success(), "serve exited with {st}: {text}");
+    assert!(text.contains("stopped:"), "{text}");
+    assert!(text.contains("0 records dropped"), "{text}");
+
+    // The recording replays bit for bit (`interpd replay` re-simulates its blocks).
+    let out = std::process::Command::new(interpd())
+        .arg("replay")
+        .arg(&trace)
+        .output()
+        .expect("interpd replay");
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "replay failed: {said} {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(said.contains("bit-identical"), "{said}");
+    // Every moving tick the subscriber saw is in the trace.
+    let moving = rows
+        .iter()
+        .filter(|r| r.tick > 0)
+        .map(|r| r.tick)
+        .max()
+        .unwrap();
+    let compared: u64 = said
+        .split_whitespace()
+        .nth(3)
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no count in {said:?}"));
+    assert!(
+        compared >= moving,
+        "{compared} compared, {moving} ticks seen"
+    );
+}
+
+#[test]
+fn bad_lines_get_an_error_naming_the_problem_and_the_connection_stays_up() {
+    let dir = temp_dir("badlines");
+    let sock = dir.join("interpd.sock");
+    let service = service_name("badlines");
+    let srv = Server::start(&service, &["--socket", sock.to_str().unwrap()]);
+    let mut c = srv.connect();
+    let r = c.ask("jump 3");
+    assert!(r.starts_with("err 1 unknown request \"jump\""), "{r}");
+    let r = c.ask("{\"feed\": 100, \"kind\": ");
+    assert!(r.starts_with("err 2 invalid JSON block"), "{r}");
+    let long = "#".repeat(300 * 1024);
+    let r = c.ask(&long);
+    assert!(
+        r.starts_with("err 3 line of") && r.contains("exceeds the limit"),
+        "{r}"
+    );
+    let r = c.ask(&line_to([1.0, 0.0, 0.0], -5.0, 1));
+    assert!(r.starts_with("err 4 feed must be a positive"), "{r}");
+    let r = c.ask(r#"{"feed": 100, "kind": "nurbs", "degree": 2, "points": [[5,5,5],[6,5,5],[7,6,5]], "knots": [0,0,0,1,1,1]}"#);
+    assert!(r.starts_with("err 5 ") && r.contains("start"), "{r}");
+    let r = c.ask("override 9");
+    assert!(r.starts_with("err 6 override 9 outside"), "{r}");
+    // Still up: a good block and a status.
+    let r = c.ask(&line_to([1.0, 0.0, 0.0], 600.0, 7));
+    assert_eq!(r, "ok block 1 segments 1..=1");
+    let s = c.status();
+    assert_eq!(s["line_errors"], 6);
+    assert_eq!(s["blocks_accepted"], 1);
+    assert_eq!(s["state"], "idle"); // no `start` yet
+
+    // The Unix socket: mode 0600, same protocol.
+    let mode = std::fs::metadata(&sock).unwrap().permissions().mode() & 0o777;
+    assert_eq!(mode, 0o600);
+    let u = std::os::unix::net::UnixStream::connect(&sock).unwrap();
+    u.set_read_timeout(Some(WAIT)).unwrap();
+    let mut ur = BufReader::new(u.try_clone().unwrap());
+    let mut uw = u;
+    uw.write_all(b"status\n").unwrap();
+    let mut line = String::new();
+    ur.read_line(&mut line).unwrap();
+    assert!(line.starts_with("status {"), "{line}");
+
+    // Run it to the end.
+    assert_eq!(c.ask("end"), "ok end");
+    assert_eq!(c.ask("start"), "ok start");
+    let s = c.wait_for("done", |s| s["state"] == "done");
+    assert_eq!(s["position"], serde_json::json!([1.0, 0.0, 0.0]));
+    let (st, _) = srv.stop();
+    assert!(st.success());
+    assert!(!sock.exists(), "the socket file is removed at exit");
+}
+
+#[test]
+fn a_client_leaving_mid_stream_holds_and_the_accepted_blocks_stay() {
+    let service = service_name("disconnect");
+    let srv = Server::start(&service, &["--no-socket"]);
+    let mut c = srv.connect();
+    // 40 mm at 1200 mm/min: two seconds of motion.
+    assert!(
+        c.ask(&line_to([40.0, 0.0, 0.0], 1200.0, 1))
+            .starts_with("ok")
+    );
+    assert!(
+        c.ask(&line_to([40.0, 10.0, 0.0], 1200.0, 2))
+            .starts_with("ok")
+    );
+    assert_eq!(c.ask("start"), "ok start");
+    c.wait_for("motion", |s| {
+        s["state"] == "running" && s["s"].as_f64().unwrap() > 1.0
+    });
+    drop(c); // gone without `end`
+    let mut c2 = srv.connect();
+    let s = c2.wait_for("hold at rest", |s| {
+        s["state"] == "holding" && s["feed"] == 0.0
+    });
+    let x = s["position"][0].as_f64().unwrap();
+    assert!(x > 1.0 && x < 40.0, "held at {x}");
+    assert_eq!(s["position"][1], 0.0);
+    // Resume and finish the program with what was accepted.
+    assert_eq!(c2.ask("resume"), "ok resume");
+    assert_eq!(c2.ask("override 2"), "ok override 2");
+    assert_eq!(c2.ask("end"), "ok end");
+    let s = c2.wait_for("done", |s| s["state"] == "done");
+    assert_eq!(s["position"], serde_json::json!([40.0, 10.0, 0.0]));
+    drop(srv);
+}
+
+#[test]
+fn hold_resume_and_abort_stop_on_the_path_and_a_new_program_starts_there() {
+    let service = service_name("commands");
+    let srv = Server::start(&service, &["--no-socket"]);
+    let mut c = srv.connect();
+    assert!(
+        c.ask(&line_to([30.0, 0.0, 0.0], 1800.0, 1))
+            .starts_with("ok")
+    );
+    assert_eq!(c.ask("end"), "ok end");
+    assert_eq!(c.ask("start"), "ok start");
+    c.wait_for("motion", |s| s["s"].as_f64().unwrap() > 2.0);
+    assert_eq!(c.ask("hold"), "ok hold");
+    let h = c.wait_for("held", |s| s["state"] == "holding" && s["feed"] == 0.0);
+    let held_at = h["s"].as_f64().unwrap();
+    std::thread::sleep(Duration::from_millis(100));
+    let h2 = c.status();
+    assert_eq!(h2["s"].as_f64().unwrap(), held_at, "moved while held");
+    assert_eq!(c.ask("resume"), "ok resume");
+    c.wait_for("moving again", |s| s["s"].as_f64().unwrap() > held_at + 1.0);
+    let r = c.ask("abort");
+    assert_eq!(r, "ok abort");
+    let a = c.status();
+    assert_eq!(a["state"], "idle");
+    assert_eq!(a["feed"], 0.0);
+    let x = a["position"][0].as_f64().unwrap();
+    assert!(x > held_at && x < 30.0, "stopped at {x}");
+    assert_eq!(a["position"][1], 0.0);
+    // A new program starts where the machine stopped.
+    assert!(c.ask(&line_to([x, 5.0, 0.0], 1800.0, 2)).starts_with("ok"));
+    assert_eq!(c.ask("end"), "ok end");
+    assert_eq!(c.ask("start"), "ok start");
+    let d = c.wait_for("done", |s| s["state"] == "done");
+    assert_eq!(d["position"], serde_json::json!([x, 5.0, 0.0]));
+    drop(srv);
+}
+
+#[test]
+fn a_full_queue_is_back_pressure_not_loss() {
+    let service = service_name("backpressure");
+    let srv = Server::start(&service, &["--no-socket"]);
+    // 1 mm collinear lines: no corner stops, so the run is short once started.
+    let n = 150usize;
+    let mut w = std::net::TcpStream::connect(("127.0.0.1", srv.port)).unwrap();
+    let mut r = BufReader::new(w.try_clone().unwrap());
+    let writer = std::thread::spawn(move || {
+        let mut buf = String::new();
+        for i in 0..n {
+            buf.push_str(&line_to([(i + 1) as f64, 0.0, 0.0], 6000.0, i as u32 + 1));
+            buf.push('\n');
+        }
+        w.write_all(buf.as_bytes()).unwrap();
+        w
+    });
+    // Without `start` nothing moves: replies stop once the queues are full.
+    r.get_ref()
+        .set_read_timeout(Some(Duration::from_millis(500)))
+        .unwrap();
+    let mut oks = 0usize;
+    let mut line = String::new();
+    loop {
+        line.clear();
+        match r.read_line(&mut line) {
+            Ok(0) => panic!("closed"),
+            Ok(_) => {
+                assert!(line.starts_with("ok block"), "{line}");
+                oks += 1;
+            }
+            Err(_) => break, // stalled: back-pressure
+        }
+    }
+    assert!(oks > 10 && oks < n, "{oks} of {n} accepted before start");
+    let mut c = srv.connect();
+    assert_eq!(c.ask("start"), "ok start");
+    r.get_ref().set_read_timeout(Some(WAIT)).unwrap();
+    let t0 = Instant::now();
+    while oks < n {
+        line.clear();
+        r.read_line(&mut line).unwrap();
+        assert!(line.starts_with("ok block"), "{line}");
+        oks += 1;
+        assert!(t0.elapsed() < WAIT);
+    }
+    let mut w = writer.join().unwrap();
+    w.write_all(b"end\n").unwrap();
+    line.clear();
+    r.read_line(&mut line).unwrap();
+    assert_eq!(line.trim(), "ok end");
+    let s = c.wait_for("done", |s| s["state"] == "done");
+    assert_eq!(s["position"][0], n as f64);
+    assert_eq!(s["blocks_accepted"], n as u64);
+    assert_eq!(s["pieces_pushed"], n as u64);
+    assert_eq!(s["pieces_refused"], 0);
+    let mut rest = String::new();
+    let _ = r
+        .get_mut()
+        .set_read_timeout(Some(Duration::from_millis(10)));
+    let _ = r.read_to_string(&mut rest);
+    drop(srv);
+}
+
+#[test]
+fn a_restart_after_a_crash_serves_the_same_service_again() {
+    let service = service_name("crash");
+    let srv = Server::start(&service, &["--no-socket"]);
+    let pid = srv.child.id();
+    signal(pid, 9); // SIGKILL: no cleanup at all
+    drop(srv);
+    let srv = Server::start(&service, &["--no-socket"]);
+    let mut c = srv.connect();
+    assert!(c.ask(&line_to([2.0, 0.0, 0.0], 600.0, 1)).starts_with("ok"));
+    assert_eq!(c.ask("end"), "ok end");
+    assert_eq!(c.ask("start"), "ok start");
+    c.wait_for("done", |s| s["state"] == "done");
+    let (st, _) = srv.stop();
+    assert!(st.success());
+}
+
+#[test]
+fn remote_listening_needs_a_flag_and_a_token() {
+    let out = std::process::Command::new(interpd())
+        .args(["serve", "--no-socket", "--port", "0", "--listen", "0.0.0.0"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--allow-remote"));
+    let out = std::process::Command::new(interpd())
+        .args([
+            "serve",
+            "--no-socket",
+            "--port",
+            "0",
+            "--listen",
+            "0.0.0.0",
+            "--allow-remote",
+        ])
+        .env_remove("INTERPD_TOKEN")
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--token"));
+    // With a token, a connection must authenticate first.
+    let service = service_name("token");
+    let srv = Server::start(&service, &["--no-socket", "--token", "s3cret"]);
+    let mut c = srv.connect();
+    let r = c.ask("status");
+    assert!(r.starts_with("err 1 authentication required"), "{r}");
+    let mut c = srv.connect();
+    assert!(c.ask("auth wrong").starts_with("err 1 wrong token"));
+    assert_eq!(c.ask("auth s3cret"), "ok auth");
+    assert!(c.ask("status").starts_with("status {"));
+}
