@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{LIMIT_REL_TOL, check_kinematics};
+use common::{LIMIT_REL_TOL, Lcg, check_kinematics};
 
 use interp_core::feed::{junction_speed, speed_limit};
 use interp_core::geom::{Curve, Vec3};
@@ -192,21 +192,6 @@ prop_compose! {
         knots.extend(interior);
         knots.extend(std::iter::repeat_n(1.0, degree + 1));
         Nurbs::new(degree, &pts, &weights, &knots).ok()
-    }
-}
-
-/// Small deterministic generator (the test must not depend on rand's versions).
-struct Lcg(u64);
-impl Lcg {
-    fn next(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn range(&mut self, a: f64, b: f64) -> f64 {
-        a + (b - a) * self.next()
     }
 }
 

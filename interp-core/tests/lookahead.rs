@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{LIMIT_REL_TOL, check_kinematics};
+use common::{LIMIT_REL_TOL, Lcg, check_kinematics};
 use interp_core::geom::{Curve, Vec3};
 use interp_core::path::{Arc, Block, Line, Path};
 use interp_core::{InterpConfig, Interpolator, RunState, Setpoint};
@@ -16,21 +16,6 @@ const ON_PATH_TOL: f64 = 1e-9;
 
 fn v3(p: &[f64; 6]) -> Vec3 {
     Vec3::new(p[0], p[1], p[2])
-}
-
-/// Small deterministic generator (the test must not depend on rand's versions).
-struct Lcg(u64);
-impl Lcg {
-    fn next(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn range(&mut self, a: f64, b: f64) -> f64 {
-        a + (b - a) * self.next()
-    }
 }
 
 /// A random program of lines and arcs with corners of every angle, tangent

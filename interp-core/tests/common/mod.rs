@@ -139,3 +139,18 @@ pub fn check_kinematics(cfg: &InterpConfig, start: Vec3, sps: &[Setpoint]) -> Me
     }
     m
 }
+
+/// Small deterministic generator (the test must not depend on rand's versions).
+pub struct Lcg(pub u64);
+impl Lcg {
+    pub fn next(&mut self) -> f64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64
+    }
+    pub fn range(&mut self, a: f64, b: f64) -> f64 {
+        a + (b - a) * self.next()
+    }
+}
