@@ -9,7 +9,7 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use heapless::spsc::{Consumer, Producer};
-use interp_core::{Block, RunState};
+use interp_core::{BlockPlanner, PlannedBlock, RunState, Vec3};
 use serde::Serialize;
 use tokio::io::{AsyncBufRead, AsyncBufReadExt, AsyncRead, AsyncWrite, AsyncWriteExt, BufReader};
 
@@ -48,10 +48,15 @@ pub struct Control {
     pub recorder: Mutex<Option<traces::RecordTx>>,
 }
 
-/// The streaming side: the RT thread's block queue and where the next block starts.
+/// The streaming side: the RT thread's plan queue and where the next block starts.
 pub struct Stream {
-    /// Producer of the RT thread's block queue.
-    pub blocks: Producer<'static, Block>,
+    /// Producer of the RT thread's queue of planned blocks.
+    pub blocks: Producer<'static, Box<PlannedBlock>>,
+    /// Plan buffers the RT thread handed back.
+    pub spent: Consumer<'static, Box<PlannedBlock>>,
+    /// Plans blocks against the end of what was accepted (the costly half of
+    /// `Interpolator::push`, kept off the RT thread).
+    pub planner: BlockPlanner,
     /// End of the last accepted block (`None`: where the machine is).
     pub tail: Option<[f64; 3]>,
     /// Id of the next interpolator segment (from 1 in each program).
@@ -200,7 +205,32 @@ impl Control {
         }
     }
 
-    /// Parses, checks and queues one block; waits while the RT queue is full.
+    /// Hands an accepted block to the trace recorder, if recording.
+    fn record_block(
+        &self,
+        index: u32,
+        b: &traces::InputBlock,
+        info: Vec<traces::messages::SegmentInfo>,
+    ) {
+        if let Ok(rec) = self.recorder.lock()
+            && let Some(tx) = rec.as_ref()
+        {
+            let at = self.status.ticks.load(Ordering::Acquire);
+            let msg = traces::messages::BlockMsg {
+                index,
+                block: b.clone(),
+                segments: info,
+                accepted_at_seq: at,
+            };
+            // Non-RT side: a full recorder queue is counted by the recorder.
+            let _ = tx.try_push(traces::Record::Block(
+                Box::new(msg),
+                at as f64 * self.period.as_secs_f64(),
+            ));
+        }
+    }
+
+    /// Parses, checks, plans and queues one block; waits while the RT queue is full.
     async fn block(&self, b: &traces::InputBlock) -> Result<String, String> {
         let epoch = self.abort_epoch.load(Ordering::Acquire);
         let mut s = self.stream.lock().await;
@@ -210,6 +240,13 @@ impl Control {
             s.index = 0;
             s.ended = false;
         }
+        if s.tail.is_none() && self.status.published.load(Ordering::Acquire) > 0 {
+            // Where the machine is (at rest: start, or after an abort), bit
+            // for bit as the interpolator's queue end.
+            let p = self.status.position();
+            let at = f64::from_bits(self.status.s.load(Ordering::Acquire));
+            s.planner.resync(Vec3::new(p[0], p[1], p[2]), at);
+        }
         let start = s.tail.unwrap_or_else(|| self.status.position());
         let id = s.next_id;
         let (pieces, info) = crate::protocol::expand(b, start, id)?;
@@ -218,8 +255,41 @@ impl Control {
             let e = interp_core::Curve::end_point(&p.path);
             [e.x, e.y, e.z]
         });
+        let mut info = Some(info);
         for (i, piece) in pieces.into_iter().enumerate() {
-            let mut item = piece;
+            let buf = s
+                .spent
+                .dequeue()
+                .unwrap_or_else(|| Box::new(PlannedBlock::new()));
+            let planner = s.planner;
+            // Law sampling takes milliseconds for a long NURBS: off the
+            // runtime's thread, so status and hold are answered meanwhile.
+            let (planner, mut item, planned) = tokio::task::spawn_blocking(move || {
+                let (mut planner, mut buf) = (planner, buf);
+                let r = planner.plan(&piece, &mut buf);
+                (planner, buf, r)
+            })
+            .await
+            .map_err(|e| format!("planning block {id}: {e}"))?;
+            if let Err(e) = planned {
+                if i > 0 {
+                    // The pieces before it are queued: the program goes on from there.
+                    let t = s.planner.tail();
+                    s.tail = Some([t.x, t.y, t.z]);
+                    s.next_id = id + i as u32;
+                }
+                return Err(format!(
+                    "block {id}: segment {} of {n}: {e} ({i} of {n} segments queued)",
+                    i + 1
+                ));
+            }
+            s.planner = planner;
+            if let Some(info) = info.take() {
+                // Recorded once its first segment is planned, before any of it
+                // is queued: a replay takes each block's segments from here as
+                // their commits come (an abort may flush some).
+                self.record_block(s.index, b, info);
+            }
             loop {
                 if self.abort_epoch.load(Ordering::Acquire) != epoch {
                     return Err(format!(
@@ -239,22 +309,6 @@ impl Control {
         s.next_id = id + n as u32;
         s.index += 1;
         self.blocks_accepted.fetch_add(1, Ordering::AcqRel);
-        if let Ok(rec) = self.recorder.lock()
-            && let Some(tx) = rec.as_ref()
-        {
-            let at = self.status.ticks.load(Ordering::Acquire);
-            let msg = traces::messages::BlockMsg {
-                index: s.index - 1,
-                block: b.clone(),
-                segments: info,
-                accepted_at_seq: at,
-            };
-            // Non-RT side: a full recorder queue is counted by the recorder.
-            let _ = tx.try_push(traces::Record::Block(
-                Box::new(msg),
-                at as f64 * self.period.as_secs_f64(),
-            ));
-        }
         Ok(format!(
             "ok block {} segments {id}..={}",
             s.index,

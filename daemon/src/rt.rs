@@ -4,20 +4,24 @@
 //! It talks to the rest of the process only through fixed-capacity SPSC
 //! queues (`heapless::spsc`) and atomics:
 //!
-//! - blocks in ([`BLOCK_SLOTS`]): already parsed, validated and split by the
-//!   control plane; at most one is pushed per tick, and only when the
-//!   interpolator has room (a refused push waits for the next tick);
+//! - plans in ([`BLOCK_SLOTS`]): blocks already parsed, split and *planned*
+//!   by the control plane (`interp_core::BlockPlanner`: law sampling, the
+//!   costly half of `push`); at most one is committed per tick
+//!   (`Interpolator::commit`: merge, erosion, backward pass, microseconds),
+//!   and only when the interpolator has room (a refusal waits for the next tick);
+//! - spent plan buffers out ([`SPENT_SLOTS`]): the RT thread never frees memory,
+//!   it hands each `Box<PlannedBlock>` back for reuse;
 //! - commands in ([`CMD_SLOTS`]): start, hold, resume, override, end, abort,
 //!   applied between ticks;
 //! - push errors out ([`EVENT_SLOTS`]): a block the interpolator refused;
-//! - setpoints and timing out to the recorder thread ([`RECORD_SLOTS`]): a
-//!   full queue is counted, never waited on;
+//! - records out to the recorder thread ([`RECORD_SLOTS`]): every tick's
+//!   setpoint and timing, and everything applied to the interpolator between
+//!   ticks (commits and commands, with the tick they preceded) so that a
+//!   recording replays bit for bit; a full queue is counted, never waited on;
 //! - [`RtStatus`]: atomics the control plane reads for `status`.
 //!
-//! `push` is the interpolator's non-RT half (sampling, erosion, backward
-//! pass); it runs on this thread between ticks because `interp-core` keeps
-//! both halves in one struct. Its cost is measured apart from the tick's
-//! (`tick_with_push`), see `docs/daemon.md`.
+//! A commit's cost is measured apart from the tick's (`compute_with_push`),
+//! see `docs/daemon.md`.
 
 use core::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 use std::sync::Arc;
@@ -27,22 +31,25 @@ use std::thread::JoinHandle;
 use anyhow::{Context, Result, anyhow};
 use heapless::spsc::{Consumer, Producer, Queue};
 use interp_core::interp::PushError;
-use interp_core::{Block, InterpConfig, Interpolator, RunState, Setpoint};
+use interp_core::{InterpConfig, Interpolator, PlannedBlock, RunState, Setpoint};
 
 use crate::clock::{minimise_timer_slack, now_ns, sleep_until_ns};
 use crate::histogram::Histogram;
 use crate::publish::SetpointPublisher;
 
-/// Blocks queued between the control plane and the RT thread (one slot is kept free).
+/// Planned blocks queued between the control plane and the RT thread (one slot is kept free).
 pub const BLOCK_SLOTS: usize = 16;
+/// Spent plan buffers handed back: room for every buffer that can be in
+/// flight (the plan queue and the one the RT thread holds), so handing back
+/// never fails.
+pub const SPENT_SLOTS: usize = BLOCK_SLOTS + 2;
 /// Commands queued towards the RT thread.
 pub const CMD_SLOTS: usize = 64;
 /// Refused blocks reported back.
 pub const EVENT_SLOTS: usize = 64;
 /// Setpoints queued for the recorder: four seconds at 1 kHz.
 pub const RECORD_SLOTS: usize = 4096;
-/// Stack of the RT thread: the interpolator is built on it before it is
-/// boxed, and `push` keeps up to ~45 KiB of paths on it.
+/// Stack of the RT thread: the interpolator is built on it before it is boxed.
 pub const RT_STACK_BYTES: usize = 32 << 20;
 /// Stack prefaulted after `mlockall`, so the first deep `push` does not page-fault.
 const PREFAULT_STACK_BYTES: usize = 512 << 10;
@@ -71,6 +78,37 @@ pub struct PushFailure {
     pub id: u32,
     /// Why.
     pub error: PushError,
+}
+
+/// What the RT thread hands the recorder thread.
+#[derive(Clone, Copy, Debug)]
+pub enum RtRecord {
+    /// One period.
+    Tick(TickRecord),
+    /// Applied to the interpolator after `tick` ticks (so before tick `tick + 1`).
+    Applied {
+        /// Interpolator ticks done when it was applied.
+        tick: u64,
+        /// What.
+        what: Applied,
+    },
+}
+
+/// A change to the interpolator between two ticks.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Applied {
+    /// A planned segment was committed (its id).
+    Commit(u32),
+    /// `feed_hold`.
+    Hold,
+    /// `resume`.
+    Resume,
+    /// `set_feed_override` (accepted).
+    Override(f64),
+    /// `abort` (an operator abort, or leaving `Done` for a new program).
+    Abort,
+    /// `finish`: the program ends after what is queued.
+    Finish,
 }
 
 /// One tick for the recorder.
@@ -178,14 +216,16 @@ pub struct RtReport {
 
 /// The non-RT ends of the RT thread's queues.
 pub struct RtHandles {
-    /// Blocks to push.
-    pub blocks: Producer<'static, Block>,
+    /// Planned blocks to commit.
+    pub blocks: Producer<'static, Box<PlannedBlock>>,
+    /// Plan buffers the RT thread is done with (reuse them).
+    pub spent: Consumer<'static, Box<PlannedBlock>>,
     /// Commands.
     pub commands: Producer<'static, Command>,
     /// Refused blocks.
     pub failures: Consumer<'static, PushFailure>,
     /// Recorder feed.
-    pub records: Consumer<'static, TickRecord>,
+    pub records: Consumer<'static, RtRecord>,
     /// Live counters.
     pub status: Arc<RtStatus>,
     /// Set to stop the loop (after an abort has brought the machine to rest).
@@ -210,10 +250,11 @@ fn leak<T, const N: usize>() -> &'static mut Queue<T, N> {
 /// Starts the RT thread: builds the interpolator (at rest at `position`) and
 /// the publisher on it, then runs the loop until `stop`.
 pub fn spawn(cfg: InterpConfig, position: [f64; 6], opts: RtOptions) -> Result<RtHandles> {
-    let (blocks_tx, blocks_rx) = leak::<Block, BLOCK_SLOTS>().split();
+    let (blocks_tx, blocks_rx) = leak::<Box<PlannedBlock>, BLOCK_SLOTS>().split();
+    let (spent_tx, spent_rx) = leak::<Box<PlannedBlock>, SPENT_SLOTS>().split();
     let (cmd_tx, cmd_rx) = leak::<Command, CMD_SLOTS>().split();
     let (fail_tx, fail_rx) = leak::<PushFailure, EVENT_SLOTS>().split();
-    let (rec_tx, rec_rx) = leak::<TickRecord, RECORD_SLOTS>().split();
+    let (rec_tx, rec_rx) = leak::<RtRecord, RECORD_SLOTS>().split();
     let status = Arc::new(RtStatus::default());
     let stop = Arc::new(AtomicBool::new(false));
     let (ready_tx, ready_rx) = mpsc::channel::<Result<()>>();
@@ -255,6 +296,7 @@ pub fn spawn(cfg: InterpConfig, position: [f64; 6], opts: RtOptions) -> Result<R
                 ip,
                 publisher,
                 blocks: blocks_rx,
+                spent: spent_tx,
                 commands: cmd_rx,
                 failures: fail_tx,
                 records: rec_tx,
@@ -284,6 +326,7 @@ pub fn spawn(cfg: InterpConfig, position: [f64; 6], opts: RtOptions) -> Result<R
     }
     Ok(RtHandles {
         blocks: blocks_tx,
+        spent: spent_rx,
         commands: cmd_tx,
         failures: fail_rx,
         records: rec_rx,
@@ -372,10 +415,11 @@ fn prefault_stack() {
 struct Loop {
     ip: Box<Interpolator>,
     publisher: SetpointPublisher,
-    blocks: Consumer<'static, Block>,
+    blocks: Consumer<'static, Box<PlannedBlock>>,
+    spent: Producer<'static, Box<PlannedBlock>>,
     commands: Consumer<'static, Command>,
     failures: Producer<'static, PushFailure>,
-    records: Producer<'static, TickRecord>,
+    records: Producer<'static, RtRecord>,
     status: Arc<RtStatus>,
     stop: Arc<AtomicBool>,
     period_ns: i64,
@@ -388,21 +432,61 @@ struct Loop {
 
 impl Loop {
     /// Applies the queued commands. Returns nothing; an abort flushes the blocks.
-    fn apply_commands(&mut self, end_requested: &mut bool, pending: &mut Option<Block>) {
+    /// Hands a plan buffer back to the control plane: freeing it here would
+    /// call the allocator on the RT thread.
+    fn recycle(&mut self, plan: Box<PlannedBlock>) {
+        if let Err(plan) = self.spent.enqueue(plan) {
+            // Cannot happen (SPENT_SLOTS covers every buffer in flight); leak
+            // rather than free on this thread.
+            core::mem::forget(plan);
+        }
+    }
+
+    /// Hands a record to the recorder; a full queue is counted, never waited on.
+    fn record(&mut self, r: RtRecord) {
+        if self.records.enqueue(r).is_err() {
+            self.status.recorder_drops.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+
+    /// Records a change applied to the interpolator before its next tick.
+    fn applied(&mut self, what: Applied) {
+        let tick = self.ip.stats().ticks;
+        self.record(RtRecord::Applied { tick, what });
+    }
+
+    fn apply_commands(
+        &mut self,
+        end_requested: &mut bool,
+        pending: &mut Option<Box<PlannedBlock>>,
+    ) {
         while let Some(c) = self.commands.dequeue() {
             match c {
                 Command::Start => self.started = true,
-                Command::Hold => self.ip.feed_hold(),
-                Command::Resume => self.ip.resume(),
+                Command::Hold => {
+                    self.ip.feed_hold();
+                    self.applied(Applied::Hold);
+                }
+                Command::Resume => {
+                    self.ip.resume();
+                    self.applied(Applied::Resume);
+                }
                 Command::Override(x) => {
                     // The control plane checked the range; a refusal leaves the old value.
-                    let _ = self.ip.set_feed_override(x);
+                    if self.ip.set_feed_override(x).is_ok() {
+                        self.applied(Applied::Override(x));
+                    }
                 }
                 Command::End => *end_requested = true,
                 Command::Abort => {
                     self.ip.abort();
-                    *pending = None;
-                    while self.blocks.dequeue().is_some() {}
+                    self.applied(Applied::Abort);
+                    if let Some(p) = pending.take() {
+                        self.recycle(p);
+                    }
+                    while let Some(p) = self.blocks.dequeue() {
+                        self.recycle(p);
+                    }
                     *end_requested = false;
                     // Tick until at rest; `start` is needed again after that.
                     self.aborting = true;
@@ -417,7 +501,7 @@ impl Loop {
         let mut compute = Histogram::new();
         let mut compute_with_push = Histogram::new();
         let mut overruns = 0u64;
-        let mut pending: Option<Block> = None;
+        let mut pending: Option<Box<PlannedBlock>> = None;
         let mut end_requested = false;
         // Segments completed when the interpolator last refused `pending` for room.
         let mut refused_at: Option<u64> = None;
@@ -441,46 +525,49 @@ impl Loop {
                 refused_at = None; // an abort dropped the refused block
             }
 
-            // At most one push per tick, only when there is room.
+            // At most one commit per tick, only when there is room.
             let mut push_ns = 0u64;
             if pending.is_none() {
                 pending = self.blocks.dequeue();
             }
-            // After a refusal for room, retry only once a segment was
-            // completed: a refused push costs a large part of a full one.
+            // After a refusal for room, retry only once a segment was completed.
             let room_maybe = refused_at.is_none_or(|n| self.ip.stats().segments_done > n);
-            if let Some(b) = pending
-                && room_maybe
-            {
+            if let Some(b) = pending.take_if(|_| room_maybe) {
                 if self.ip.state() == RunState::Done {
                     // A new program after a finished one: leave Done, wait for `start`.
                     self.ip.abort();
+                    self.applied(Applied::Abort);
                     self.started = self.autostart;
                     last.state = self.ip.state();
                     self.status.finished.store(false, Ordering::Release);
                 }
                 let t0 = now_ns();
-                let r = self.ip.push(&b);
+                let r = self.ip.commit(&b);
                 push_ns = (now_ns() - t0).max(0) as u64;
                 match r {
                     Ok(()) => {
-                        pending = None;
+                        self.applied(Applied::Commit(b.id()));
                         refused_at = None;
                         self.status.blocks_pushed.fetch_add(1, Ordering::AcqRel);
+                        self.recycle(b);
                     }
                     Err(PushError::Full { .. } | PushError::ProfileFull) => {
                         refused_at = Some(self.ip.stats().segments_done);
+                        pending = Some(b);
                     }
-                    Err(PushError::Aborting) => {}
+                    // A new program sent while the last one still runs waits
+                    // for it to be done; an abort flushes it.
+                    Err(PushError::Aborting | PushError::Finished) => pending = Some(b),
                     Err(error) => {
-                        pending = None;
                         refused_at = None;
                         self.status.blocks_refused.fetch_add(1, Ordering::AcqRel);
-                        let _ = self.failures.enqueue(PushFailure { id: b.id, error });
+                        let _ = self.failures.enqueue(PushFailure { id: b.id(), error });
+                        self.recycle(b);
                     }
                 }
             } else if pending.is_none() && end_requested && self.blocks.peek().is_none() {
                 self.ip.finish();
+                self.applied(Applied::Finish);
                 end_requested = false;
                 self.status.finished.store(true, Ordering::Release);
             }
@@ -513,9 +600,7 @@ impl Loop {
                 queue_depth: self.ip.queued_segments() as u32,
                 ticked,
             };
-            if self.records.enqueue(rec).is_err() {
-                self.status.recorder_drops.fetch_add(1, Ordering::Relaxed);
-            }
+            self.record(RtRecord::Tick(rec));
             self.publish_status(&last, seq);
 
             // A missed period is counted and skipped, never hidden: the next

@@ -17,10 +17,10 @@ use serde::Serialize;
 use crate::control::{Control, Stream, serve_connection};
 use crate::histogram::Histogram;
 use crate::publish::{DEFAULT_SERVICE, remove_dead_nodes, state_name};
-use crate::rt::{RtOptions, RtReport, TickRecord};
+use crate::rt::{Applied, RtOptions, RtRecord, RtReport};
 
 /// What the recorder thread calls for every tick the RT thread handed it.
-pub type TickSink = Box<dyn FnMut(&TickRecord) + Send>;
+pub type TickSink = Box<dyn FnMut(&RtRecord) + Send>;
 
 /// Default TCP port of the control plane.
 pub const DEFAULT_PORT: u16 = 47_110;
@@ -213,7 +213,7 @@ fn default_socket() -> PathBuf {
 /// The recorder thread: drains the RT thread's record queue until the RT
 /// thread stopped and the queue is empty. Returns how many ticks it took.
 fn spawn_recorder(
-    mut rx: Consumer<'static, TickRecord>,
+    mut rx: Consumer<'static, RtRecord>,
     rt_done: Arc<AtomicBool>,
     sink: Option<TickSink>,
 ) -> Result<JoinHandle<u64>> {
@@ -310,13 +310,21 @@ pub fn start(
         None => (None, None),
     };
     let on_tick = match (&trace_tx, on_tick) {
-        (Some(tx), None) => Some(trace_sink(tx.clone())),
+        (Some(tx), None) => Some(trace_sink(tx.clone(), cfg.period)),
         (_, f) => f,
     };
     let rt = crate::rt::spawn(cfg, position, opts)?;
     let control = Arc::new(Control {
         stream: tokio::sync::Mutex::new(Stream {
             blocks: rt.blocks,
+            spent: rt.spent,
+            planner: interp_core::BlockPlanner::new(
+                cfg,
+                interp_core::Vec3::new(position[0], position[1], position[2]),
+                0.0,
+            )
+            .map_err(|e| anyhow!("{e:?}"))
+            .context("configuring the block planner")?,
             tail: None,
             next_id: 1,
             index: 0,
@@ -476,26 +484,42 @@ const TRACE_QUEUE: usize = 4096;
 
 /// The recorder thread's hand-off to the trace: every tick of the first
 /// program (up to its first `done`) as a setpoint and its loop timing.
-fn trace_sink(tx: traces::RecordTx) -> TickSink {
-    let mut done = false;
-    Box::new(move |r: &TickRecord| {
-        if !r.ticked || done {
-            return;
+fn trace_sink(tx: traces::RecordTx, period: f64) -> TickSink {
+    use traces::messages::{EventKind, EventMsg};
+    Box::new(move |r: &RtRecord| match *r {
+        RtRecord::Tick(r) => {
+            if !r.ticked {
+                return; // waiting for `start`: the interpolator did not move
+            }
+            let sp = r.setpoint;
+            let timing = traces::LoopTimingMsg {
+                seq: sp.seq,
+                wake_lateness_ns: Some(r.lateness_ns as i64),
+                tick_compute_ns: Some(r.compute_ns),
+                queue_depth: r.queue_depth,
+            };
+            // Full: counted by the traces recorder and written as an overflow event.
+            let _ = tx.try_push(traces::Record::Setpoint(sp));
+            let _ = tx.try_push(traces::Record::LoopTiming(timing, sp.time));
         }
-        let sp = r.setpoint;
-        let timing = traces::LoopTimingMsg {
-            seq: sp.seq,
-            wake_lateness_ns: Some(r.lateness_ns as i64),
-            tick_compute_ns: Some(r.compute_ns),
-            queue_depth: r.queue_depth,
-        };
-        // Full: counted by the traces recorder and written as an overflow event.
-        let _ = tx.try_push(traces::Record::Setpoint(sp));
-        let _ = tx.try_push(traces::Record::LoopTiming(timing, sp.time));
-        done = matches!(
-            sp.state,
-            interp_core::RunState::Done | interp_core::RunState::Fault
-        );
+        RtRecord::Applied { tick, what } => {
+            let ev = |kind| EventMsg::new(kind, tick, tick as f64 * period);
+            let ev = match what {
+                Applied::Commit(id) => EventMsg {
+                    count: Some(u64::from(id)),
+                    ..ev(EventKind::Commit)
+                },
+                Applied::Hold => ev(EventKind::Hold),
+                Applied::Resume => ev(EventKind::Resume),
+                Applied::Override(x) => EventMsg {
+                    value: Some(x),
+                    ..ev(EventKind::Override)
+                },
+                Applied::Abort => ev(EventKind::Abort),
+                Applied::Finish => ev(EventKind::Finish),
+            };
+            let _ = tx.try_push(traces::Record::Event(ev));
+        }
     })
 }
 

@@ -20,7 +20,7 @@ use common::butterfly_blocks;
 use criterion::{Criterion, criterion_group, criterion_main};
 use interp_core::geom::{Curve, Vec3};
 use interp_core::path::{Block, Line, Path};
-use interp_core::{InterpConfig, Interpolator, RunState};
+use interp_core::{InterpConfig, Interpolator, PlannedBlock, RunState};
 
 /// 1,001 short lines zig-zagging by 2° (a CAM polyline), 0.5 mm each.
 fn polyline(n: usize) -> Vec<Block> {
@@ -116,5 +116,69 @@ fn bench(c: &mut Criterion) {
     );
 }
 
-criterion_group!(benches, bench);
+/// The two halves of `push` apart: planning (any thread) and commit (the RT
+/// thread in the daemon), per butterfly segment and with 1,000 blocks queued.
+fn plan_and_commit() {
+    let cfg = InterpConfig::default();
+    let butterfly = butterfly_blocks(100.0);
+    let start = butterfly[0].path.start_point();
+    let at = [start.x, start.y, start.z, 0.0, 0.0, 0.0];
+    let (mut plan_worst, mut commit_worst, mut plan_total, mut commit_total) =
+        (0.0f64, 0.0f64, 0.0, 0.0);
+    let reps = 20;
+    for _ in 0..reps {
+        let mut ip: Box<Interpolator> = Box::new(Interpolator::new(cfg, at).unwrap());
+        let mut planner = ip.planner();
+        let mut plan = Box::new(PlannedBlock::new());
+        for blk in &butterfly {
+            let t = Instant::now();
+            planner.plan(blk, &mut plan).unwrap();
+            let dt = t.elapsed().as_secs_f64();
+            plan_worst = plan_worst.max(dt);
+            plan_total += dt;
+            let t = Instant::now();
+            ip.commit(&plan).unwrap();
+            let dt = t.elapsed().as_secs_f64();
+            commit_worst = commit_worst.max(dt);
+            commit_total += dt;
+        }
+        black_box(ip.queued_length());
+    }
+    let n = (reps * butterfly.len()) as f64;
+    println!(
+        "butterfly per segment: plan mean {:.1} µs max {:.1} µs; commit mean {:.2} µs max {:.2} µs",
+        plan_total / n * 1e6,
+        plan_worst * 1e6,
+        commit_total / n * 1e6,
+        commit_worst * 1e6
+    );
+    let lines = polyline(1_001);
+    let mut worst = 0.0f64;
+    let mut total = 0.0;
+    for _ in 0..200 {
+        let mut ip: Box<Interpolator<1024>> = Box::new(Interpolator::new(cfg, [0.0; 6]).unwrap());
+        for b in &lines[..1000] {
+            ip.push(b).unwrap();
+        }
+        let mut plan = Box::new(PlannedBlock::new());
+        ip.planner().plan(&lines[1000], &mut plan).unwrap();
+        let t = Instant::now();
+        ip.commit(&plan).unwrap();
+        let dt = t.elapsed().as_secs_f64();
+        worst = worst.max(dt);
+        total += dt;
+        black_box(ip.queued_length());
+    }
+    println!(
+        "commit with 1,000 blocks queued: mean {:.2} µs, max {:.2} µs (200 trials)",
+        total / 200.0 * 1e6,
+        worst * 1e6
+    );
+}
+
+fn bench_split(_: &mut Criterion) {
+    plan_and_commit();
+}
+
+criterion_group!(benches, bench, bench_split);
 criterion_main!(benches);

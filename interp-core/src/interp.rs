@@ -24,10 +24,11 @@
 use heapless::Deque;
 
 use crate::config::{ConfigError, InterpConfig, MAX_FILTER, ParamUpdate};
-use crate::feed::{feed_limit, junction_speed, machine_limit};
-use crate::geom::{Curve, Derivs, Vec3, golden_section_min};
+use crate::feed::junction_speed;
+use crate::geom::{Curve, Derivs, Vec3};
 use crate::path::{Block, Path, SplitAtError};
-use crate::plan::{Erosion, Profile, Segment, brake_step, stop_distance};
+use crate::plan::{Erosion, MAX_PROFILE, Profile, Segment, brake_step, stop_distance};
+use crate::prepare::{BlockPlanner, PlannedBlock, Room};
 
 /// Default segment-queue capacity.
 pub const DEFAULT_QUEUE: usize = 64;
@@ -115,6 +116,12 @@ pub enum PushError {
     TooManyCorners,
     /// An abort is under way; push again once the interpolator is idle.
     Aborting,
+    /// The plan was made against another end of the queue (an abort moved
+    /// it, or another block came first): plan it again.
+    Stale,
+    /// The block is longer than the look-ahead profile can ever hold
+    /// (`MAX_PROFILE` grid intervals): cut it into shorter blocks.
+    TooLong,
 }
 
 impl core::fmt::Display for PushError {
@@ -135,6 +142,11 @@ impl core::fmt::Display for PushError {
                 write!(f, "NURBS has more than {} corners", MAX_PIECES - 1)
             }
             PushError::Aborting => write!(f, "abort under way"),
+            PushError::Stale => write!(f, "planned against another end of the queue"),
+            PushError::TooLong => write!(
+                f,
+                "block longer than the look-ahead profile ({MAX_PROFILE} grid intervals)"
+            ),
         }
     }
 }
@@ -376,87 +388,104 @@ impl<const Q: usize> Interpolator<Q> {
     /// Queue a block: cut at tangent breaks, sample the feed laws onto the
     /// grid, price the junctions, erode for the jerk filter and run the
     /// backward pass (non-RT work). All or nothing: on error nothing was queued.
+    ///
+    /// Exactly [`BlockPlanner::plan`] then [`commit`](Self::commit); a caller
+    /// with an RT thread plans elsewhere and commits there.
     pub fn push(&mut self, block: &Block) -> Result<(), PushError> {
+        self.check_accepting()?;
+        let room = Room {
+            segments: self.free_segments(),
+            last_interval: self.ring_base() + MAX_PROFILE as i64 - 1,
+        };
+        let mut plan = PlannedBlock::new();
+        self.planner().plan_within(block, &mut plan, Some(room))?;
+        self.commit(&plan)
+    }
+
+    /// A planner for blocks that follow what is queued now.
+    pub fn planner(&self) -> BlockPlanner {
+        // The config was validated at construction and the tail is finite.
+        BlockPlanner::from_parts(self.cfg, self.profile.h(), self.tail, self.tail_s)
+    }
+
+    fn check_accepting(&self) -> Result<(), PushError> {
         if self.finished {
             return Err(PushError::Finished);
         }
         if self.abort {
             return Err(PushError::Aborting);
         }
-        if !(block.feed.is_finite() && block.feed > 0.0) {
-            return Err(PushError::Feed);
+        Ok(())
+    }
+
+    /// First grid interval of the profile ring once the next block is queued.
+    fn ring_base(&self) -> i64 {
+        if self.queue.is_empty() {
+            self.profile.index_of(self.s)
+        } else {
+            self.profile.base()
         }
-        let gap = (block.path.start_point() - self.tail).norm();
-        if !(gap <= JOIN_TOLERANCE) {
-            return Err(PushError::Discontinuous { gap });
+    }
+
+    /// Queue a block planned by [`BlockPlanner::plan`]: merge its limits into
+    /// the profile, price the junction with what is queued, erode and run the
+    /// backward pass. Linear in the block's grid intervals, no allocation:
+    /// the RT half of [`push`](Self::push). All or nothing; a plan made
+    /// against another end of the queue is refused with [`PushError::Stale`].
+    pub fn commit(&mut self, plan: &PlannedBlock) -> Result<(), PushError> {
+        self.check_accepting()?;
+        if plan.s0.to_bits() != self.tail_s.to_bits()
+            || plan.tail != self.tail
+            || plan.h.to_bits() != self.profile.h().to_bits()
+        {
+            return Err(PushError::Stale);
         }
-        let mut pieces = [block.path; MAX_PIECES];
-        let n_pieces =
-            split_at_tangent_breaks(&block.path, &mut pieces, self.cfg.tangent_tolerance)?;
+        let n_pieces = plan.n_segments;
         if n_pieces > self.free_segments() {
             return Err(PushError::Full {
                 needed: n_pieces,
                 free: self.free_segments(),
             });
         }
-        let mut total = 0.0;
-        let mut lengths = [0.0; MAX_PIECES];
-        for (len, piece) in lengths.iter_mut().zip(&pieces[..n_pieces]) {
-            *len = piece.length();
-            if !(*len > 0.0 && len.is_finite()) {
-                return Err(PushError::Empty);
-            }
-            total += *len;
-        }
         if self.queue.is_empty() {
             // Nothing ahead: restart the ring where the machine stands.
             let g = self.profile.index_of(self.s);
             self.profile.reset_at(g);
         }
-        let g_last = self.profile.index_of(self.tail_s + total);
+        let g_last = self.profile.index_of(plan.s1);
         if !self.profile.can_extend_to(g_last) {
             return Err(PushError::ProfileFull);
         }
         // From here on nothing can fail.
-        let cfg = self.cfg;
         let was_empty = self.queue.is_empty();
         let old_tail_s = self.tail_s;
         self.profile.extend_to(g_last);
         // The junction with what is queued (the old tail was a provisional stop).
         if let (Some(left), false) = (self.tail_derivs, was_empty) {
-            let right = block.path.eval(block.path.u_start(), 3);
-            let stop = self.price_junction(&left, &right, old_tail_s);
+            let v = junction_speed(&left, &plan.entry, &self.cfg);
+            let stop = self.apply_junction(v, old_tail_s);
             if let Some(last) = self.queue.back_mut() {
                 last.stop_at_end = stop;
             }
         }
-        for (k, piece) in pieces[..n_pieces].iter().enumerate() {
-            let seg = Segment {
-                path: *piece,
-                block_id: block.id,
-                feed: block.feed,
-                mrr: block.mrr,
-                s0: self.tail_s,
-                length: lengths[k],
-                // The end of the queue is a stop until more arrives.
-                stop_at_end: true,
-            };
+        for i in 0..plan.n_caps {
+            let g = plan.g0 + i as i64;
+            self.profile.lower_cap(g, plan.raw[i]);
+            self.profile.lower_feed_cap(g, plan.raw_feed[i]);
+        }
+        for (k, seg) in plan.pieces().enumerate() {
             if k > 0 {
                 // A tangent break inside the block.
-                let left = pieces[k - 1].eval(pieces[k - 1].u_end(), 3);
-                let right = piece.eval(piece.u_start(), 3);
-                let stop = self.price_junction(&left, &right, seg.s0);
+                let stop = self.apply_junction(plan.corner[k], seg.s0);
                 if let Some(last) = self.queue.back_mut() {
                     last.stop_at_end = stop;
                 }
             }
-            sample_laws(&seg, &cfg, &mut self.profile);
-            self.tail_s += seg.length;
-            let _ = self.queue.push_back(seg); // room checked above
+            let _ = self.queue.push_back(*seg); // room checked above
         }
-        self.tail = block.path.end_point();
-        let last = &pieces[n_pieces - 1];
-        self.tail_derivs = Some(last.eval(last.u_end(), 3));
+        self.tail = plan.end;
+        self.tail_s = plan.s1;
+        self.tail_derivs = Some(plan.exit);
         let from = self.profile.index_of(old_tail_s) - 2;
         self.replan(from, old_tail_s);
         if let (true, Some(front)) = (was_empty, self.queue.front()) {
@@ -470,10 +499,9 @@ impl<const Q: usize> Interpolator<Q> {
         Ok(())
     }
 
-    /// Junction at arc length `s` between derivatives `left` and `right`:
-    /// lower the limits there, or mark a full stop. Returns whether it stops.
-    fn price_junction(&mut self, left: &Derivs, right: &Derivs, s: f64) -> bool {
-        let v = junction_speed(left, right, &self.cfg);
+    /// Junction of speed limit `v` at arc length `s`: lower the limits there,
+    /// or mark a full stop. Returns whether it stops.
+    fn apply_junction(&mut self, v: f64, s: f64) -> bool {
         let g = self.profile.index_of(s);
         if v < self.cfg.junction_min_speed {
             self.stats.junctions_stopped += 1;
@@ -887,193 +915,9 @@ fn taylor2(path: &Path, u: f64, delta: f64) -> f64 {
     delta / sp - delta * delta * d.d1.dot(&d.d2) / (2.0 * sp2 * sp2)
 }
 
-/// Sample the feed laws of `seg` onto the global grid: sample `k` sits at
-/// arc length `k·h/M` and feeds interval `⌊k/M⌋` (and the one before when it
-/// is on a node). A curvature peak can fall between samples, so every local
-/// minimum of the sampled law is refined by a golden-section search between
-/// its neighbours, and the refined value lowers the intervals it may lie in.
-fn sample_laws(seg: &Segment, cfg: &InterpConfig, profile: &mut Profile) {
-    // Law samples stay `profile_step / law_samples_per_interval` apart however
-    // long the period (a long period only widens the grid), so no feature of
-    // the curve hides between samples.
-    let m = cfg.law_samples_per_interval as i64 * grid_multiple(cfg);
-    let hs = profile.h() / m as f64;
-    let path = &seg.path;
-    // The machine laws (index 0) and the override-scaled feed laws (index 1).
-    let law = |u: f64, which: usize| {
-        let d = path.eval(u, 3);
-        if which == 0 {
-            machine_limit(&d, cfg, 1.0)
-        } else {
-            feed_limit(&d, seg.feed, seg.mrr.as_ref(), cfg)
-        }
-    };
-    let lower = |profile: &mut Profile, g: i64, which: usize, v: f64| {
-        if which == 0 {
-            profile.lower_cap(g, v);
-        } else {
-            profile.lower_feed_cap(g, v);
-        }
-    };
-    // Lines and arcs have constant curvature: nothing to refine.
-    let refine = matches!(path, Path::Nurbs(_));
-    let (g_first, g_last) = (profile.index_of(seg.s0), profile.index_of(seg.s1()));
-    let feed_top = seg.feed.min(cfg.max_path_speed);
-    for g in g_first..=g_last {
-        profile.lower_feed_cap(g, feed_top);
-    }
-    let k0 = libm::ceil(seg.s0 / hs) as i64;
-    let k1 = libm::floor(seg.s1() / hs) as i64;
-    let (mut u_prev, mut x_prev) = (path.u_start(), seg.s0);
-    let u_end = path.u_end();
-    // Per law, the last two samples: (k, u, value).
-    let mut w1: [Option<(i64, f64, f64)>; 2] = [None; 2];
-    let mut w2: [Option<(i64, f64, f64)>; 2] = [None; 2];
-    for k in k0..=k1 {
-        let x = k as f64 * hs;
-        let u = invert_arc_length(path, u_prev, x - x_prev, u_end);
-        let g = k.div_euclid(m);
-        // One evaluation for both laws at the sample.
-        let d = path.eval(u, 3);
-        let both = [
-            machine_limit(&d, cfg, 1.0),
-            feed_limit(&d, seg.feed, seg.mrr.as_ref(), cfg),
-        ];
-        for which in 0..2 {
-            let v = both[which];
-            lower(profile, g, which, v);
-            if k.rem_euclid(m) == 0 {
-                lower(profile, g - 1, which, v);
-            }
-            // w2, w1, this: a local minimum at w1 is refined between w2 and this sample.
-            if let (true, Some((ka, ua, va)), Some((_, _, vb))) = (refine, w2[which], w1[which])
-                && vb < va
-                && vb <= v
-            {
-                let vmin = golden_section_min(|u| law(u, which), ua, u, GOLDEN_ITERS, 0.0).min(vb);
-                for gi in ka.div_euclid(m)..=k.div_euclid(m) {
-                    lower(profile, gi, which, vmin);
-                }
-            }
-            w2[which] = w1[which];
-            w1[which] = Some((k, u, v));
-        }
-        u_prev = u;
-        x_prev = x;
-    }
-    // Knots where the curvature may jump (continuity C1 or less): price them
-    // as junctions. Tangent breaks were cut into separate segments already.
-    if let Path::Nurbs(n) = path {
-        let p = n.degree();
-        let knots = n.knots();
-        let (ua, ub) = (n.u_start(), n.u_end());
-        let mut i = p + 1;
-        let mut prev = ua;
-        while i < knots.len() - p - 1 {
-            let u = knots[i];
-            let mut mult = 1;
-            while i + mult < knots.len() && knots[i + mult] == u {
-                mult += 1;
-            }
-            if u > ua && u < ub && mult + 1 >= p {
-                let left = n.eval(u - (u - prev) * 1e-9, 3);
-                let right = n.eval(u, 3);
-                let v = junction_speed(&left, &right, cfg);
-                let g = profile.index_of(seg.s0 + path.arc_length(ua, u));
-                profile.lower_cap(g, v);
-                profile.lower_cap(g - 1, v);
-                profile.lower_cap(g + 1, v);
-            }
-            if u > ua {
-                prev = u;
-            }
-            i += mult;
-        }
-    }
-}
-
 /// Grid spacing in units of `profile_step`.
-fn grid_multiple(cfg: &InterpConfig) -> i64 {
+pub(crate) fn grid_multiple(cfg: &InterpConfig) -> i64 {
     libm::ceil(cfg.max_path_speed * cfg.period / cfg.profile_step).max(1.0) as i64
-}
-
-/// Golden-section steps refining a sampled law minimum (bracket shrinks by 0.618 each).
-const GOLDEN_ITERS: usize = 40;
-
-/// The parameter `u ≥ u0` at arc length `ds` past `u0` (Newton with a bracket).
-fn invert_arc_length(path: &Path, u0: f64, ds: f64, u_end: f64) -> f64 {
-    if ds <= 0.0 {
-        return u0;
-    }
-    let (mut lo, mut hi) = (u0, u_end);
-    let mut u = (u0 + ds / path.eval(u0, 1).d1.norm()).clamp(lo, hi);
-    for _ in 0..60 {
-        let f = path.arc_length(u0, u) - ds;
-        if libm::fabs(f) <= 1e-13 * (1.0 + ds) {
-            break;
-        }
-        if f > 0.0 {
-            hi = u;
-        } else {
-            lo = u;
-        }
-        let mut next = u - f / path.eval(u, 1).d1.norm();
-        if !(next > lo && next < hi) {
-            next = 0.5 * (lo + hi);
-        }
-        u = next;
-    }
-    u
-}
-
-/// Cut a NURBS at interior knots of full multiplicity where the tangent
-/// turns by more than `tol` (a corner inside one block). Lines and arcs are
-/// one piece. Returns the number of pieces written.
-fn split_at_tangent_breaks(
-    path: &Path,
-    out: &mut [Path; MAX_PIECES],
-    tol: f64,
-) -> Result<usize, PushError> {
-    out[0] = *path;
-    let Path::Nurbs(n) = path else {
-        return Ok(1);
-    };
-    let p = n.degree();
-    let knots = n.knots();
-    let (ua, ub) = (n.u_start(), n.u_end());
-    let mut count = 1;
-    let mut i = p + 1;
-    while i < knots.len() - p - 1 {
-        let u = knots[i];
-        let mut mult = 1;
-        while i + mult < knots.len() && knots[i + mult] == u {
-            mult += 1;
-        }
-        if u > ua && u < ub && mult >= p {
-            // Left and right tangents at a C0 knot.
-            // Just before the knot (evaluation at the knot takes the right span).
-            let prev_knot = knots[..i]
-                .iter()
-                .rev()
-                .find(|&&k| k < u)
-                .copied()
-                .unwrap_or(ua);
-            let left = n.eval(u - (u - prev_knot) * 1e-9, 1).d1;
-            let right = n.eval(u, 1).d1;
-            let cos = left.dot(&right) / (left.norm() * right.norm());
-            if !(cos >= libm::cos(tol)) {
-                if count >= MAX_PIECES {
-                    return Err(PushError::TooManyCorners);
-                }
-                let (a, b) = out[count - 1].split_at(u).map_err(PushError::Split)?;
-                out[count - 1] = a;
-                out[count] = b;
-                count += 1;
-            }
-        }
-        i += mult;
-    }
-    Ok(count)
 }
 
 /// Solve `|C(u) − from| = delta` for `u` in `(u_lo, u_end)` by Newton with a bracket.

@@ -20,6 +20,7 @@ pub mod metrics;
 pub mod nurbs;
 pub mod path;
 pub mod plan;
+pub mod prepare;
 pub mod samples;
 
 pub use config::{InterpConfig, ParamUpdate};
@@ -27,3 +28,4 @@ pub use geom::{Curve, Derivs, Vec3};
 pub use interp::{Interpolator, RunState, Setpoint};
 pub use nurbs::{Nurbs, NurbsError};
 pub use path::{Arc, Block, Line, Path};
+pub use prepare::{BlockPlanner, PlannedBlock};

@@ -7,8 +7,9 @@ mod common;
 
 use common::{LIMIT_REL_TOL, Lcg, check_kinematics};
 use interp_core::geom::{Curve, Vec3};
+use interp_core::interp::PushError;
 use interp_core::path::{Arc, Block, Line, Path};
-use interp_core::{InterpConfig, Interpolator, RunState, Setpoint};
+use interp_core::{InterpConfig, Interpolator, PlannedBlock, RunState, Setpoint};
 use proptest::prelude::*;
 
 /// Setpoints lie on the program within this, mm.
@@ -432,4 +433,134 @@ fn a_closed_curve_in_one_block_is_traversed_whole() {
             "quadrant {q} skipped"
         );
     }
+}
+
+/// Streams `blocks` one every `gap` ticks (the first before any tick) to the
+/// end: through `push`, or through plans all made ahead of time by a
+/// `BlockPlanner` and committed between ticks, as the daemon does.
+fn stream(cfg: InterpConfig, blocks: &[Block], gap: usize, planned_ahead: bool) -> Vec<Setpoint> {
+    let mut ip = Box::new(Interpolator::<256>::new(cfg, start_of(blocks)).unwrap());
+    let plans: Vec<Box<PlannedBlock>> = if planned_ahead {
+        let mut planner = ip.planner();
+        blocks
+            .iter()
+            .map(|b| {
+                let mut p = Box::new(PlannedBlock::new());
+                planner.plan(b, &mut p).unwrap();
+                p
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let mut next = 0;
+    let mut sps = Vec::new();
+    for t in 0..2_000_000 {
+        if next < blocks.len() && t % gap == 0 {
+            if planned_ahead {
+                ip.commit(&plans[next]).unwrap();
+            } else {
+                ip.push(&blocks[next]).unwrap();
+            }
+            next += 1;
+            if next == blocks.len() {
+                ip.finish();
+            }
+        }
+        let sp = ip.tick();
+        sps.push(sp);
+        if sp.state == RunState::Done {
+            break;
+        }
+    }
+    sps
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig {
+        cases: 8,
+        rng_seed: proptest::test_runner::RngSeed::Fixed(0x9_1ab_e4e),
+        ..ProptestConfig::default()
+    })]
+
+    #[test]
+    fn plans_made_ahead_and_committed_give_the_setpoints_of_push(seed in any::<u64>(), gap in 1usize..300) {
+        let cfg = InterpConfig::default();
+        let blocks = random_program(seed, 10);
+        let pushed = stream(cfg, &blocks, gap, false);
+        let committed = stream(cfg, &blocks, gap, true);
+        prop_assert_eq!(pushed.last().unwrap().state, RunState::Done);
+        prop_assert_eq!(pushed, committed);
+    }
+}
+
+#[test]
+fn planned_butterfly_blocks_give_the_setpoints_of_push() {
+    let cfg = InterpConfig::default();
+    let blocks = common::butterfly_blocks(100.0);
+    let pushed = stream(cfg, &blocks, 7, false);
+    let committed = stream(cfg, &blocks, 7, true);
+    assert_eq!(pushed.last().unwrap().state, RunState::Done);
+    assert_eq!(pushed, committed);
+}
+
+#[test]
+fn a_plan_for_another_queue_end_is_refused_and_a_resynced_planner_goes_on() {
+    let cfg = InterpConfig::default();
+    let blocks = random_program(7, 6);
+    let mut ip = Box::new(Interpolator::<256>::new(cfg, start_of(&blocks)).unwrap());
+    let mut planner = ip.planner();
+    let plans: Vec<Box<PlannedBlock>> = blocks
+        .iter()
+        .map(|b| {
+            let mut p = Box::new(PlannedBlock::new());
+            planner.plan(b, &mut p).unwrap();
+            p
+        })
+        .collect();
+    // Out of order: block 2 was planned to follow block 1.
+    assert_eq!(ip.commit(&plans[1]), Err(PushError::Stale));
+    assert_eq!(ip.queued_segments(), 0);
+    for p in &plans[..3] {
+        ip.commit(p).unwrap();
+    }
+    let queued = ip.queued_segments();
+    assert_eq!(ip.commit(&plans[1]), Err(PushError::Stale));
+    assert_eq!(ip.queued_segments(), queued);
+    // Abort part way: plans made before it no longer fit.
+    let mut last = Setpoint::default();
+    for _ in 0..300 {
+        last = ip.tick();
+    }
+    ip.abort();
+    assert_eq!(ip.commit(&plans[3]), Err(PushError::Aborting));
+    for _ in 0..100_000 {
+        last = ip.tick();
+        if last.state == RunState::Idle {
+            break;
+        }
+    }
+    assert_eq!(last.state, RunState::Idle);
+    assert_eq!(ip.commit(&plans[3]), Err(PushError::Stale));
+    assert_eq!(ip.queued_segments(), 0);
+    // Resynced to the last setpoint, the planner plans what follows from there.
+    let here = v3(&last.axes);
+    planner.resync(here, last.s);
+    let next = Block::new(
+        100,
+        Path::Line(Line::new(here, here + Vec3::new(3.0, 4.0, 0.0)).unwrap()),
+        50.0,
+    );
+    let mut plan = Box::new(PlannedBlock::new());
+    planner.plan(&next, &mut plan).unwrap();
+    ip.commit(&plan).unwrap();
+    ip.finish();
+    for _ in 0..100_000 {
+        last = ip.tick();
+        if last.state == RunState::Done {
+            break;
+        }
+    }
+    assert_eq!(last.state, RunState::Done);
+    assert_eq!(v3(&last.axes), next.path.end_point());
 }

@@ -223,15 +223,26 @@ fn a_client_leaving_mid_stream_holds_and_the_accepted_blocks_stay() {
 #[test]
 fn hold_resume_and_abort_stop_on_the_path_and_a_new_program_starts_there() {
     let service = service_name("commands");
-    let srv = Server::start(&service, &["--no-socket"]);
+    let dir = temp_dir("commands");
+    let trace = dir.join("commands.mcap");
+    let srv = Server::start(
+        &service,
+        &["--no-socket", "--record", trace.to_str().unwrap()],
+    );
     let mut c = srv.connect();
     assert!(
         c.ask(&line_to([30.0, 0.0, 0.0], 1800.0, 1))
             .starts_with("ok")
     );
-    assert_eq!(c.ask("end"), "ok end");
     assert_eq!(c.ask("start"), "ok start");
     c.wait_for("motion", |s| s["s"].as_f64().unwrap() > 2.0);
+    // Streamed while moving: committed between ticks of a running program.
+    assert!(
+        c.ask(&line_to([30.0, 10.0, 0.0], 1800.0, 2))
+            .starts_with("ok")
+    );
+    assert_eq!(c.ask("end"), "ok end");
+    assert_eq!(c.ask("override 0.5"), "ok override 0.5");
     assert_eq!(c.ask("hold"), "ok hold");
     let h = c.wait_for("held", |s| s["state"] == "holding" && s["feed"] == 0.0);
     let held_at = h["s"].as_f64().unwrap();
@@ -254,7 +265,39 @@ fn hold_resume_and_abort_stop_on_the_path_and_a_new_program_starts_there() {
     assert_eq!(c.ask("start"), "ok start");
     let d = c.wait_for("done", |s| s["state"] == "done");
     assert_eq!(d["position"], serde_json::json!([x, 5.0, 0.0]));
-    drop(srv);
+    // And another after that one is done.
+    assert!(c.ask(&line_to([x, 8.0, 0.0], 1800.0, 1)).starts_with("ok"));
+    assert_eq!(c.ask("end"), "ok end");
+    assert_eq!(c.ask("start"), "ok start");
+    let d = c.wait_for("done again", |s| {
+        s["state"] == "done" && s["position"] == serde_json::json!([x, 8.0, 0.0])
+    });
+    assert_eq!(d["feed"], 0.0);
+    let (st, text) = srv.stop();
+    assert!(st.success(), "serve exited with {st}: {text}");
+    assert!(text.contains("0 records dropped"), "{text}");
+
+    // The whole session (three programs, blocks committed while moving,
+    // override, hold, resume, abort) replays bit for bit by its schedule.
+    let out = std::process::Command::new(interpd())
+        .arg("replay")
+        .arg(&trace)
+        .output()
+        .expect("interpd replay");
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "replay failed: {said} {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(said.contains("bit-identical"), "{said}");
+    let compared: u64 = said
+        .split_whitespace()
+        .nth(3)
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no count in {said:?}"));
+    let ticks = d["ticks"].as_u64().unwrap();
+    assert!(compared >= ticks, "{compared} of {ticks} ticks replayed");
 }
 
 #[test]

@@ -266,12 +266,20 @@ pub enum EventKind {
     QueueOverflow,
     /// The recorder's queue was full and records were dropped (`count`: total so far).
     RecorderOverflow,
+    /// A segment was queued into the interpolator (`count`: its id). With the
+    /// commands, recorded at the tick count they followed, these make a live
+    /// run's schedule: replay applies them at the same ticks.
+    Commit,
+    /// The end of the program was applied (`Interpolator::finish`).
+    Finish,
 }
 
 /// `/interpd/events`: one event.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct EventMsg {
-    /// Tick at which it happened.
+    /// Tick at which it happened; for what a live run applies between ticks
+    /// (commits, hold, resume, override, abort, finish): the interpolator
+    /// ticks done before it, so it acts on tick `seq + 1`.
     pub seq: u64,
     /// Machine time, s.
     pub time: f64,

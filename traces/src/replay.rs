@@ -7,7 +7,8 @@ use serde::de::{Deserialize, Deserializer, MapAccess, Visitor};
 use serde_json::Value;
 
 use crate::analysis::{TraceProgramError, program_of};
-use crate::messages::SetpointMsg;
+use crate::blocks::Program;
+use crate::messages::{EventKind, SetpointMsg};
 use crate::reader::Trace;
 use crate::sim::{self, SimError, SimItem};
 
@@ -52,6 +53,9 @@ pub enum ReplayError {
     /// A setpoint (or block split) differs.
     #[error("{0}")]
     Mismatch(Mismatch),
+    /// The recorded schedule cannot be followed (names the event).
+    #[error("schedule: {0}")]
+    Schedule(String),
 }
 
 /// A successful replay.
@@ -121,8 +125,19 @@ pub fn first_difference(recorded: &SetpointMsg, replayed: &SetpointMsg) -> Optio
     })
 }
 
-/// Re-simulates `trace` and compares every setpoint bit for bit.
+/// Whether `trace` holds a live run's schedule (commit events from `interpd
+/// serve`): replay then follows it tick by tick ([`replay_schedule`]).
+pub fn has_schedule(trace: &Trace) -> bool {
+    trace.events.iter().any(|e| e.kind == EventKind::Commit)
+}
+
+/// Re-simulates `trace` and compares every setpoint bit for bit. A live
+/// recording is replayed by its schedule ([`replay_schedule`]); a simulated
+/// one by running its program.
 pub fn replay(trace: &Trace) -> Result<ReplayReport, ReplayError> {
+    if has_schedule(trace) {
+        return replay_schedule(trace);
+    }
     let (config, program) = program_of(trace)?;
     let recorded = &trace.setpoints;
     let last_time = recorded.last().map_or(0.0, |s| s.time);
@@ -203,5 +218,145 @@ pub fn replay(trace: &Trace) -> Result<ReplayReport, ReplayError> {
         compared,
         missing_in_trace: missing,
         blocks: program.blocks.len(),
+    })
+}
+
+/// Replays a live recording by its schedule: the interpolator of the run,
+/// built from the recorded config, gets every recorded commit and command
+/// after the same number of ticks as in the run (events with `seq = n` act
+/// before tick `n + 1`), and every recorded setpoint is compared bit for bit.
+///
+/// Segments come from the recorded blocks, in order, each expanded from the
+/// end of what the interpolator has queued when its first segment is
+/// committed (exactly as the control plane expanded it); segments an abort
+/// flushed before their commit are skipped.
+pub fn replay_schedule(trace: &Trace) -> Result<ReplayReport, ReplayError> {
+    use interp_core::interp::DEFAULT_QUEUE;
+    use interp_core::{Block, Interpolator};
+    let config = trace.config.clone().ok_or(TraceProgramError::NoConfig)?;
+    if config.segment_queue != DEFAULT_QUEUE {
+        return Err(ReplayError::Schedule(format!(
+            "recorded with a segment queue of {}, this build has {DEFAULT_QUEUE}",
+            config.segment_queue
+        )));
+    }
+    let mut ip: Box<Interpolator> = Box::new(
+        Interpolator::new(config.interp, config.start)
+            .map_err(|e| ReplayError::Sim(format!("config: {e:?}")))?,
+    );
+    let mut events = trace.events.iter().filter(|e| {
+        matches!(
+            e.kind,
+            EventKind::Commit
+                | EventKind::Hold
+                | EventKind::Resume
+                | EventKind::Override
+                | EventKind::Abort
+                | EventKind::Finish
+        )
+    });
+    let mut next_event = events.next();
+    let mut blocks = trace.blocks.iter();
+    let mut pending: std::collections::VecDeque<Block> = Default::default();
+    let mut used_blocks = 0usize;
+    let mut compared = 0u64;
+    let mut missing = 0u64;
+    let mut ticks = 0u64;
+    let bad = |e: &crate::messages::EventMsg, why: String| {
+        ReplayError::Schedule(format!("event {:?} at tick {}: {why}", e.kind, e.seq))
+    };
+    for rec in &trace.setpoints {
+        if rec.seq <= ticks {
+            return Err(ReplayError::Mismatch(Mismatch {
+                seq: rec.seq,
+                field: "seq".into(),
+                recorded: rec.seq.to_string(),
+                replayed: format!("after {ticks}"),
+            }));
+        }
+        while ticks < rec.seq {
+            while let Some(e) = next_event.filter(|e| e.seq <= ticks) {
+                if e.seq < ticks {
+                    return Err(bad(e, format!("out of order (replay is at tick {ticks})")));
+                }
+                match e.kind {
+                    EventKind::Commit => {
+                        let id = e.count.unwrap_or(0) as u32;
+                        if pending.front().is_none_or(|b| b.id != id) {
+                            // A new block: the next recorded one that starts with this id.
+                            pending.clear();
+                            let tail = ip.planner().tail();
+                            loop {
+                                let Some(b) = blocks.next() else {
+                                    return Err(bad(
+                                        e,
+                                        format!("no recorded block has segment {id}"),
+                                    ));
+                                };
+                                if b.segments.first().map(|s| s.block_id) != Some(id) {
+                                    continue; // flushed by an abort before any commit
+                                }
+                                let program = Program {
+                                    start: Some([tail.x, tail.y, tail.z]),
+                                    blocks: vec![b.block.clone()],
+                                };
+                                let mut x = program.expand(config.max_ctrl_per_block, id).map_err(
+                                    |err| bad(e, format!("expanding block {}: {err}", b.index)),
+                                )?;
+                                let eb =
+                                    x.blocks.pop().ok_or_else(|| bad(e, "empty block".into()))?;
+                                if eb.info != b.segments {
+                                    return Err(ReplayError::Mismatch(Mismatch {
+                                        seq: u64::from(b.index),
+                                        field: format!("blocks[{}].segments", b.index),
+                                        recorded: serde_json::to_string(&b.segments)
+                                            .unwrap_or_default(),
+                                        replayed: serde_json::to_string(&eb.info)
+                                            .unwrap_or_default(),
+                                    }));
+                                }
+                                pending.extend(eb.segments);
+                                used_blocks += 1;
+                                break;
+                            }
+                        }
+                        let seg = pending
+                            .pop_front()
+                            .ok_or_else(|| bad(e, "no segment".into()))?;
+                        ip.push(&seg)
+                            .map_err(|err| bad(e, format!("segment {id}: {err}")))?;
+                    }
+                    EventKind::Hold => ip.feed_hold(),
+                    EventKind::Resume => ip.resume(),
+                    EventKind::Override => {
+                        let v = e.value.unwrap_or(f64::NAN);
+                        ip.set_feed_override(v)
+                            .map_err(|err| bad(e, err.to_string()))?;
+                    }
+                    EventKind::Abort => {
+                        ip.abort();
+                        pending.clear();
+                    }
+                    EventKind::Finish => ip.finish(),
+                    _ => {}
+                }
+                next_event = events.next();
+            }
+            let sp = ip.tick();
+            ticks += 1;
+            if ticks < rec.seq {
+                missing += 1; // dropped on recording
+                continue;
+            }
+            compared += 1;
+            if let Some(m) = first_difference(rec, &SetpointMsg::from(&sp)) {
+                return Err(ReplayError::Mismatch(m));
+            }
+        }
+    }
+    Ok(ReplayReport {
+        compared,
+        missing_in_trace: missing,
+        blocks: used_blocks,
     })
 }
