@@ -533,12 +533,15 @@ impl<const Q: usize> Interpolator<Q> {
                 slope: h / window,
                 feed_slope: h / (window * self.cfg.max_feed_override),
                 cone_from: (!self.finished).then(|| libm::ceil(self.tail_s / h) as i64 - 1),
+                // Every law is capped at the machine's top speed.
+                top: self.cfg.max_path_speed,
             }
         } else {
             Erosion {
                 slope: f64::INFINITY,
                 feed_slope: f64::INFINITY,
                 cone_from: None,
+                top: self.cfg.max_path_speed,
             }
         };
         // Erosion reaches back as far as the cone of the highest limit.

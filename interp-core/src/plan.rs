@@ -82,6 +82,11 @@ pub struct Erosion {
     /// Intervals from this one on are unknown yet (the queue may grow): they
     /// count as a zero limit. `None` once the program is finished.
     pub cone_from: Option<i64>,
+    /// An upper bound on every raw limit held (the machine's top speed): no
+    /// candidate farther than `top/slope` intervals can be the minimum, so
+    /// erosion looks no farther back. Infinite: scan the ring for it (linear
+    /// in what is queued, not in what changed).
+    pub top: f64,
 }
 
 impl Profile {
@@ -313,7 +318,11 @@ impl Profile {
             }
             // Left side (candidates q < g), g upwards from where the cone of the
             // highest limit can still reach `from`.
-            let top = self.raw_top(which);
+            let top = if e.top.is_finite() {
+                e.top
+            } else {
+                self.raw_top(which)
+            };
             let reach = if top.is_finite() {
                 (libm::ceil(top / slope) as i64).saturating_add(2)
             } else {
@@ -607,12 +616,29 @@ mod tests {
                 p.mark_stop(base + st as i64);
             }
             let from = (rnd() * n as f64) as i64;
+            // With the ring scanned for the top, and with a bound given.
+            let mut bounded = p.clone();
             let e = Erosion {
                 slope,
                 feed_slope,
                 cone_from: cone.map(|c| base + c as i64),
+                top: f64::INFINITY,
             };
             p.erode(base + from, e);
+            let top = raw.iter().chain(&feed).fold(0.0f64, |a, &b| a.max(b)) * (1.0 + rnd());
+            bounded.erode(base + from, Erosion { top, ..e });
+            for g in from..n as i64 {
+                assert_eq!(
+                    bounded.cap(base + g),
+                    p.cap(base + g),
+                    "case {case} g={g} (top {top})"
+                );
+                assert_eq!(
+                    bounded.feed_cap(base + g),
+                    p.feed_cap(base + g),
+                    "case {case} g={g} (top {top})"
+                );
+            }
             for g in from as usize..n {
                 let gi = base + g as i64;
                 assert_eq!(
@@ -654,6 +680,7 @@ mod tests {
                 slope,
                 feed_slope: slope,
                 cone_from: None,
+                top: f64::INFINITY,
             };
             p.erode(0, e);
             let stops: Vec<usize> = stop.into_iter().collect();
