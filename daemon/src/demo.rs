@@ -1486,6 +1486,32 @@ mod tests {
     }
 
     #[test]
+    fn main_writes_the_plots_into_out_unless_told_not_to() {
+        let dir = std::env::temp_dir().join(format!("interpd-demo-out-{}", std::process::id()));
+        let out = dir.to_str().expect("utf-8 temp path");
+        main(&args(&["--fast", "--no-service", "--out", out])).expect("demo passes");
+        let mut names: Vec<String> = std::fs::read_dir(&dir)
+            .expect("out dir made")
+            .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        let want =
+            ["acceleration", "chord_error", "feed", "jerk", "path_xy"].map(|n| format!("{n}.png"));
+        assert_eq!(names, want);
+        std::fs::remove_dir_all(&dir).expect("cleanup");
+        main(&args(&[
+            "--fast",
+            "--no-service",
+            "--no-plots",
+            "--out",
+            out,
+        ]))
+        .expect("demo passes");
+        assert!(!dir.exists(), "--no-plots wrote into {out}");
+        assert_eq!(args(&[]).out, PathBuf::from(DEFAULT_OUT_DIR));
+    }
+
+    #[test]
     fn a_bad_feed_is_refused_with_context() {
         let e = run(&args(&["--feed", "0"]), |_| {}).unwrap_err();
         assert!(e.to_string().contains("--feed"), "{e:#}");
