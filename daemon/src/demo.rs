@@ -52,6 +52,13 @@ const CHORD_REL_TOL: f64 = 1e-6;
 const CHORD_ULPS: f64 = 16.0;
 /// Relative slack on the acceleration check.
 const ACCEL_REL_TOL: f64 = 1e-6;
+/// Relative slack on the jerk and per-axis checks: the one the core's own
+/// tests use (`interp-core/tests/common`, `LIMIT_REL_TOL`).
+const LIMIT_REL_TOL: f64 = 1e-6;
+/// Round-off allowance of an n-th finite difference of coordinates of size
+/// `scale`, in ulps of `scale` (|1| + |3| + |3| + |1| = 8 for the third
+/// difference, times a margin of 2).
+const DIFF_ULPS: f64 = 16.0;
 /// The run is abandoned after this much machine time, s, or ten times the
 /// program's length at the feed limit, whichever is longer.
 const MAX_MACHINE_TIME_S: f64 = 3600.0;
@@ -93,11 +100,38 @@ pub struct DemoArgs {
     /// Normal scheduling for the service run (no SCHED_FIFO, mlockall or pinning).
     #[arg(long)]
     pub no_rt: bool,
+    /// Directory for the plots (PNG) and the service run's recording (`run.mcap`); made if missing.
+    #[arg(long, value_name = "DIR", default_value = DEFAULT_OUT_DIR)]
+    pub out: PathBuf,
+    /// Do not write the plots.
+    #[arg(long)]
+    pub no_plots: bool,
 }
+
+/// Where `interpd demo` writes its plots and recording unless `--out` says otherwise.
+pub const DEFAULT_OUT_DIR: &str = "out/demo";
+/// The service run's recording, in the output directory.
+pub const RECORDING_FILE: &str = "run.mcap";
 
 /// Runs the demo, prints the summary, and fails if any check failed.
 pub fn main(args: &DemoArgs) -> Result<()> {
-    let mut summary = run(args, |_| {})?;
+    let mut setpoints = Vec::new();
+    let mut summary = run(args, |sp| {
+        if !args.no_plots {
+            setpoints.push(*sp);
+        }
+    })?;
+    if !args.no_plots {
+        let cfg = config(args);
+        let blocks = butterfly_blocks(args.feed)?;
+        let inp = crate::demo_plots::PlotInput {
+            cfg: &cfg,
+            blocks: &blocks,
+            start: summary.program.start,
+            setpoints: &setpoints,
+        };
+        summary.plots = crate::demo_plots::write(&inp, &args.out)?;
+    }
     if !args.no_service {
         summary.service = Some(crate::demo_service::run(args, &summary)?);
     }
@@ -150,6 +184,14 @@ pub struct Violations {
     pub over_chord_speed: u64,
     /// Ticks whose |Δfeed|/Ts exceeds the acceleration limit.
     pub over_accel: u64,
+    /// Ticks whose path jerk |Δ³s|/Ts³ exceeds `max_path_jerk` (+1 ppm).
+    pub over_jerk: u64,
+    /// Ticks where some axis's |Δp|/Ts exceeds its `axis_max_velocity` (+1 ppm).
+    pub over_axis_velocity: u64,
+    /// Ticks where some axis's |Δ²p|/Ts² exceeds its `axis_max_accel` (+1 ppm).
+    pub over_axis_accel: u64,
+    /// Ticks where some axis's |Δ³p|/Ts³ exceeds its `axis_max_jerk` (+1 ppm).
+    pub over_axis_jerk: u64,
     /// Setpoints in the `Fault` state.
     pub faults: u64,
     /// 1 when the run ended without reaching `Done`.
@@ -168,6 +210,10 @@ impl Violations {
             + self.over_speed
             + self.over_chord_speed
             + self.over_accel
+            + self.over_jerk
+            + self.over_axis_velocity
+            + self.over_axis_accel
+            + self.over_axis_jerk
             + self.faults
             + self.not_done
             + self.end_mismatch
@@ -176,12 +222,17 @@ impl Violations {
     fn breakdown(&self) -> String {
         format!(
             "seq gaps {}, non-finite {}, over speed {}, over chord speed {}, over accel {}, \
+             over jerk {}, over axis velocity {}, over axis accel {}, over axis jerk {}, \
              faults {}, not done {}, end mismatch {}",
             self.seq_gaps,
             self.non_finite,
             self.over_speed,
             self.over_chord_speed,
             self.over_accel,
+            self.over_jerk,
+            self.over_axis_velocity,
+            self.over_axis_accel,
+            self.over_axis_jerk,
             self.faults,
             self.not_done,
             self.end_mismatch
@@ -189,21 +240,76 @@ impl Violations {
     }
 }
 
-/// The loop's own subscriber: checks each setpoint against the previous one and
-/// keeps the running maxima and digest. Fixed size; `check` never allocates.
+/// The limits every setpoint is checked against, from the run's configuration.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Limits {
+    /// Path speed: the programmed feed capped at `max_path_speed`, mm/s.
+    pub feed_mm_s: f64,
+    /// Tangential acceleration `max_path_accel`, mm/s².
+    pub accel_mm_s2: f64,
+    /// Path jerk `max_path_jerk`, mm/s³.
+    pub jerk_mm_s3: f64,
+    /// `axis_max_velocity` X Y Z, mm/s.
+    pub axis_velocity_mm_s: [f64; 3],
+    /// `axis_max_accel` X Y Z, mm/s².
+    pub axis_accel_mm_s2: [f64; 3],
+    /// `axis_max_jerk` X Y Z, mm/s³.
+    pub axis_jerk_mm_s3: [f64; 3],
+}
+
+impl Limits {
+    /// The limits of `cfg` for a program at `feed_mm_s`.
+    pub(crate) fn new(cfg: &InterpConfig, feed_mm_s: f64) -> Self {
+        Limits {
+            feed_mm_s: feed_mm_s.min(cfg.max_path_speed),
+            accel_mm_s2: cfg.max_path_accel,
+            jerk_mm_s3: cfg.max_path_jerk,
+            axis_velocity_mm_s: cfg.axis_max_velocity,
+            axis_accel_mm_s2: cfg.axis_max_accel,
+            axis_jerk_mm_s3: cfg.axis_max_jerk,
+        }
+    }
+}
+
+/// Largest values measured by finite differences of the setpoints, as a drive sees them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct Measured {
+    /// Largest |Δ³s|/Ts³, mm/s³.
+    pub path_jerk_mm_s3: f64,
+    /// Largest |Δp|/Ts per axis X Y Z, mm/s.
+    pub axis_velocity_mm_s: [f64; 3],
+    /// Largest |Δ²p|/Ts² per axis, mm/s².
+    pub axis_accel_mm_s2: [f64; 3],
+    /// Largest |Δ³p|/Ts³ per axis, mm/s³.
+    pub axis_jerk_mm_s3: [f64; 3],
+}
+
+/// The loop's own subscriber: checks each setpoint against the previous ones
+/// and keeps the running maxima and digest. Fixed size; `check` never allocates.
+///
+/// Before the first setpoint the machine is at rest at `start` (arc length 0),
+/// so the differences of the first ticks see the start as it was.
 #[derive(Clone, Debug)]
 pub(crate) struct Subscriber {
     ts: f64,
-    feed_limit: f64,
-    accel_limit: f64,
+    limits: Limits,
     prev_seq: u64,
     prev_feed: f64,
-    prev_point: [f64; 3],
+    /// The last three points, newest first.
+    prev_points: [[f64; 3]; 3],
+    /// The last three arc lengths, newest first.
+    prev_s: [f64; 3],
     pub(crate) max_feed: f64,
     max_chord_speed: f64,
     pub(crate) max_accel: f64,
+    pub(crate) measured: Measured,
     pub(crate) digest: u64,
     pub(crate) violations: Violations,
+}
+
+/// `v ≤ limit` within the relative tolerance and `slack` of round-off.
+fn within(v: f64, limit: f64, slack: f64) -> bool {
+    v <= limit * (1.0 + LIMIT_REL_TOL) + slack
 }
 
 /// FNV-1a, 64 bit.
@@ -232,17 +338,18 @@ fn digest_setpoint(mut h: u64, sp: &Setpoint) -> u64 {
 }
 
 impl Subscriber {
-    pub(crate) fn new(ts: f64, feed_limit: f64, accel_limit: f64, start: [f64; 3]) -> Self {
+    pub(crate) fn new(ts: f64, limits: Limits, start: [f64; 3]) -> Self {
         Subscriber {
             ts,
-            feed_limit,
-            accel_limit,
+            limits,
             prev_seq: 0,
             prev_feed: 0.0, // the machine starts at rest
-            prev_point: start,
+            prev_points: [start; 3],
+            prev_s: [0.0; 3],
             max_feed: 0.0,
             max_chord_speed: 0.0,
             max_accel: 0.0,
+            measured: Measured::default(),
             digest: FNV_OFFSET,
             violations: Violations::default(),
         }
@@ -250,6 +357,8 @@ impl Subscriber {
 
     #[inline]
     pub(crate) fn check(&mut self, sp: &Setpoint) {
+        let ts = self.ts;
+        let lim = self.limits;
         let v = &mut self.violations;
         let mut bad = false;
         if sp.seq != self.prev_seq.wrapping_add(1) {
@@ -265,27 +374,62 @@ impl Subscriber {
             bad = true;
         }
         let p = [sp.axes[0], sp.axes[1], sp.axes[2]];
-        let chord = Vec3::from(p) - Vec3::from(self.prev_point);
-        let chord_speed = chord.norm() / self.ts;
-        let limit = self.feed_limit + SPEED_TOL;
+        let [p1, p2, p3] = self.prev_points;
+        let chord = Vec3::from(p) - Vec3::from(p1);
+        let chord_speed = chord.norm() / ts;
+        let limit = lim.feed_mm_s + SPEED_TOL;
         if !(sp.feed <= limit) {
             v.over_speed += 1;
             bad = true;
         }
         let scale = p
             .iter()
-            .chain(&self.prev_point)
+            .chain(p1.iter())
+            .chain(p2.iter())
+            .chain(p3.iter())
             .fold(0.0f64, |m, c| m.max(c.abs()));
-        let round_off = CHORD_ULPS * f64::EPSILON * scale / self.ts;
-        if !(chord_speed <= limit + self.feed_limit * CHORD_REL_TOL + round_off) {
+        let ulp = f64::EPSILON * scale;
+        let round_off = CHORD_ULPS * ulp / ts;
+        if !(chord_speed <= limit + lim.feed_mm_s * CHORD_REL_TOL + round_off) {
             v.over_chord_speed += 1;
             bad = true;
         }
-        let accel = (sp.feed - self.prev_feed).abs() / self.ts;
-        if !(accel <= self.accel_limit * (1.0 + ACCEL_REL_TOL)) {
+        let accel = (sp.feed - self.prev_feed).abs() / ts;
+        if !(accel <= lim.accel_mm_s2 * (1.0 + ACCEL_REL_TOL)) {
             v.over_accel += 1;
             bad = true;
         }
+        // Path jerk: third difference of the arc length.
+        let [s1, s2, s3] = self.prev_s;
+        let ts3 = ts * ts * ts;
+        let jerk = ((sp.s - 3.0 * s1) + (3.0 * s2 - s3)).abs() / ts3;
+        let s_ulp = f64::EPSILON
+            * [sp.s, s1, s2, s3]
+                .iter()
+                .fold(0.0f64, |m, x| m.max(x.abs()));
+        if !within(jerk, lim.jerk_mm_s3, DIFF_ULPS * s_ulp / ts3) {
+            v.over_jerk += 1;
+            bad = true;
+        }
+        // Per axis, as a drive sees its own position commands.
+        let (mut over_v, mut over_a, mut over_j) = (false, false, false);
+        let m = &mut self.measured;
+        m.path_jerk_mm_s3 = m.path_jerk_mm_s3.max(jerk);
+        for k in 0..3 {
+            let vel = (p[k] - p1[k]).abs() / ts;
+            let acc = ((p[k] - 2.0 * p1[k]) + p2[k]).abs() / (ts * ts);
+            let jrk = ((p[k] - 3.0 * p1[k]) + (3.0 * p2[k] - p3[k])).abs() / ts3;
+            over_v |= !within(vel, lim.axis_velocity_mm_s[k], DIFF_ULPS * ulp / ts);
+            over_a |= !within(acc, lim.axis_accel_mm_s2[k], DIFF_ULPS * ulp / (ts * ts));
+            over_j |= !within(jrk, lim.axis_jerk_mm_s3[k], DIFF_ULPS * ulp / ts3);
+            m.axis_velocity_mm_s[k] = m.axis_velocity_mm_s[k].max(vel);
+            m.axis_accel_mm_s2[k] = m.axis_accel_mm_s2[k].max(acc);
+            m.axis_jerk_mm_s3[k] = m.axis_jerk_mm_s3[k].max(jrk);
+        }
+        v.over_axis_velocity += u64::from(over_v);
+        v.over_axis_accel += u64::from(over_a);
+        v.over_axis_jerk += u64::from(over_j);
+        bad |= over_v || over_a || over_j;
         if sp.state == RunState::Fault {
             v.faults += 1;
             bad = true;
@@ -299,7 +443,8 @@ impl Subscriber {
         self.digest = digest_setpoint(self.digest, sp);
         self.prev_seq = sp.seq;
         self.prev_feed = sp.feed;
-        self.prev_point = p;
+        self.prev_points = [p, p1, p2];
+        self.prev_s = [sp.s, s1, s2];
     }
 }
 
@@ -591,6 +736,8 @@ pub struct Settings {
     pub chord_tolerance_mm: f64,
     /// Tangential acceleration limit, mm/s².
     pub accel_mm_s2: f64,
+    /// Every limit the setpoints are checked against.
+    pub limits: Limits,
     /// No sleeping.
     pub fast: bool,
 }
@@ -640,6 +787,8 @@ pub struct Summary {
     pub max_chord_speed_mm_s: f64,
     /// Largest |Δfeed|/Ts, mm/s².
     pub max_accel_mm_s2: f64,
+    /// Path jerk and per-axis velocity, acceleration and jerk from finite differences.
+    pub measured: Measured,
     /// Largest distance between the curve and the chord of one tick (ticks within a block), mm.
     pub max_chord_error_mm: f64,
     /// `seq` of the setpoint that ends that tick.
@@ -664,8 +813,20 @@ pub struct Summary {
     pub interpolator: InterpStats,
     /// Where the setpoints were written.
     pub csv: Option<PathBuf>,
+    /// The plots written (PNG), empty with `--no-plots`.
+    pub plots: Vec<PathBuf>,
     /// The second run, through the service (`None` with `--no-service`).
     pub service: Option<crate::demo_service::ServiceRun>,
+}
+
+/// The interpolator configuration of the direct run.
+fn config(args: &DemoArgs) -> InterpConfig {
+    InterpConfig {
+        period: f64::from(args.period_us) * 1e-6,
+        chord_tolerance: args.chord_tolerance_mm,
+        max_path_accel: args.accel,
+        ..InterpConfig::default()
+    }
 }
 
 /// The program queued in an interpolator, and everything the loop needs.
@@ -689,12 +850,7 @@ impl Prepared {
                 args.feed
             );
         }
-        let cfg = InterpConfig {
-            period: f64::from(args.period_us) * 1e-6,
-            chord_tolerance: args.chord_tolerance_mm,
-            max_path_accel: args.accel,
-            ..InterpConfig::default()
-        };
+        let cfg = config(args);
         let feed = args.feed / 60.0;
         let blocks = butterfly_blocks(args.feed)?;
         let (first, last) = match (blocks.first(), blocks.last()) {
@@ -746,8 +902,7 @@ impl Prepared {
     fn subscriber(&self) -> Subscriber {
         Subscriber::new(
             self.cfg.period,
-            self.feed_limit,
-            self.cfg.max_path_accel,
+            Limits::new(&self.cfg, self.feed_limit),
             point3(self.start),
         )
     }
@@ -851,6 +1006,7 @@ pub fn run(args: &DemoArgs, on_setpoint: impl FnMut(&Setpoint)) -> Result<Summar
             period_us: args.period_us,
             chord_tolerance_mm: cfg.chord_tolerance,
             accel_mm_s2: cfg.max_path_accel,
+            limits: Limits::new(&cfg, feed_limit),
             fast: args.fast,
         },
         ticks: last_sp.seq,
@@ -858,6 +1014,7 @@ pub fn run(args: &DemoArgs, on_setpoint: impl FnMut(&Setpoint)) -> Result<Summar
         max_feed_mm_s: out.sub.max_feed,
         max_chord_speed_mm_s: out.sub.max_chord_speed,
         max_accel_mm_s2: out.sub.max_accel,
+        measured: out.sub.measured,
         max_chord_error_mm: rec.max_chord_error,
         max_chord_error_seq: rec.max_chord_error_seq,
         chord_error_within_tolerance: rec.max_chord_error <= cfg.chord_tolerance,
@@ -881,6 +1038,7 @@ pub fn run(args: &DemoArgs, on_setpoint: impl FnMut(&Setpoint)) -> Result<Summar
             max_newton_iters: stats.max_newton_iters,
         },
         csv: args.csv.clone(),
+        plots: Vec::new(),
         service: None,
     })
 }
@@ -928,6 +1086,23 @@ impl fmt::Display for Summary {
             f,
             "  accel       max tangential {:.3} mm/s² (limit {})",
             self.max_accel_mm_s2, s.accel_mm_s2
+        )?;
+        let (m, l) = (&self.measured, &s.limits);
+        writeln!(
+            f,
+            "  jerk        max path {:.0} mm/s³ (limit {})",
+            m.path_jerk_mm_s3, l.jerk_mm_s3
+        )?;
+        let xyz = |v: [f64; 3]| format!("{:.0} {:.0} {:.0}", v[0], v[1], v[2]);
+        writeln!(
+            f,
+            "  axes X Y Z  max velocity {} mm/s (limits {}), accel {} mm/s² ({}), jerk {} mm/s³ ({})",
+            xyz(m.axis_velocity_mm_s),
+            xyz(l.axis_velocity_mm_s),
+            xyz(m.axis_accel_mm_s2),
+            xyz(l.axis_accel_mm_s2),
+            xyz(m.axis_jerk_mm_s3),
+            xyz(l.axis_jerk_mm_s3)
         )?;
         writeln!(
             f,
@@ -978,10 +1153,41 @@ impl fmt::Display for Summary {
         if let Some(path) = &self.csv {
             writeln!(f, "  csv         {}", path.display())?;
         }
+        if let Some(dir) = self.plots.first().and_then(|p| p.parent()) {
+            let names: Vec<_> = self
+                .plots
+                .iter()
+                .filter_map(|p| p.file_name().map(|n| n.to_string_lossy()))
+                .collect();
+            writeln!(f, "  plots       {}/ {}", dir.display(), names.join(" "))?;
+        }
         if let Some(svc) = &self.service {
             write!(f, "{}", svc.display(&self.setpoint_digest))?;
         }
         Ok(())
+    }
+}
+
+/// What other modules' tests need from the demo.
+#[cfg(test)]
+pub(crate) mod tests_support {
+    use super::*;
+
+    /// `interpd demo --fast --no-service --no-plots`.
+    pub(crate) fn fast_args() -> DemoArgs {
+        let mut a = tests::args(&["--fast", "--no-service", "--no-plots"]);
+        a.out = std::env::temp_dir();
+        a
+    }
+
+    /// The direct run's configuration.
+    pub(crate) fn config(args: &DemoArgs) -> InterpConfig {
+        super::config(args)
+    }
+
+    /// The butterfly's interpolator blocks.
+    pub(crate) fn blocks(args: &DemoArgs) -> Vec<Block> {
+        butterfly_blocks(args.feed).expect("the butterfly splits")
     }
 }
 
@@ -996,7 +1202,7 @@ mod tests {
         args: DemoArgs,
     }
 
-    fn args(extra: &[&str]) -> DemoArgs {
+    pub(super) fn args(extra: &[&str]) -> DemoArgs {
         let argv = ["demo"].iter().chain(extra).copied();
         Wrap::try_parse_from(argv).expect("demo args parse").args
     }
@@ -1064,10 +1270,124 @@ mod tests {
         assert_eq!(format!("{d:016x}"), a.setpoint_digest);
     }
 
+    /// The default limits at a feed limit of `feed` mm/s.
+    fn limits(feed: f64) -> Limits {
+        Limits::new(&InterpConfig::default(), feed)
+    }
+
+    /// A start from rest along `dir` (a unit axis): the acceleration ramps
+    /// up at `jerk` for `ramp` ticks, then stays for `hold` ticks. Setpoints
+    /// as the interpolator writes them (`feed` = Δs/Ts).
+    fn ramp(ts: f64, jerk: f64, ramp: u32, hold: u32, dir: [f64; 3]) -> Vec<Setpoint> {
+        let (mut a, mut v, mut s) = (0.0, 0.0, 0.0);
+        (1..=ramp + hold)
+            .map(|k| {
+                if k <= ramp {
+                    a += jerk * ts;
+                }
+                v += a * ts;
+                s += v * ts;
+                Setpoint {
+                    seq: u64::from(k),
+                    time: f64::from(k) * ts,
+                    axes: [s * dir[0], s * dir[1], s * dir[2], 0.0, 0.0, 0.0],
+                    feed: v,
+                    s,
+                    state: RunState::Running,
+                    ..Setpoint::default()
+                }
+            })
+            .collect()
+    }
+
+    fn check_all(lim: Limits, sps: &[Setpoint]) -> Subscriber {
+        let mut sub = Subscriber::new(1e-3, lim, [0.0; 3]);
+        for sp in sps {
+            sub.check(sp);
+        }
+        sub
+    }
+
+    #[test]
+    fn a_smooth_start_passes_and_its_jerk_is_measured() {
+        let lim = limits(100.0);
+        // 50 000 mm/s³ for 20 ticks (accel 1000 mm/s²), then constant accel.
+        let sps = ramp(1e-3, 50_000.0, 20, 30, [1.0, 0.0, 0.0]);
+        let sub = check_all(lim, &sps);
+        assert_eq!(sub.violations, Violations::default());
+        let m = sub.measured;
+        assert!((m.path_jerk_mm_s3 / 50_000.0 - 1.0).abs() < 1e-6, "{m:?}");
+        assert!(
+            (m.axis_jerk_mm_s3[0] / 50_000.0 - 1.0).abs() < 1e-6,
+            "{m:?}"
+        );
+        assert_eq!((m.axis_jerk_mm_s3[1], m.axis_velocity_mm_s[2]), (0.0, 0.0));
+        assert!((m.axis_accel_mm_s2[0] / 1000.0 - 1.0).abs() < 1e-6, "{m:?}");
+    }
+
+    #[test]
+    fn subscriber_flags_an_injected_jerk_spike() {
+        let lim = limits(100.0);
+        let mut sps = ramp(1e-3, 50_000.0, 20, 30, [1.0, 0.0, 0.0]);
+        // 0.15 µm off the path at one tick: third differences δ, −3δ, 3δ, −δ over
+        // Ts³, i.e. 1.5e5, 4.5e5, 4.5e5, 1.5e5 mm/s³ on s and on X, while
+        // velocity and acceleration stay within their limits.
+        let delta = 1.5e-4;
+        let n = 40;
+        sps[n - 1].s += delta;
+        sps[n - 1].axes[0] += delta;
+        let v = check_all(lim, &sps).violations;
+        assert_eq!(v.over_jerk, 4, "{v:?}"); // path limit 1e5
+        assert_eq!(v.over_axis_jerk, 2, "{v:?}"); // axis limit 2e5
+        assert_eq!(v.first_seq, Some(n as u64));
+        assert_eq!(v.total(), 6, "{v:?}");
+        // The same spike on the arc length alone is a path-jerk failure only.
+        let mut sps = ramp(1e-3, 50_000.0, 20, 30, [1.0, 0.0, 0.0]);
+        sps[n - 1].s += delta;
+        let v = check_all(lim, &sps).violations;
+        assert_eq!((v.over_jerk, v.total()), (4, 4), "{v:?}");
+    }
+
+    #[test]
+    fn the_jerk_limit_holds_to_one_ppm() {
+        let lim = limits(100.0);
+        // 15 ticks at the jerk limit reach 1500 mm/s² (< 2000).
+        let at = |j: f64| check_all(lim, &ramp(1e-3, j, 15, 5, [0.0, 1.0, 0.0])).violations;
+        assert_eq!(at(lim.jerk_mm_s3 * (1.0 - 1e-7)).total(), 0);
+        let v = at(lim.jerk_mm_s3 * (1.0 + 1e-5));
+        assert_eq!((v.over_jerk, v.first_seq), (15, Some(1)), "{v:?}");
+        assert_eq!(v.total(), 15, "{v:?}");
+    }
+
+    #[test]
+    fn axis_limits_apply_per_axis() {
+        // 50 ticks reach 40.5 mm/s; X may do 30 mm/s, Y and Z 1000.
+        let lim = Limits {
+            axis_velocity_mm_s: [30.0, 1000.0, 1000.0],
+            axis_accel_mm_s2: [4000.0, 900.0, 4000.0],
+            ..limits(100.0)
+        };
+        let along = |dir| check_all(lim, &ramp(1e-3, 50_000.0, 20, 30, dir)).violations;
+        let x = along([1.0, 0.0, 0.0]);
+        assert!(x.over_axis_velocity > 0 && x.over_axis_accel == 0, "{x:?}");
+        let y = along([0.0, 1.0, 0.0]);
+        assert!(y.over_axis_velocity == 0 && y.over_axis_accel > 0, "{y:?}");
+        let z = along([0.0, 0.0, 1.0]);
+        assert_eq!(z, Violations::default());
+    }
+
     #[test]
     fn subscriber_catches_gaps_overspeed_overaccel_and_nan() {
         let ts = 1e-3;
-        let mut sub = Subscriber::new(ts, 100.0, 2000.0, [0.0; 3]);
+        // Steps from rest: no jerk or axis limits here (tested above).
+        let lim = Limits {
+            jerk_mm_s3: f64::INFINITY,
+            axis_velocity_mm_s: [f64::INFINITY; 3],
+            axis_accel_mm_s2: [f64::INFINITY; 3],
+            axis_jerk_mm_s3: [f64::INFINITY; 3],
+            ..limits(100.0)
+        };
+        let mut sub = Subscriber::new(ts, lim, [0.0; 3]);
         let mut sp = Setpoint {
             seq: 1,
             time: ts,
@@ -1091,7 +1411,7 @@ mod tests {
         assert_eq!(v.over_chord_speed, 2); // the jump, then NaN
         assert_eq!(v.first_seq, Some(3));
         // A commanded feed above the limit, reached within the acceleration limit.
-        let mut sub = Subscriber::new(ts, 100.0, 2000.0, [0.0; 3]);
+        let mut sub = Subscriber::new(ts, lim, [0.0; 3]);
         let mut x = 0.0;
         for k in 1..=60u32 {
             let feed = (2.0 * f64::from(k)).min(101.0);
@@ -1129,59 +1449,7 @@ mod tests {
         assert_eq!(x, s.final_point[0]);
     }
 
-    /// Counts allocations made by threads that ask for it.
-    mod counting {
-        use core::alloc::{GlobalAlloc, Layout};
-        use core::cell::Cell;
-        use std::alloc::System;
-
-        thread_local! {
-            static ON: Cell<bool> = const { Cell::new(false) };
-            static COUNT: Cell<u64> = const { Cell::new(0) };
-        }
-
-        fn note() {
-            let _ = ON.try_with(|on| {
-                if on.get() {
-                    COUNT.with(|c| c.set(c.get() + 1));
-                }
-            });
-        }
-
-        /// Runs `f` on this thread and returns its result and the allocations it made.
-        pub fn count<R>(f: impl FnOnce() -> R) -> (R, u64) {
-            COUNT.with(|c| c.set(0));
-            ON.with(|on| on.set(true));
-            let r = f();
-            ON.with(|on| on.set(false));
-            (r, COUNT.with(Cell::get))
-        }
-
-        pub struct Counting;
-
-        // SAFETY: forwards to the system allocator unchanged.
-        unsafe impl GlobalAlloc for Counting {
-            unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-                note();
-                // SAFETY: the caller's contract is passed on.
-                unsafe { System.alloc(layout) }
-            }
-            unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-                note();
-                // SAFETY: as above.
-                unsafe { System.alloc_zeroed(layout) }
-            }
-            unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-                note();
-                // SAFETY: as above.
-                unsafe { System.realloc(ptr, layout, new_size) }
-            }
-            unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-                // SAFETY: as above.
-                unsafe { System.dealloc(ptr, layout) }
-            }
-        }
-    }
+    use traces::alloc_count as counting;
 
     #[global_allocator]
     static ALLOCATOR: counting::Counting = counting::Counting;
@@ -1215,6 +1483,32 @@ mod tests {
         assert_eq!(out.last.state, RunState::Done);
         assert_eq!(received, out.last.seq);
         assert_eq!(out.compute.count(), out.last.seq);
+    }
+
+    #[test]
+    fn main_writes_the_plots_into_out_unless_told_not_to() {
+        let dir = std::env::temp_dir().join(format!("interpd-demo-out-{}", std::process::id()));
+        let out = dir.to_str().expect("utf-8 temp path");
+        main(&args(&["--fast", "--no-service", "--out", out])).expect("demo passes");
+        let mut names: Vec<String> = std::fs::read_dir(&dir)
+            .expect("out dir made")
+            .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        let want =
+            ["acceleration", "chord_error", "feed", "jerk", "path_xy"].map(|n| format!("{n}.png"));
+        assert_eq!(names, want);
+        std::fs::remove_dir_all(&dir).expect("cleanup");
+        main(&args(&[
+            "--fast",
+            "--no-service",
+            "--no-plots",
+            "--out",
+            out,
+        ]))
+        .expect("demo passes");
+        assert!(!dir.exists(), "--no-plots wrote into {out}");
+        assert_eq!(args(&[]).out, PathBuf::from(DEFAULT_OUT_DIR));
     }
 
     #[test]

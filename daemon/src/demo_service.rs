@@ -48,6 +48,12 @@ pub struct ServiceRun {
     pub scheduling_warnings: Vec<String>,
     /// Wall time of the run, s.
     pub wall_s: f64,
+    /// The MCAP recording of the run (`interpd replay` / `interpd trace plot` read it).
+    pub recording: Option<std::path::PathBuf>,
+    /// Messages written to it.
+    pub recording_messages: u64,
+    /// Ticks or records the recorder had no room for (the recording is then incomplete).
+    pub recording_drops: u64,
 }
 
 impl ServiceRun {
@@ -117,6 +123,16 @@ impl ServiceRun {
             "  loop        {} overruns, {:.3} s wall",
             self.overruns, self.wall_s
         );
+        if let Some(path) = &self.recording {
+            let _ = writeln!(
+                s,
+                "  recording   {} ({} messages, {} dropped); check it with `interpd replay {}`",
+                path.display(),
+                self.recording_messages,
+                self.recording_drops,
+                path.display()
+            );
+        }
         for w in &self.scheduling_warnings {
             let _ = writeln!(s, "  warning     {w}");
         }
@@ -137,6 +153,9 @@ pub fn run(args: &DemoArgs, direct: &Summary) -> Result<ServiceRun> {
     sargs.period_us = args.period_us.clamp(250, 10_000);
     sargs.no_rt = args.no_rt;
     sargs.position = Some(butterfly::START.to_vec());
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating the output directory {}", args.out.display()))?;
+    sargs.record = Some(args.out.join(crate::demo::RECORDING_FILE));
     // Subscribe before the service publishes, so no sample is missed.
     let (sub_tx, sub_rx) = std::sync::mpsc::channel();
     let st = direct.settings.clone();
@@ -148,12 +167,7 @@ pub fn run(args: &DemoArgs, direct: &Summary) -> Result<ServiceRun> {
             move || -> Result<(Subscriber, u64, u64, u64, bool, [f64; 3])> {
                 let mut sub = SetpointSubscriber::new("interpd_demo_subscriber", &svc_name)?;
                 let _ = sub_tx.send(());
-                let mut check = Subscriber::new(
-                    f64::from(st.period_us) * 1e-6,
-                    st.feed_limit_mm_s,
-                    st.accel_mm_s2,
-                    start,
-                );
+                let mut check = Subscriber::new(f64::from(st.period_us) * 1e-6, st.limits, start);
                 let (mut ticks, mut done, mut last_rx) = (0u64, false, Instant::now());
                 let mut last = start;
                 while !done {
@@ -229,5 +243,8 @@ pub fn run(args: &DemoArgs, direct: &Summary) -> Result<ServiceRun> {
         overruns: summary.overruns,
         scheduling_warnings: summary.scheduling_warnings,
         wall_s: t0.elapsed().as_secs_f64(),
+        recording: summary.trace,
+        recording_messages: summary.trace_messages,
+        recording_drops: summary.recorder_drops + summary.trace_overflows,
     })
 }

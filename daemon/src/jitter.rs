@@ -83,6 +83,19 @@ pub struct JitterReport {
     pub p99_lateness_ratio: Option<f64>,
     /// Scheduling refused.
     pub scheduling_warnings: Vec<String>,
+    /// 1-, 5- and 15-minute load averages (`/proc/loadavg`) when the run
+    /// started and when it ended, so that figures from a busy machine say so.
+    pub load_average: [Option<[f64; 3]>; 2],
+}
+
+/// The load averages of `/proc/loadavg` (`None` where it is not there or not understood).
+fn load_average() -> Option<[f64; 3]> {
+    parse_loadavg(&std::fs::read_to_string("/proc/loadavg").ok()?)
+}
+
+fn parse_loadavg(text: &str) -> Option<[f64; 3]> {
+    let mut it = text.split_whitespace().map(str::parse::<f64>);
+    Some([it.next()?.ok()?, it.next()?.ok()?, it.next()?.ok()?])
 }
 
 fn bare_loop(args: &JitterArgs) -> Result<(LoopFigures, Vec<String>)> {
@@ -147,6 +160,7 @@ pub fn main(args: &JitterArgs) -> Result<()> {
     if !(args.seconds.is_finite() && args.seconds > 0.0) {
         bail!("--seconds must be positive");
     }
+    let load_before = load_average();
     let (bare, mut warnings) = bare_loop(args)?;
 
     let service = format!("interpd/jitter/{}", std::process::id());
@@ -222,6 +236,7 @@ pub fn main(args: &JitterArgs) -> Result<()> {
         recorder_drops: summary.recorder_drops,
         p99_lateness_ratio: ratio,
         scheduling_warnings: warnings,
+        load_average: [load_before, load_average()],
     };
     if args.json {
         println!("{}", serde_json::to_string(&report)?);
@@ -262,7 +277,33 @@ fn print_report(r: &JitterReport) {
     if let Some(x) = r.p99_lateness_ratio {
         println!("  p99 lateness full / bare: {x:.2}");
     }
+    let fmt = |l: &Option<[f64; 3]>| {
+        l.map_or_else(
+            || "-".to_owned(),
+            |[a, b, c]| format!("{a:.2} {b:.2} {c:.2}"),
+        )
+    };
+    println!(
+        "  load average (1/5/15 min): {} at the start, {} at the end",
+        fmt(&r.load_average[0]),
+        fmt(&r.load_average[1])
+    );
     for w in &r.scheduling_warnings {
         println!("  warning: {w}");
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn load_averages_are_read_from_proc_loadavg_text() {
+        assert_eq!(
+            parse_loadavg("10.53 11.20 7.81 3/812 43110\n"),
+            Some([10.53, 11.2, 7.81])
+        );
+        assert_eq!(parse_loadavg("0.5 x 1"), None);
+        assert_eq!(parse_loadavg(""), None);
     }
 }

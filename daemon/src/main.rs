@@ -11,6 +11,7 @@
 mod clock;
 mod control;
 mod demo;
+mod demo_plots;
 mod demo_service;
 mod histogram;
 mod jitter;

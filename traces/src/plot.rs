@@ -205,7 +205,9 @@ fn draw<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, fig: &Figure) -> Resul
                         .iter()
                         .copied()
                         .filter(|p| p.0.is_finite() && p.1.is_finite()),
-                    color.stroke_width(2),
+                    // Wide polylines get miter spikes at the sharp turns of
+                    // noisy time series (beyond the data); paths are smooth.
+                    color.stroke_width(if fig.kind == Kind::Path { 2 } else { 1 }),
                 ))
                 .map_err(e)?,
         };
@@ -424,6 +426,120 @@ pub fn plot_trace(
     Ok(PlotReport { files, notes })
 }
 
+/// One line of a [`Chart`].
+#[derive(Clone, Debug)]
+pub struct ChartLine {
+    /// Legend text.
+    pub name: String,
+    /// A limit or tolerance (drawn in red) rather than measured data.
+    pub limit: bool,
+    /// The points, in x order for time series.
+    pub points: Vec<(f64, f64)>,
+}
+
+impl ChartLine {
+    /// Measured data.
+    pub fn data(name: &str, points: Vec<(f64, f64)>) -> Self {
+        ChartLine {
+            name: name.to_owned(),
+            limit: false,
+            points,
+        }
+    }
+
+    /// A limit or tolerance.
+    pub fn limit(name: &str, points: Vec<(f64, f64)>) -> Self {
+        ChartLine {
+            name: name.to_owned(),
+            limit: true,
+            points,
+        }
+    }
+}
+
+/// A figure built by the caller (for runs that are not a [`Trace`], such as
+/// `interpd demo`), drawn as [`plot_trace`] draws its own.
+#[derive(Clone, Debug)]
+pub struct Chart {
+    /// File name without extension.
+    pub file: &'static str,
+    /// Caption.
+    pub title: String,
+    /// X axis label.
+    pub x_label: &'static str,
+    /// Y axis label.
+    pub y_label: &'static str,
+    /// Equal scales on both axes (a tool path); otherwise a time series.
+    pub equal_axes: bool,
+    /// The lines, data before limits.
+    pub lines: Vec<ChartLine>,
+}
+
+/// Writes each chart as `<file>.png` into `out_dir` (made if missing), and as
+/// `<file>.svg` too when `svg`. Long series are thinned as in [`plot_trace`]
+/// (min and max per bucket for time series, every k-th point for paths).
+pub fn plot_charts(charts: &[Chart], out_dir: &Path, svg: bool) -> Result<PlotReport, PlotError> {
+    register_font();
+    std::fs::create_dir_all(out_dir).map_err(|source| PlotError::Dir {
+        path: out_dir.display().to_string(),
+        source,
+    })?;
+    const DATA_COLORS: [RGBColor; 3] = [BLUE_, ORANGE_, GREEN_];
+    let mut files = Vec::new();
+    for c in charts {
+        let mut data = DATA_COLORS.iter().cycle();
+        let fig = Figure {
+            file: c.file,
+            title: c.title.clone(),
+            x_label: c.x_label,
+            y_label: c.y_label,
+            kind: if c.equal_axes {
+                Kind::Path
+            } else {
+                Kind::Lines
+            },
+            series: c
+                .lines
+                .iter()
+                .map(|l| {
+                    let color = if l.limit {
+                        RED_
+                    } else {
+                        *data.next().unwrap_or(&BLUE_)
+                    };
+                    let points = if c.equal_axes {
+                        stride(l.points.clone())
+                    } else {
+                        thin(l.points.clone())
+                    };
+                    series(&l.name, color, points)
+                })
+                .collect(),
+        };
+        let err = |p: &Path, reason: String| PlotError::Draw {
+            path: p.display().to_string(),
+            reason,
+        };
+        let png = out_dir.join(format!("{}.png", fig.file));
+        draw(
+            BitMapBackend::new(&png, PLOT_SIZE).into_drawing_area(),
+            &fig,
+        )
+        .map_err(|r| err(&png, r))?;
+        files.push(png);
+        if svg {
+            let path = out_dir.join(format!("{}.svg", fig.file));
+            draw(SVGBackend::new(&path, PLOT_SIZE).into_drawing_area(), &fig)
+                .map_err(|r| err(&path, r))?;
+            files.push(path);
+        }
+    }
+    Ok(PlotReport {
+        files,
+        notes: Vec::new(),
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -439,5 +555,60 @@ mod tests {
         assert!(out.windows(2).all(|w| w[0].0 < w[1].0));
         let short = vec![(0.0, 1.0), (1.0, 2.0)];
         assert_eq!(thin(short.clone()), short);
+    }
+
+    #[test]
+    fn charts_are_written_as_png_and_svg() {
+        let dir = std::env::temp_dir().join(format!("traces-charts-{}", std::process::id()));
+        let sine: Vec<(f64, f64)> = (0..20_000)
+            .map(|i| (f64::from(i) * 1e-3, (f64::from(i) * 1e-3).sin()))
+            .collect();
+        let charts = [
+            Chart {
+                file: "series",
+                title: "a sine and its limit".into(),
+                x_label: "t [s]",
+                y_label: "y",
+                equal_axes: false,
+                lines: vec![
+                    ChartLine::data("sin", sine.clone()),
+                    ChartLine::limit("limit", vec![(0.0, 1.0), (20.0, 1.0)]),
+                ],
+            },
+            Chart {
+                file: "path",
+                title: "a circle".into(),
+                x_label: "x",
+                y_label: "y",
+                equal_axes: true,
+                lines: vec![ChartLine::data(
+                    "path",
+                    sine.iter().map(|&(t, _)| (t.cos(), t.sin())).collect(),
+                )],
+            },
+        ];
+        let report = plot_charts(&charts, &dir, true).expect("charts drawn");
+        let names: Vec<String> = report
+            .files
+            .iter()
+            .map(|p| {
+                p.file_name()
+                    .unwrap_or_default()
+                    .to_string_lossy()
+                    .into_owned()
+            })
+            .collect();
+        assert_eq!(names, ["series.png", "series.svg", "path.png", "path.svg"]);
+        for f in &report.files {
+            let bytes = std::fs::read(f).expect("file written");
+            if f.extension().is_some_and(|e| e == "png") {
+                assert_eq!(&bytes[1..4], b"PNG", "{}", f.display());
+            } else {
+                assert!(String::from_utf8_lossy(&bytes).contains("<svg"));
+            }
+        }
+        let report = plot_charts(&charts[..1], &dir, false).expect("png only");
+        assert_eq!(report.files.len(), 1);
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -22,61 +22,10 @@ fn setpoint(k: u64) -> Setpoint {
     }
 }
 
-/// Counts allocations made by threads that ask for it.
-mod counting {
-    use std::alloc::{GlobalAlloc, Layout, System};
-    use std::cell::Cell;
-
-    thread_local! {
-        static ON: Cell<bool> = const { Cell::new(false) };
-        static COUNT: Cell<u64> = const { Cell::new(0) };
-    }
-
-    fn note() {
-        let _ = ON.try_with(|on| {
-            if on.get() {
-                COUNT.with(|c| c.set(c.get() + 1));
-            }
-        });
-    }
-
-    /// Runs `f` and returns its result and the allocations it made on this thread.
-    pub fn count<R>(f: impl FnOnce() -> R) -> (R, u64) {
-        COUNT.with(|c| c.set(0));
-        ON.with(|on| on.set(true));
-        let r = f();
-        ON.with(|on| on.set(false));
-        (r, COUNT.with(Cell::get))
-    }
-
-    pub struct Counting;
-
-    // SAFETY: forwards to the system allocator unchanged.
-    unsafe impl GlobalAlloc for Counting {
-        unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-            note();
-            // SAFETY: the caller's contract is passed on.
-            unsafe { System.alloc(layout) }
-        }
-        unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-            note();
-            // SAFETY: as above.
-            unsafe { System.alloc_zeroed(layout) }
-        }
-        unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-            note();
-            // SAFETY: as above.
-            unsafe { System.realloc(ptr, layout, new_size) }
-        }
-        unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-            // SAFETY: as above.
-            unsafe { System.dealloc(ptr, layout) }
-        }
-    }
-}
-
 #[global_allocator]
 static ALLOCATOR: counting::Counting = counting::Counting;
+
+use traces::alloc_count as counting;
 
 #[test]
 fn a_small_queue_overflows_counts_and_records_it_without_allocating() {
