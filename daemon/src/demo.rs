@@ -1451,8 +1451,11 @@ mod tests {
 
     use traces::alloc_count as counting;
 
+    /// The binary's RT pool in front of the counting allocator: tests count
+    /// what reaches the system allocator.
     #[global_allocator]
-    static ALLOCATOR: counting::Counting = counting::Counting;
+    static ALLOCATOR: crate::rt_alloc::RtPool<counting::Counting> =
+        crate::rt_alloc::RtPool(counting::Counting);
 
     #[test]
     fn the_loop_does_not_allocate() {

@@ -22,11 +22,19 @@ mod protocol;
 mod publish;
 mod replay;
 mod rt;
+mod rt_alloc;
 mod send;
 mod serve;
 mod simulate;
 mod trace_cmd;
 mod watch;
+
+/// The system allocator behind the RT thread's fixed pool (`rt_alloc`):
+/// iceoryx2 allocates a small object per published sample. The daemon's unit
+/// tests install the same pool in front of a counting allocator (`demo.rs`).
+#[cfg(not(test))]
+#[global_allocator]
+static ALLOCATOR: rt_alloc::RtPool<std::alloc::System> = rt_alloc::RtPool(std::alloc::System);
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};

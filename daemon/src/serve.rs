@@ -151,7 +151,7 @@ pub struct ServeSummary {
     pub lateness_us: Option<Percentiles>,
     /// Tick + publish, µs (ticks without a push).
     pub tick_publish_us: Option<Percentiles>,
-    /// Push + tick + publish, µs (ticks with a push).
+    /// Commit + tick + publish, µs (ticks with a commit).
     pub tick_publish_with_push_us: Option<Percentiles>,
     /// Missed periods.
     pub overruns: u64,
@@ -161,6 +161,10 @@ pub struct ServeSummary {
     pub recorded: u64,
     /// Failed publishes.
     pub publish_failures: u64,
+    /// Small allocations on the RT thread served by its fixed pool (iceoryx2's per-sample object).
+    pub rt_pool_served: u64,
+    /// RT-thread allocations the pool could not serve (went to the system allocator; 0 expected).
+    pub rt_pool_fallbacks: u64,
     /// Scheduling refused (normal scheduling was used).
     pub scheduling_warnings: Vec<String>,
     /// The MCAP trace written, if any.
@@ -457,6 +461,8 @@ pub fn start(
                 recorder_drops: status.recorder_drops.load(Ordering::Acquire),
                 recorded,
                 publish_failures: status.publish_failures.load(Ordering::Acquire),
+                rt_pool_served: crate::rt_alloc::served(),
+                rt_pool_fallbacks: crate::rt_alloc::fallbacks(),
                 scheduling_warnings: report.scheduling_warnings,
                 trace: record_path,
                 trace_messages,
@@ -585,10 +591,15 @@ pub fn print_summary(s: &ServeSummary) {
     };
     show("wake lateness", &s.lateness_us);
     show("tick+publish", &s.tick_publish_us);
-    show("push+tick+publish", &s.tick_publish_with_push_us);
+    show("commit+tick+publish", &s.tick_publish_with_push_us);
     println!(
-        "  overruns {}, recorder drops {}, recorded {}, publish failures {}",
-        s.overruns, s.recorder_drops, s.recorded, s.publish_failures
+        "  overruns {}, recorder drops {}, recorded {}, publish failures {}, RT pool {} served / {} fallbacks",
+        s.overruns,
+        s.recorder_drops,
+        s.recorded,
+        s.publish_failures,
+        s.rt_pool_served,
+        s.rt_pool_fallbacks
     );
     if let Some(t) = &s.trace {
         println!(
