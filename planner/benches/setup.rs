@@ -43,6 +43,9 @@ fn run(name: &str, part: &TriMesh, cells: usize, repeats: usize) {
         best(&vis),
         rays / best(&vis) / 1e6
     );
+    if std::env::args().any(|a| a == "map-only") {
+        return;
+    }
     for (label, kind) in [
         ("C,A search", MachineType::CA),
         ("A,B search", MachineType::AB),
@@ -84,9 +87,12 @@ fn main() {
             3,
         );
     }
+    if args.iter().any(|a| a == "medium") {
+        run("medium teapot", &mesh(teapot(40, 64, 18, 32)), 5000, 1);
+    }
     if args.iter().any(|a| a == "large") {
         run("large teapot", &mesh(teapot(160, 256, 72, 128)), 20_000, 1);
-    } else if !args.iter().any(|a| a == "cavity") {
+    } else if !args.iter().any(|a| a == "cavity" || a == "medium") {
         run("paper teapot", &mesh(teapot(10, 12, 5, 6)), 1200, 5);
     }
 }

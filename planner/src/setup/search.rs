@@ -6,6 +6,7 @@ use std::collections::HashMap;
 use std::f64::consts::{PI, TAU};
 
 use nalgebra::Vector3;
+use rayon::prelude::*;
 
 use super::machine::{AxisRanges, MachineType};
 use super::visibility::VisibilityMap;
@@ -25,18 +26,25 @@ pub struct PvcClasses {
     pub classes: usize,
     words: usize,
     rows: Vec<u64>,
+    cells: usize,
 }
 
 impl PvcClasses {
-    /// Groups the patches of `map` by identical cones.
-    pub fn new(map: &VisibilityMap) -> Self {
+    /// Groups the patches of `map` (on a sphere with cell directions
+    /// `cells`) by identical cones.
+    ///
+    /// Classes are numbered in the order of their cones' mean directions
+    /// along a serpentine latitude–longitude path, so that classes reached at
+    /// about the same step of the MD walk ([`md_cells`]) share words of the
+    /// bitsets and those words retire early.
+    pub fn new(map: &VisibilityMap, cells: &[V3]) -> Self {
         let mut index: HashMap<&[u64], u32> = HashMap::new();
         let mut reps: Vec<usize> = Vec::new();
-        let mut class_of = Vec::with_capacity(map.patches());
+        let mut first_class = Vec::with_capacity(map.patches());
         for j in 0..map.patches() {
             let pvc = map.pvc(j);
             if pvc.iter().all(|w| *w == 0) {
-                class_of.push(None);
+                first_class.push(None);
                 continue;
             }
             let next = reps.len() as u32;
@@ -44,13 +52,44 @@ impl PvcClasses {
                 reps.push(j);
                 next
             });
-            class_of.push(Some(k));
+            first_class.push(Some(k));
         }
         let classes = reps.len();
+        // Spatial order of the classes.
+        let keys: Vec<(u32, i64)> = reps
+            .par_iter()
+            .map(|&j| {
+                let mut sum = V3::zeros();
+                for (w, bits) in map.pvc(j).iter().enumerate() {
+                    let mut bits = *bits;
+                    while bits != 0 {
+                        sum += cells[w * 64 + bits.trailing_zeros() as usize];
+                        bits &= bits - 1;
+                    }
+                }
+                /// Rows and columns of the ordering grid.
+                const ORDER_ROWS: f64 = 64.0;
+                let theta = sum.z.atan2(sum.xy().norm()) + PI / 2.0; // 0..π
+                let phi = sum.y.atan2(sum.x) + PI; // 0..2π
+                let row = ((theta / PI * ORDER_ROWS) as i64).min(ORDER_ROWS as i64 - 1);
+                let col = (phi / TAU * 2.0 * ORDER_ROWS) as i64;
+                (row as u32, if row % 2 == 0 { col } else { -col })
+            })
+            .collect();
+        let mut order: Vec<u32> = (0..classes as u32).collect();
+        order.sort_by_key(|&k| (keys[k as usize], k));
+        let mut renumber = vec![0u32; classes];
+        for (new, &old) in order.iter().enumerate() {
+            renumber[old as usize] = new as u32;
+        }
+        let class_of: Vec<Option<u32>> = first_class
+            .iter()
+            .map(|c| c.map(|k| renumber[k as usize]))
+            .collect();
         let words = classes.div_ceil(64);
         let mut rows = vec![0u64; words * map.cells()];
-        for (k, &j) in reps.iter().enumerate() {
-            for (w, bits) in map.pvc(j).iter().enumerate() {
+        for (k, &old) in order.iter().enumerate() {
+            for (w, bits) in map.pvc(reps[old as usize]).iter().enumerate() {
                 let mut bits = *bits;
                 while bits != 0 {
                     let c = w * 64 + bits.trailing_zeros() as usize;
@@ -64,11 +103,27 @@ impl PvcClasses {
             classes,
             words,
             rows,
+            cells: map.cells(),
         }
     }
 
     fn row(&self, cell: usize) -> &[u64] {
         &self.rows[cell * self.words..(cell + 1) * self.words]
+    }
+
+    /// The cells in every class's cone: the tool axes that reach all
+    /// reachable patches without rotary motion (Group II empty).
+    pub fn common_cells(&self) -> Vec<usize> {
+        let full = |w: usize| {
+            if w + 1 == self.words && !self.classes.is_multiple_of(64) {
+                (1u64 << (self.classes % 64)) - 1
+            } else {
+                u64::MAX
+            }
+        };
+        (0..self.cells)
+            .filter(|&c| self.row(c).iter().enumerate().all(|(w, &x)| x == full(w)))
+            .collect()
     }
 }
 
