@@ -11,8 +11,18 @@ use std::time::Instant;
 use planner::mesh::{TriMesh, WeldOptions};
 use planner::setup::samples::{cavity, teapot};
 use planner::setup::{
-    AxisRanges, GeodesicSphere, MachineType, SetupConfig, search_setup, visibility_map,
+    AxisRanges, GeodesicSphere, MachineType, Phase, SetupConfig, search_setup, visibility_map,
 };
+
+/// Prints to stderr each tenth of a phase done (the large case runs for
+/// minutes).
+fn report(phase: Phase, done: usize, total: usize) {
+    let tenth = |n: usize| n * 10 / total.max(1);
+    let before = done.saturating_sub(64);
+    if tenth(done) != tenth(before) || done == total {
+        eprintln!("    {phase:?} {done}/{total}");
+    }
+}
 
 fn run(name: &str, part: &TriMesh, cells: usize, repeats: usize) {
     let sphere = GeodesicSphere::with_at_least(cells).expect("valid cell count");
@@ -34,7 +44,7 @@ fn run(name: &str, part: &TriMesh, cells: usize, repeats: usize) {
     let mut map = None;
     for _ in 0..repeats {
         let t = Instant::now();
-        map = Some(visibility_map(part, &sphere, &config, &|_, _, _| {}).expect("valid config"));
+        map = Some(visibility_map(part, &sphere, &config, &report).expect("valid config"));
         vis.push(t.elapsed().as_secs_f64());
     }
     let map = map.expect("at least one run");
@@ -54,14 +64,7 @@ fn run(name: &str, part: &TriMesh, cells: usize, repeats: usize) {
         let mut last = None;
         for _ in 0..repeats {
             let t = Instant::now();
-            last = Some(search_setup(
-                &map,
-                &sphere,
-                kind,
-                &ranges,
-                &config,
-                &|_, _, _| {},
-            ));
+            last = Some(search_setup(&map, &sphere, kind, &ranges, &config, &report));
             times.push(t.elapsed().as_secs_f64());
         }
         let p = last.expect("at least one run");

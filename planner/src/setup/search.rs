@@ -447,6 +447,8 @@ pub struct RectScratch {
     bins: Vec<bool>,
     tan_vec: Vec<V3>,
     cross: Vec<V3>,
+    ortho_pts: Vec<(f64, f64, usize)>,
+    ortho: Vec<usize>,
 }
 
 /// A key that orders points `(x, y)` like `atan2(y, x)` does, in (−2, 2].
@@ -508,6 +510,25 @@ pub fn rect_search(
         let b = ((t / PI * bins as f64) as usize).min(bins - 1);
         !std::mem::replace(&mut scratch.bins[b], true)
     });
+    // v·R1 with R1 ⊥ p depends only on v's orthogonal projection onto the
+    // tangent plane at p, a linear function there: its extremes over the MD
+    // points (and p, at the origin) are on the vertices of the projections'
+    // planar hull.
+    scratch.ortho_pts.clear();
+    scratch.ortho_pts.push((0.0, 0.0, usize::MAX));
+    scratch.ortho_pts.extend(
+        md.iter()
+            .enumerate()
+            .map(|(i, v)| (v.dot(&e1), v.dot(&e2), i)),
+    );
+    let ortho_hull = planar_hull(&mut scratch.ortho_pts);
+    scratch.ortho.clear();
+    scratch.ortho.extend(
+        ortho_hull
+            .iter()
+            .map(|&k| scratch.ortho_pts[k].2)
+            .filter(|&i| i != usize::MAX),
+    );
     scratch.tan_vec.clear();
     scratch.cross.clear();
     if !all_in_hull {
@@ -559,8 +580,8 @@ pub fn rect_search(
                 (xy_max.1.atan2(xy_max.0), xy_min.1.atan2(xy_min.0))
             };
             let (mut lmax, mut lmin) = (0.0f64, 0.0f64);
-            for v in md {
-                let l = v.dot(&r1);
+            for &i in &scratch.ortho {
+                let l = md[i].dot(&r1);
                 lmax = lmax.max(l);
                 lmin = lmin.min(l);
             }
@@ -593,31 +614,16 @@ pub fn rect_search(
     (best.expect("fallback directions are never empty"), best_fit)
 }
 
-/// Convex hull (counter-clockwise about `p`) of `p` and the MD points in the
-/// open hemisphere around `p`, as indices into `md` (`p` itself left out).
-///
-/// A great circle through two points of the hemisphere maps to a straight
-/// line under the gnomonic (central) projection onto the tangent plane at
-/// `p`, so the spherical hull is the planar hull of the projected points;
-/// its edges are the great circles whose supporting-vertex test is eq. 14.
-fn spherical_hull(p: &V3, md: &[V3], e1: &V3, e2: &V3, scratch: &mut RectScratch) {
-    scratch.proj.clear();
-    scratch.proj.push((0.0, 0.0, usize::MAX));
-    for (i, v) in md.iter().enumerate() {
-        let d = v.dot(p);
-        if d > HULL_MIN_DOT {
-            scratch.proj.push((v.dot(e1) / d, v.dot(e2) / d, i));
-        }
-    }
-    scratch
-        .proj
-        .sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
-    scratch.proj.dedup_by(|a, b| a.0 == b.0 && a.1 == b.1);
-    let pts = &scratch.proj;
+/// Convex hull of the points `pts` (`(x, y, tag)`), counter-clockwise, as
+/// indices into `pts` after it has been sorted and deduplicated (Andrew's
+/// monotone chain).
+fn planar_hull(pts: &mut Vec<(f64, f64, usize)>) -> Vec<usize> {
+    pts.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    pts.dedup_by(|a, b| a.0 == b.0 && a.1 == b.1);
+    let pts = &*pts;
     let cross = |o: &(f64, f64, usize), a: &(f64, f64, usize), b: &(f64, f64, usize)| {
         (a.0 - o.0) * (b.1 - o.1) - (a.1 - o.1) * (b.0 - o.0)
     };
-    // Andrew's monotone chain.
     let mut hull: Vec<usize> = Vec::with_capacity(pts.len() * 2);
     for pass in 0..2 {
         let start = hull.len();
@@ -640,6 +646,27 @@ fn spherical_hull(p: &V3, md: &[V3], e1: &V3, e2: &V3, scratch: &mut RectScratch
         }
         hull.pop();
     }
+    hull
+}
+
+/// Convex hull (counter-clockwise about `p`) of `p` and the MD points in the
+/// open hemisphere around `p`, as indices into `md` (`p` itself left out).
+///
+/// A great circle through two points of the hemisphere maps to a straight
+/// line under the gnomonic (central) projection onto the tangent plane at
+/// `p`, so the spherical hull is the planar hull of the projected points;
+/// its edges are the great circles whose supporting-vertex test is eq. 14.
+fn spherical_hull(p: &V3, md: &[V3], e1: &V3, e2: &V3, scratch: &mut RectScratch) {
+    scratch.proj.clear();
+    scratch.proj.push((0.0, 0.0, usize::MAX));
+    for (i, v) in md.iter().enumerate() {
+        let d = v.dot(p);
+        if d > HULL_MIN_DOT {
+            scratch.proj.push((v.dot(e1) / d, v.dot(e2) / d, i));
+        }
+    }
+    let mut hull = planar_hull(&mut scratch.proj);
+    let pts = &scratch.proj;
     scratch.hull.clear();
     // Rotate so that `p` (if it is a hull vertex) is dropped; the caller puts
     // it first, which keeps the cyclic order when it is a vertex.

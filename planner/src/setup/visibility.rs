@@ -373,14 +373,16 @@ const CAP_MIN_COS: f64 = 0.05;
 /// cap holds about this many cells or fewer.
 const CULL_MAX_CELLS: f64 = 16.0;
 
-/// The cell directions bucketed on a latitude–longitude grid around a pole in
+/// The cell directions bucketed in rows of equal height along a pole in
 /// general position (so that the axes of a part do not meet the crowded
-/// polar rows), to list the cells inside a spherical cap.
+/// polar rows) and in longitude within each row, to list the cells inside a
+/// spherical cap without inverse trigonometry per row.
 #[derive(Debug)]
 struct CellGrid {
     /// `e1`, `e2`, pole.
     frame: [Vector3<f64>; 3],
-    dtheta: f64,
+    /// Row height in `1 − z` (z along the pole): rows have equal area.
+    dz: f64,
     /// Per row: first bucket and number of buckets (longitudes).
     rows: Vec<(usize, usize)>,
     /// Bucket `k` holds `entries[starts[k]..starts[k + 1]]`.
@@ -393,27 +395,28 @@ struct CellGrid {
 }
 
 impl CellGrid {
-    /// Rows about 1.5 cell spacings tall, so that a bucket holds about two
-    /// cells.
+    /// Rows about 1.5 cell spacings tall at the equator, buckets as wide, so
+    /// that a bucket holds about two cells.
     fn new(sphere: &GeodesicSphere) -> Self {
-        /// Row height in cell spacings.
-        const ROW_SPACINGS: f64 = 1.5;
+        /// Bucket size in cell spacings.
+        const BUCKET_SPACINGS: f64 = 1.5;
         let pole = Vector3::new(0.37, -0.52, 0.77).normalize();
         let e1 = pole.cross(&Vector3::x()).normalize();
         let e2 = pole.cross(&e1);
-        let n_rows = ((PI / (sphere.spacing() * ROW_SPACINGS)).ceil() as usize).max(1);
-        let dtheta = PI / n_rows as f64;
+        let step = sphere.spacing() * BUCKET_SPACINGS;
+        let n_rows = ((2.0 / step).ceil() as usize).max(1);
+        let dz = 2.0 / n_rows as f64;
         let mut rows = Vec::with_capacity(n_rows);
         let mut buckets = 0;
         for r in 0..n_rows {
-            let mid = (r as f64 + 0.5) * dtheta;
-            let n_phi = ((TAU * mid.sin() / dtheta).ceil() as usize).max(1);
+            let z = 1.0 - (r as f64 + 0.5) * dz;
+            let n_phi = ((TAU * (1.0 - z * z).max(0.0).sqrt() / step).ceil() as usize).max(1);
             rows.push((buckets, n_phi));
             buckets += n_phi;
         }
         let mut grid = Self {
             frame: [e1, e2, pole],
-            dtheta,
+            dz,
             rows,
             starts: vec![0; buckets + 1],
             entries: Vec::new(),
@@ -436,18 +439,20 @@ impl CellGrid {
         grid
     }
 
-    /// Colatitude and longitude (in `[0, 2π)`) of `d` in the grid's frame.
+    /// Height along the pole and longitude (in `[0, 2π)`) of `d`.
     fn polar(&self, d: &Vector3<f64>) -> (f64, f64) {
         let [e1, e2, pole] = &self.frame;
-        let z = d.dot(pole).clamp(-1.0, 1.0);
         let phi = d.dot(e2).atan2(d.dot(e1)).rem_euclid(TAU);
-        (z.acos(), phi)
+        (d.dot(pole).clamp(-1.0, 1.0), phi)
+    }
+
+    fn row_of(&self, z: f64) -> usize {
+        (((1.0 - z) / self.dz).max(0.0) as usize).min(self.rows.len() - 1)
     }
 
     fn bucket(&self, d: &Vector3<f64>) -> usize {
-        let (theta, phi) = self.polar(d);
-        let r = ((theta / self.dtheta) as usize).min(self.rows.len() - 1);
-        let (first, n_phi) = self.rows[r];
+        let (z, phi) = self.polar(d);
+        let (first, n_phi) = self.rows[self.row_of(z)];
         first + ((phi / TAU * n_phi as f64) as usize).min(n_phi - 1)
     }
 
@@ -458,28 +463,39 @@ impl CellGrid {
     }
 
     /// Calls `f(cell, direction)` for every cell in the cap around the unit
-    /// vector `centre` of angular radius `r` (< π/2), and maybe a few more;
-    /// stops when `f` returns `true`, and returns whether it did.
+    /// vector `centre` of angular radius `r` (given as `cos r ≥ 0` and
+    /// `sin r`), and maybe a few more; stops when `f` returns `true`, and
+    /// returns whether it did.
     fn any_in_cap(
         &self,
         centre: &Vector3<f64>,
-        r: f64,
+        cos_r: f64,
+        sin_r: f64,
         mut f: impl FnMut(usize, &Vector3<f64>) -> bool,
     ) -> bool {
-        let r = r + CAP_MARGIN;
-        let (theta, phi) = self.polar(centre);
-        let (lo, hi) = (theta - r, theta + r);
-        let whole = lo <= 0.0 || hi >= PI;
+        let (z, phi) = self.polar(centre);
+        let s = (1.0 - z * z).max(0.0).sqrt();
+        // Heights of the cap's rim nearest and farthest from the pole, or
+        // the pole itself when the cap holds it.
+        let holds_north = z >= cos_r - CAP_MARGIN;
+        let holds_south = -z >= cos_r - CAP_MARGIN;
+        let z_hi = if holds_north {
+            1.0
+        } else {
+            z * cos_r + s * sin_r + CAP_MARGIN
+        };
+        let z_lo = if holds_south {
+            -1.0
+        } else {
+            z * cos_r - s * sin_r - CAP_MARGIN
+        };
         // Longitude half-width of a cap clear of the poles.
-        let dphi = if whole {
+        let dphi = if holds_north || holds_south || sin_r >= s {
             PI
         } else {
-            (r.sin() / theta.sin()).min(1.0).asin() + CAP_MARGIN
+            (sin_r / s).asin() + CAP_MARGIN
         };
-        let last = self.rows.len() - 1;
-        let r0 = ((lo.max(0.0) / self.dtheta) as usize).min(last);
-        let r1 = ((hi.min(PI) / self.dtheta) as usize).min(last);
-        for &(first, n_phi) in &self.rows[r0..=r1] {
+        for &(first, n_phi) in &self.rows[self.row_of(z_hi)..=self.row_of(z_lo)] {
             let (k0, count) = if dphi >= PI {
                 (0, n_phi)
             } else {
@@ -571,11 +587,11 @@ impl RayCaster {
                 return true;
             }
             let u = to / dist;
-            let cos_test = (sin_r.asin() + CAP_MARGIN).cos();
+            let cos_test = cos_r - CAP_MARGIN;
             if in_cap > open as f64 {
                 any_open(row, |i| grid.dirs[i].dot(&u) >= cos_test)
             } else {
-                grid.any_in_cap(&u, sin_r.asin(), |i, d| {
+                grid.any_in_cap(&u, cos_r, sin_r, |i, d| {
                     is_open(row, i) && d.dot(&u) >= cos_test
                 })
             }
@@ -682,7 +698,8 @@ fn close_cone(
             }
         }
     } else {
-        grid.any_in_cap(&centre, cos_r.clamp(-1.0, 1.0).acos(), |i, d| {
+        let sin_r = (1.0 - cos_r * cos_r).max(0.0).sqrt();
+        grid.any_in_cap(&centre, cos_r, sin_r, |i, d| {
             if is_open(row, i) && inside(d) {
                 row[i / 64] &= !(1 << (i % 64));
                 closed += 1;
@@ -859,10 +876,14 @@ mod raster_tests {
         let sphere = GeodesicSphere::with_frequency(12);
         let grid = CellGrid::new(&sphere);
         let probe = GeodesicSphere::with_frequency(5);
-        for u in probe.cells() {
+        // Also caps around, and grazing, the grid's poles.
+        let pole = grid.frame[2];
+        let near_pole = (pole + grid.frame[0] * 0.02).normalize();
+        let extra = [pole, -pole, near_pole, -near_pole];
+        for u in probe.cells().iter().chain(&extra) {
             for r in [0.01f64, 0.05, 0.2, 0.7, 1.4] {
                 let mut listed = vec![false; sphere.len()];
-                grid.any_in_cap(u, r, |i, _| {
+                grid.any_in_cap(u, r.cos(), r.sin(), |i, _| {
                     listed[i] = true;
                     false
                 });
