@@ -7,9 +7,12 @@
 //!
 //! 1. [`sphere`]: a triangulated sphere of `m` cells (tool-axis directions);
 //! 2. [`visibility`]: the point visibility cone `PVC_j` of every patch as a
-//!    set of cells — the binary spherical map — by ray casting through a BVH
-//!    (the tool's own volume is ignored, as in the paper);
-//! 3. [`search`]: every cell `C_i` is tried as the tool axis; Group II patches
+//!    set of cells — the binary spherical map — by rasterising the occluding
+//!    triangles (found through a BVH) onto the cells around the patch, which
+//!    gives exactly the ray-cast map (the tool's own volume is ignored, as in
+//!    the paper);
+//! 3. [`search`]: every cell `C_i` is tried as the tool axis (coarse to fine
+//!    on spheres finer than `4 ×` [`SetupConfig::coarse_cells`]); Group II patches
 //!    (not reachable from `C_i`, eq. 3) are represented by their MD points
 //!    (eq. 4); the C,A fan search (eq. 5–13) or the A,B spherical-rectangle
 //!    search over their convex hull (eq. 14–21) sizes the FTM⁵ that holds
