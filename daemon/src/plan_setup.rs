@@ -219,8 +219,9 @@ fn compute(args: &SetupArgs) -> Result<PlanOut> {
             }
             let pb = ProgressBar::new(total as u64);
             let label = match phase {
-                Phase::Visibility => "rays    ",
+                Phase::Visibility => "map     ",
                 Phase::Search => "search  ",
+                Phase::Refine => "refine  ",
             };
             if let Ok(style) =
                 ProgressStyle::with_template("{prefix} [{bar:40}] {pos}/{len} {elapsed_precise}")
@@ -231,6 +232,8 @@ fn compute(args: &SetupArgs) -> Result<PlanOut> {
             *slot = Some((phase, pb));
         }
         if let Some((_, pb)) = slot.as_ref() {
+            // Refinement rounds differ in size.
+            pb.set_length(total as u64);
             pb.set_position(done as u64);
         }
     };

@@ -11,8 +11,18 @@ use std::time::Instant;
 use planner::mesh::{TriMesh, WeldOptions};
 use planner::setup::samples::{cavity, teapot};
 use planner::setup::{
-    AxisRanges, GeodesicSphere, MachineType, SetupConfig, search_setup, visibility_map,
+    AxisRanges, GeodesicSphere, MachineType, Phase, SetupConfig, search_setup, visibility_map,
 };
+
+/// Prints to stderr each tenth of a phase done (the large case runs for
+/// minutes).
+fn report(phase: Phase, done: usize, total: usize) {
+    let tenth = |n: usize| n * 10 / total.max(1);
+    let before = done.saturating_sub(64);
+    if tenth(done) != tenth(before) || done == total {
+        eprintln!("    {phase:?} {done}/{total}");
+    }
+}
 
 fn run(name: &str, part: &TriMesh, cells: usize, repeats: usize) {
     let sphere = GeodesicSphere::with_at_least(cells).expect("valid cell count");
@@ -34,7 +44,7 @@ fn run(name: &str, part: &TriMesh, cells: usize, repeats: usize) {
     let mut map = None;
     for _ in 0..repeats {
         let t = Instant::now();
-        map = Some(visibility_map(part, &sphere, &config, &|_, _, _| {}).expect("valid config"));
+        map = Some(visibility_map(part, &sphere, &config, &report).expect("valid config"));
         vis.push(t.elapsed().as_secs_f64());
     }
     let map = map.expect("at least one run");
@@ -43,6 +53,9 @@ fn run(name: &str, part: &TriMesh, cells: usize, repeats: usize) {
         best(&vis),
         rays / best(&vis) / 1e6
     );
+    if std::env::args().any(|a| a == "map-only") {
+        return;
+    }
     for (label, kind) in [
         ("C,A search", MachineType::CA),
         ("A,B search", MachineType::AB),
@@ -51,14 +64,7 @@ fn run(name: &str, part: &TriMesh, cells: usize, repeats: usize) {
         let mut last = None;
         for _ in 0..repeats {
             let t = Instant::now();
-            last = Some(search_setup(
-                &map,
-                &sphere,
-                kind,
-                &ranges,
-                &config,
-                &|_, _, _| {},
-            ));
+            last = Some(search_setup(&map, &sphere, kind, &ranges, &config, &report));
             times.push(t.elapsed().as_secs_f64());
         }
         let p = last.expect("at least one run");
@@ -84,9 +90,12 @@ fn main() {
             3,
         );
     }
+    if args.iter().any(|a| a == "medium") {
+        run("medium teapot", &mesh(teapot(40, 64, 18, 32)), 5000, 1);
+    }
     if args.iter().any(|a| a == "large") {
         run("large teapot", &mesh(teapot(160, 256, 72, 128)), 20_000, 1);
-    } else if !args.iter().any(|a| a == "cavity") {
+    } else if !args.iter().any(|a| a == "cavity" || a == "medium") {
         run("paper teapot", &mesh(teapot(10, 12, 5, 6)), 1200, 5);
     }
 }

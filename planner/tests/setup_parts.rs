@@ -5,7 +5,8 @@ use nalgebra::{Point3, Rotation3, Unit, Vector3};
 use planner::mesh::{TriMesh, WeldOptions};
 use planner::setup::samples::{bowl, cavity, dome, rotated, teapot, well, z_to};
 use planner::setup::{
-    AxisRanges, GeodesicSphere, MachineConfig, SetupConfig, SetupPlan, plan_setup, visibility_map,
+    AxisRanges, GeodesicSphere, MachineConfig, SetupConfig, SetupOrientation, SetupPlan,
+    plan_setup, search_setup, visibility_map,
 };
 
 type V3 = Vector3<f64>;
@@ -230,4 +231,69 @@ fn rotating_the_part_rotates_the_setup() {
             );
         }
     }
+}
+
+#[test]
+fn coarse_to_fine_search_finds_the_exhaustive_answer() {
+    // 2,000 cells searched exhaustively and coarse to fine from 320 coarse
+    // cells (about 6× finer; the large benchmark uses 16×).
+    let cells = 2000;
+    let axis = tilted_axis();
+    let exhaustive = SetupConfig {
+        cells,
+        coarse_cells: 0,
+        ..SetupConfig::default()
+    };
+    let coarse = SetupConfig {
+        coarse_cells: 320,
+        ..exhaustive
+    };
+    let sphere = GeodesicSphere::with_at_least(cells).unwrap();
+    let sp = sphere.spacing().to_degrees();
+    let same = |a: &SetupOrientation, b: &SetupOrientation, what: &str| {
+        // Identical, or a tie in area and ranges within one cell.
+        if a.cell != b.cell {
+            let off = angle_deg(&a.placement.tool_axis, &b.placement.tool_axis);
+            assert!(
+                a.placement.key() == b.placement.key() && off <= sp,
+                "{what}: exhaustive cell {} {:?}, coarse to fine cell {} {:?}",
+                a.cell,
+                a.placement.key(),
+                b.cell,
+                b.placement.key()
+            );
+        }
+    };
+    let mut refined_cases = 0;
+    for (name, soup) in [
+        ("dome", rotated(&dome(40.0, 115.0, 8, 24), &z_to(&axis))),
+        ("cavity", cavity(30.0, 60.0, 8, 24)),
+        ("teapot", teapot(10, 12, 5, 6)),
+        ("well", rotated(&well(10.0, 20.0, 24), &z_to(&axis))),
+    ] {
+        let part = mesh(&soup);
+        let map = visibility_map(&part, &sphere, &exhaustive, &|_, _, _| {}).unwrap();
+        for machine in [CA_MACHINE, AB_MACHINE] {
+            let kind = machine.parse::<MachineConfig>().unwrap().machine_type();
+            for deg in [[90.0, 90.0, 180.0, 180.0], [20.0, 20.0, 20.0, 20.0]] {
+                let r = ranges(deg);
+                let a = search_setup(&map, &sphere, kind, &r, &exhaustive, &|_, _, _| {});
+                let b = search_setup(&map, &sphere, kind, &r, &coarse, &|_, _, _| {});
+                let what = format!("{name} {machine} {deg:?}");
+                assert_eq!(
+                    (a.feasible, a.three_axis, a.pvc_classes),
+                    (b.feasible, b.three_axis, b.pvc_classes),
+                    "{what}"
+                );
+                same(&a.mar, &b.mar, &format!("{what} MAR"));
+                match (&a.setup, &b.setup) {
+                    (Some(x), Some(y)) => same(x, y, &format!("{what} setup")),
+                    (None, None) => {}
+                    _ => panic!("{what}: one search found a setup, the other not"),
+                }
+                refined_cases += usize::from(!a.three_axis);
+            }
+        }
+    }
+    assert!(refined_cases >= 12, "{refined_cases}");
 }

@@ -6,6 +6,7 @@ use std::collections::HashMap;
 use std::f64::consts::{PI, TAU};
 
 use nalgebra::Vector3;
+use rayon::prelude::*;
 
 use super::machine::{AxisRanges, MachineType};
 use super::visibility::VisibilityMap;
@@ -25,18 +26,25 @@ pub struct PvcClasses {
     pub classes: usize,
     words: usize,
     rows: Vec<u64>,
+    cells: usize,
 }
 
 impl PvcClasses {
-    /// Groups the patches of `map` by identical cones.
-    pub fn new(map: &VisibilityMap) -> Self {
+    /// Groups the patches of `map` (on a sphere with cell directions
+    /// `cells`) by identical cones.
+    ///
+    /// Classes are numbered in the order of their cones' mean directions
+    /// along a serpentine latitude–longitude path, so that classes reached at
+    /// about the same step of the MD walk ([`md_cells`]) share words of the
+    /// bitsets and those words retire early.
+    pub fn new(map: &VisibilityMap, cells: &[V3]) -> Self {
         let mut index: HashMap<&[u64], u32> = HashMap::new();
         let mut reps: Vec<usize> = Vec::new();
-        let mut class_of = Vec::with_capacity(map.patches());
+        let mut first_class = Vec::with_capacity(map.patches());
         for j in 0..map.patches() {
             let pvc = map.pvc(j);
             if pvc.iter().all(|w| *w == 0) {
-                class_of.push(None);
+                first_class.push(None);
                 continue;
             }
             let next = reps.len() as u32;
@@ -44,13 +52,44 @@ impl PvcClasses {
                 reps.push(j);
                 next
             });
-            class_of.push(Some(k));
+            first_class.push(Some(k));
         }
         let classes = reps.len();
+        // Spatial order of the classes.
+        let keys: Vec<(u32, i64)> = reps
+            .par_iter()
+            .map(|&j| {
+                let mut sum = V3::zeros();
+                for (w, bits) in map.pvc(j).iter().enumerate() {
+                    let mut bits = *bits;
+                    while bits != 0 {
+                        sum += cells[w * 64 + bits.trailing_zeros() as usize];
+                        bits &= bits - 1;
+                    }
+                }
+                /// Rows and columns of the ordering grid.
+                const ORDER_ROWS: f64 = 64.0;
+                let theta = sum.z.atan2(sum.xy().norm()) + PI / 2.0; // 0..π
+                let phi = sum.y.atan2(sum.x) + PI; // 0..2π
+                let row = ((theta / PI * ORDER_ROWS) as i64).min(ORDER_ROWS as i64 - 1);
+                let col = (phi / TAU * 2.0 * ORDER_ROWS) as i64;
+                (row as u32, if row % 2 == 0 { col } else { -col })
+            })
+            .collect();
+        let mut order: Vec<u32> = (0..classes as u32).collect();
+        order.sort_by_key(|&k| (keys[k as usize], k));
+        let mut renumber = vec![0u32; classes];
+        for (new, &old) in order.iter().enumerate() {
+            renumber[old as usize] = new as u32;
+        }
+        let class_of: Vec<Option<u32>> = first_class
+            .iter()
+            .map(|c| c.map(|k| renumber[k as usize]))
+            .collect();
         let words = classes.div_ceil(64);
         let mut rows = vec![0u64; words * map.cells()];
-        for (k, &j) in reps.iter().enumerate() {
-            for (w, bits) in map.pvc(j).iter().enumerate() {
+        for (k, &old) in order.iter().enumerate() {
+            for (w, bits) in map.pvc(reps[old as usize]).iter().enumerate() {
                 let mut bits = *bits;
                 while bits != 0 {
                     let c = w * 64 + bits.trailing_zeros() as usize;
@@ -64,11 +103,27 @@ impl PvcClasses {
             classes,
             words,
             rows,
+            cells: map.cells(),
         }
     }
 
     fn row(&self, cell: usize) -> &[u64] {
         &self.rows[cell * self.words..(cell + 1) * self.words]
+    }
+
+    /// The cells in every class's cone: the tool axes that reach all
+    /// reachable patches without rotary motion (Group II empty).
+    pub fn common_cells(&self) -> Vec<usize> {
+        let full = |w: usize| {
+            if w + 1 == self.words && !self.classes.is_multiple_of(64) {
+                (1u64 << (self.classes % 64)) - 1
+            } else {
+                u64::MAX
+            }
+        };
+        (0..self.cells)
+            .filter(|&c| self.row(c).iter().enumerate().all(|(w, &x)| x == full(w)))
+            .collect()
     }
 }
 
@@ -392,6 +447,8 @@ pub struct RectScratch {
     bins: Vec<bool>,
     tan_vec: Vec<V3>,
     cross: Vec<V3>,
+    ortho_pts: Vec<(f64, f64, usize)>,
+    ortho: Vec<usize>,
 }
 
 /// A key that orders points `(x, y)` like `atan2(y, x)` does, in (−2, 2].
@@ -453,6 +510,25 @@ pub fn rect_search(
         let b = ((t / PI * bins as f64) as usize).min(bins - 1);
         !std::mem::replace(&mut scratch.bins[b], true)
     });
+    // v·R1 with R1 ⊥ p depends only on v's orthogonal projection onto the
+    // tangent plane at p, a linear function there: its extremes over the MD
+    // points (and p, at the origin) are on the vertices of the projections'
+    // planar hull.
+    scratch.ortho_pts.clear();
+    scratch.ortho_pts.push((0.0, 0.0, usize::MAX));
+    scratch.ortho_pts.extend(
+        md.iter()
+            .enumerate()
+            .map(|(i, v)| (v.dot(&e1), v.dot(&e2), i)),
+    );
+    let ortho_hull = planar_hull(&mut scratch.ortho_pts);
+    scratch.ortho.clear();
+    scratch.ortho.extend(
+        ortho_hull
+            .iter()
+            .map(|&k| scratch.ortho_pts[k].2)
+            .filter(|&i| i != usize::MAX),
+    );
     scratch.tan_vec.clear();
     scratch.cross.clear();
     if !all_in_hull {
@@ -504,8 +580,8 @@ pub fn rect_search(
                 (xy_max.1.atan2(xy_max.0), xy_min.1.atan2(xy_min.0))
             };
             let (mut lmax, mut lmin) = (0.0f64, 0.0f64);
-            for v in md {
-                let l = v.dot(&r1);
+            for &i in &scratch.ortho {
+                let l = md[i].dot(&r1);
                 lmax = lmax.max(l);
                 lmin = lmin.min(l);
             }
@@ -538,31 +614,16 @@ pub fn rect_search(
     (best.expect("fallback directions are never empty"), best_fit)
 }
 
-/// Convex hull (counter-clockwise about `p`) of `p` and the MD points in the
-/// open hemisphere around `p`, as indices into `md` (`p` itself left out).
-///
-/// A great circle through two points of the hemisphere maps to a straight
-/// line under the gnomonic (central) projection onto the tangent plane at
-/// `p`, so the spherical hull is the planar hull of the projected points;
-/// its edges are the great circles whose supporting-vertex test is eq. 14.
-fn spherical_hull(p: &V3, md: &[V3], e1: &V3, e2: &V3, scratch: &mut RectScratch) {
-    scratch.proj.clear();
-    scratch.proj.push((0.0, 0.0, usize::MAX));
-    for (i, v) in md.iter().enumerate() {
-        let d = v.dot(p);
-        if d > HULL_MIN_DOT {
-            scratch.proj.push((v.dot(e1) / d, v.dot(e2) / d, i));
-        }
-    }
-    scratch
-        .proj
-        .sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
-    scratch.proj.dedup_by(|a, b| a.0 == b.0 && a.1 == b.1);
-    let pts = &scratch.proj;
+/// Convex hull of the points `pts` (`(x, y, tag)`), counter-clockwise, as
+/// indices into `pts` after it has been sorted and deduplicated (Andrew's
+/// monotone chain).
+fn planar_hull(pts: &mut Vec<(f64, f64, usize)>) -> Vec<usize> {
+    pts.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    pts.dedup_by(|a, b| a.0 == b.0 && a.1 == b.1);
+    let pts = &*pts;
     let cross = |o: &(f64, f64, usize), a: &(f64, f64, usize), b: &(f64, f64, usize)| {
         (a.0 - o.0) * (b.1 - o.1) - (a.1 - o.1) * (b.0 - o.0)
     };
-    // Andrew's monotone chain.
     let mut hull: Vec<usize> = Vec::with_capacity(pts.len() * 2);
     for pass in 0..2 {
         let start = hull.len();
@@ -585,6 +646,27 @@ fn spherical_hull(p: &V3, md: &[V3], e1: &V3, e2: &V3, scratch: &mut RectScratch
         }
         hull.pop();
     }
+    hull
+}
+
+/// Convex hull (counter-clockwise about `p`) of `p` and the MD points in the
+/// open hemisphere around `p`, as indices into `md` (`p` itself left out).
+///
+/// A great circle through two points of the hemisphere maps to a straight
+/// line under the gnomonic (central) projection onto the tangent plane at
+/// `p`, so the spherical hull is the planar hull of the projected points;
+/// its edges are the great circles whose supporting-vertex test is eq. 14.
+fn spherical_hull(p: &V3, md: &[V3], e1: &V3, e2: &V3, scratch: &mut RectScratch) {
+    scratch.proj.clear();
+    scratch.proj.push((0.0, 0.0, usize::MAX));
+    for (i, v) in md.iter().enumerate() {
+        let d = v.dot(p);
+        if d > HULL_MIN_DOT {
+            scratch.proj.push((v.dot(e1) / d, v.dot(e2) / d, i));
+        }
+    }
+    let mut hull = planar_hull(&mut scratch.proj);
+    let pts = &scratch.proj;
     scratch.hull.clear();
     // Rotate so that `p` (if it is a hull vertex) is dropped; the caller puts
     // it first, which keeps the cyclic order when it is a vertex.

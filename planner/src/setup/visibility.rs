@@ -11,6 +11,7 @@
 //! crate (SAH); the traversal is our own so that it can stop at the first hit
 //! and never overflow a fixed stack. Patches are traced in parallel (rayon).
 
+use std::f64::consts::{PI, TAU};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use bvh::aabb::{Aabb, Bounded};
@@ -307,9 +308,414 @@ pub struct VisibilityOptions {
     pub grazing_margin: f64,
 }
 
-/// Computes `PVC_j` for every triangle on `sphere`. `progress(done, total)`
-/// is called now and then with the number of patches traced.
+/// Computes `PVC_j` for every triangle on `sphere` by rasterising the
+/// occluders onto the sphere of directions around each patch's centroid:
+/// every triangle in front of the patch's plane closes the still-open cells
+/// whose direction lies in the triangle's cone as seen from the centroid.
+///
+/// This is exactly the ray test of [`compute_by_rays`] (a direction is in the
+/// cone of a triangle iff the ray along it meets the closed triangle), up to
+/// round-off on the triangle's edges, but costs
+/// `O(occluders visited × cells they cover)` instead of one hierarchy
+/// traversal per cell. The hierarchy is walked front to back and a subtree is
+/// skipped when every cell its bounding sphere covers is already closed (or
+/// it lies behind the patch's plane), so a patch stops paying for the part
+/// once its cone is settled. `progress(done, total)` is called now and then
+/// with the number of patches done.
 pub fn compute(
+    mesh: &TriMesh,
+    sphere: &GeodesicSphere,
+    options: VisibilityOptions,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> VisibilityMap {
+    let caster = RayCaster::new(mesh);
+    let grid = CellGrid::new(sphere);
+    let cells = sphere.cells();
+    let n = mesh.triangles.len();
+    let mut map = VisibilityMap::new(cells.len(), n);
+    let words = map.words;
+    let min_dot = options.grazing_margin.sin();
+    let done = AtomicUsize::new(0);
+    /// Patches per progress report.
+    const PROGRESS_CHUNK: usize = 64;
+    map.bits
+        .par_chunks_mut(words * PROGRESS_CHUNK)
+        .enumerate()
+        .for_each_init(Vec::new, |stack, (chunk, bits)| {
+            for (k, row) in bits.chunks_mut(words).enumerate() {
+                let t = chunk * PROGRESS_CHUNK + k;
+                let [a, b, c] = mesh.corners(t);
+                let origin = Point3::from((a.coords + b.coords + c.coords) / 3.0);
+                let normal = mesh.normals[t];
+                let mut open = 0usize;
+                for (i, d) in cells.iter().enumerate() {
+                    if d.dot(&normal) > min_dot {
+                        row[i / 64] |= 1 << (i % 64);
+                        open += 1;
+                    }
+                }
+                caster.rasterise(&origin, &normal, t, &grid, row, open, stack);
+            }
+            let now = done.fetch_add(bits.len() / words, Ordering::Relaxed) + bits.len() / words;
+            progress(now, n);
+        });
+    map
+}
+
+/// Widening of every cap (radians) so that round-off never culls a cell on
+/// its rim.
+const CAP_MARGIN: f64 = 1e-9;
+/// A leaf triangle whose bounding cap reaches closer than this cosine to a
+/// half-sphere is tested against every open cell instead of through the grid.
+const CAP_MIN_COS: f64 = 0.05;
+
+/// A subtree is checked for open cells under its bounding cap only when the
+/// cap holds about this many cells or fewer.
+const CULL_MAX_CELLS: f64 = 16.0;
+
+/// The cell directions bucketed in rows of equal height along a pole in
+/// general position (so that the axes of a part do not meet the crowded
+/// polar rows) and in longitude within each row, to list the cells inside a
+/// spherical cap without inverse trigonometry per row.
+#[derive(Debug)]
+struct CellGrid {
+    /// `e1`, `e2`, pole.
+    frame: [Vector3<f64>; 3],
+    /// Row height in `1 − z` (z along the pole): rows have equal area.
+    dz: f64,
+    /// Per row: first bucket and number of buckets (longitudes).
+    rows: Vec<(usize, usize)>,
+    /// Bucket `k` holds `entries[starts[k]..starts[k + 1]]`.
+    starts: Vec<u32>,
+    /// Cell index and direction.
+    entries: Vec<(u32, Vector3<f64>)>,
+    /// Direction of each cell, by index.
+    dirs: Vec<Vector3<f64>>,
+    cells: usize,
+}
+
+impl CellGrid {
+    /// Rows about 1.5 cell spacings tall at the equator, buckets as wide, so
+    /// that a bucket holds about two cells.
+    fn new(sphere: &GeodesicSphere) -> Self {
+        /// Bucket size in cell spacings.
+        const BUCKET_SPACINGS: f64 = 1.5;
+        let pole = Vector3::new(0.37, -0.52, 0.77).normalize();
+        let e1 = pole.cross(&Vector3::x()).normalize();
+        let e2 = pole.cross(&e1);
+        let step = sphere.spacing() * BUCKET_SPACINGS;
+        let n_rows = ((2.0 / step).ceil() as usize).max(1);
+        let dz = 2.0 / n_rows as f64;
+        let mut rows = Vec::with_capacity(n_rows);
+        let mut buckets = 0;
+        for r in 0..n_rows {
+            let z = 1.0 - (r as f64 + 0.5) * dz;
+            let n_phi = ((TAU * (1.0 - z * z).max(0.0).sqrt() / step).ceil() as usize).max(1);
+            rows.push((buckets, n_phi));
+            buckets += n_phi;
+        }
+        let mut grid = Self {
+            frame: [e1, e2, pole],
+            dz,
+            rows,
+            starts: vec![0; buckets + 1],
+            entries: Vec::new(),
+            dirs: sphere.cells().to_vec(),
+            cells: sphere.len(),
+        };
+        let keys: Vec<usize> = sphere.cells().iter().map(|d| grid.bucket(d)).collect();
+        for &k in &keys {
+            grid.starts[k + 1] += 1;
+        }
+        for k in 0..buckets {
+            grid.starts[k + 1] += grid.starts[k];
+        }
+        let mut fill: Vec<u32> = grid.starts[..buckets].to_vec();
+        grid.entries = vec![(0, Vector3::zeros()); sphere.len()];
+        for (i, (&k, d)) in keys.iter().zip(sphere.cells()).enumerate() {
+            grid.entries[fill[k] as usize] = (i as u32, *d);
+            fill[k] += 1;
+        }
+        grid
+    }
+
+    /// Height along the pole and longitude (in `[0, 2π)`) of `d`.
+    fn polar(&self, d: &Vector3<f64>) -> (f64, f64) {
+        let [e1, e2, pole] = &self.frame;
+        let phi = d.dot(e2).atan2(d.dot(e1)).rem_euclid(TAU);
+        (d.dot(pole).clamp(-1.0, 1.0), phi)
+    }
+
+    fn row_of(&self, z: f64) -> usize {
+        (((1.0 - z) / self.dz).max(0.0) as usize).min(self.rows.len() - 1)
+    }
+
+    fn bucket(&self, d: &Vector3<f64>) -> usize {
+        let (z, phi) = self.polar(d);
+        let (first, n_phi) = self.rows[self.row_of(z)];
+        first + ((phi / TAU * n_phi as f64) as usize).min(n_phi - 1)
+    }
+
+    /// Expected number of cells in a cap of angular radius with cosine
+    /// `cos_r`.
+    fn cells_in_cap(&self, cos_r: f64) -> f64 {
+        (1.0 - cos_r) * 0.5 * self.cells as f64
+    }
+
+    /// Calls `f(cell, direction)` for every cell in the cap around the unit
+    /// vector `centre` of angular radius `r` (given as `cos r ≥ 0` and
+    /// `sin r`), and maybe a few more; stops when `f` returns `true`, and
+    /// returns whether it did.
+    fn any_in_cap(
+        &self,
+        centre: &Vector3<f64>,
+        cos_r: f64,
+        sin_r: f64,
+        mut f: impl FnMut(usize, &Vector3<f64>) -> bool,
+    ) -> bool {
+        let (z, phi) = self.polar(centre);
+        let s = (1.0 - z * z).max(0.0).sqrt();
+        // Heights of the cap's rim nearest and farthest from the pole, or
+        // the pole itself when the cap holds it.
+        let holds_north = z >= cos_r - CAP_MARGIN;
+        let holds_south = -z >= cos_r - CAP_MARGIN;
+        let z_hi = if holds_north {
+            1.0
+        } else {
+            z * cos_r + s * sin_r + CAP_MARGIN
+        };
+        let z_lo = if holds_south {
+            -1.0
+        } else {
+            z * cos_r - s * sin_r - CAP_MARGIN
+        };
+        // Longitude half-width of a cap clear of the poles.
+        let dphi = if holds_north || holds_south || sin_r >= s {
+            PI
+        } else {
+            (sin_r / s).asin() + CAP_MARGIN
+        };
+        for &(first, n_phi) in &self.rows[self.row_of(z_hi)..=self.row_of(z_lo)] {
+            let (k0, count) = if dphi >= PI {
+                (0, n_phi)
+            } else {
+                let scale = n_phi as f64 / TAU;
+                let k0 = ((phi - dphi) * scale).floor() as i64;
+                let k1 = ((phi + dphi) * scale).floor() as i64;
+                (k0, ((k1 - k0 + 1) as usize).min(n_phi))
+            };
+            for t in 0..count {
+                let k = first + (k0 + t as i64).rem_euclid(n_phi as i64) as usize;
+                for (i, d) in &self.entries[self.starts[k] as usize..self.starts[k + 1] as usize] {
+                    if f(*i as usize, d) {
+                        return true;
+                    }
+                }
+            }
+        }
+        false
+    }
+}
+
+/// Calls `f(cell)` for every set bit of `row`; stops when `f` returns `true`,
+/// and returns whether it did.
+fn any_open(row: &[u64], mut f: impl FnMut(usize) -> bool) -> bool {
+    for (w, &bits) in row.iter().enumerate() {
+        let mut bits = bits;
+        while bits != 0 {
+            let i = w * 64 + bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            if f(i) {
+                return true;
+            }
+        }
+    }
+    false
+}
+
+fn is_open(row: &[u64], i: usize) -> bool {
+    row[i / 64] >> (i % 64) & 1 == 1
+}
+
+impl RayCaster {
+    /// Closes the cells of `row` (`open` of them set) whose rays from
+    /// `origin` meet a triangle other than `skip` in front of the plane
+    /// `(origin, normal)`. See [`compute`].
+    #[allow(clippy::too_many_arguments)]
+    fn rasterise(
+        &self,
+        origin: &Point3<f64>,
+        normal: &Vector3<f64>,
+        skip: usize,
+        grid: &CellGrid,
+        row: &mut [u64],
+        mut open: usize,
+        stack: &mut Vec<usize>,
+    ) {
+        if self.bvh.nodes.is_empty() || open == 0 {
+            return;
+        }
+        let level = normal.dot(&origin.coords) + self.t_min;
+        let box_front = |b: &Aabb<f64, 3>| {
+            let mut far = 0.0;
+            for k in 0..3 {
+                far += normal[k] * if normal[k] > 0.0 { b.max[k] } else { b.min[k] };
+            }
+            far > level
+        };
+        // Whether some open cell may look at the box: false when its
+        // bounding sphere, seen from the origin, covers closed cells only.
+        let box_matters = |b: &Aabb<f64, 3>, row: &[u64], open: usize| -> bool {
+            if !box_front(b) {
+                return false;
+            }
+            let centre = Point3::from((b.min.coords + b.max.coords) * 0.5);
+            let radius = (b.max - b.min).norm() * 0.5;
+            let to = centre - origin;
+            let dist = to.norm();
+            if dist <= radius * (1.0 + CAP_MARGIN) + self.t_min {
+                return true;
+            }
+            let sin_r = radius / dist;
+            let cos_r = (1.0 - sin_r * sin_r).sqrt();
+            if cos_r < CAP_MIN_COS {
+                return true;
+            }
+            let in_cap = grid.cells_in_cap(cos_r);
+            if in_cap > CULL_MAX_CELLS {
+                // Checking would cost more than descending usually does.
+                return true;
+            }
+            let u = to / dist;
+            let cos_test = cos_r - CAP_MARGIN;
+            if in_cap > open as f64 {
+                any_open(row, |i| grid.dirs[i].dot(&u) >= cos_test)
+            } else {
+                grid.any_in_cap(&u, cos_r, sin_r, |i, d| {
+                    is_open(row, i) && d.dot(&u) >= cos_test
+                })
+            }
+        };
+        stack.clear();
+        stack.push(0);
+        while let Some(index) = stack.pop() {
+            match &self.bvh.nodes[index] {
+                BvhNode::Leaf { shape_index, .. } => {
+                    if *shape_index == skip {
+                        continue;
+                    }
+                    let corners = &self.shapes[*shape_index].corners;
+                    if !corners.iter().any(|c| normal.dot(&c.coords) > level) {
+                        continue;
+                    }
+                    open -= close_cone(origin, corners, self.t_min, grid, row, open);
+                    if open == 0 {
+                        return;
+                    }
+                }
+                BvhNode::Node {
+                    child_l_index,
+                    child_l_aabb,
+                    child_r_index,
+                    child_r_aabb,
+                    ..
+                } => {
+                    let l = box_matters(child_l_aabb, row, open);
+                    let r = box_matters(child_r_aabb, row, open);
+                    // Front to back: the nearer child is popped first, so
+                    // the farther one is often culled by then.
+                    let dist = |b: &Aabb<f64, 3>| (b.center() - origin).norm_squared();
+                    let near_left = dist(child_l_aabb) <= dist(child_r_aabb);
+                    let (first, second) = if near_left {
+                        ((r, *child_r_index), (l, *child_l_index))
+                    } else {
+                        ((l, *child_l_index), (r, *child_r_index))
+                    };
+                    for (keep, i) in [first, second] {
+                        if keep {
+                            stack.push(i);
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Closes the open cells of `row` whose rays from `origin` meet the closed
+/// triangle `tri` beyond `t_min`; returns how many it closed.
+fn close_cone(
+    origin: &Point3<f64>,
+    tri: &[Point3<f64>; 3],
+    t_min: f64,
+    grid: &CellGrid,
+    row: &mut [u64],
+    open: usize,
+) -> usize {
+    let [a, b, c] = tri.map(|p| p - origin);
+    let (mut nbc, mut nca, mut nab) = (b.cross(&c), c.cross(&a), a.cross(&b));
+    let det = a.dot(&nbc);
+    let twice_area = (b - a).cross(&(c - a)).norm();
+    if det == 0.0 || twice_area == 0.0 {
+        // The origin is in the triangle's plane (or the triangle is
+        // degenerate): no ray crosses it.
+        return 0;
+    }
+    if det < 0.0 {
+        (nbc, nca, nab) = (-nbc, -nca, -nab);
+    }
+    // Within t_min of the plane the cone test would count hits the ray test
+    // ignores as its own start: test those rays exactly.
+    let near = det.abs() / twice_area <= t_min;
+    let inside = |d: &Vector3<f64>| {
+        if near {
+            hits_triangle(origin, d, tri, t_min)
+        } else {
+            d.dot(&nbc) >= 0.0 && d.dot(&nca) >= 0.0 && d.dot(&nab) >= 0.0
+        }
+    };
+    let (ua, ub, uc) = (a.normalize(), b.normalize(), c.normalize());
+    let sum = ua + ub + uc;
+    let sum_norm = sum.norm();
+    let centre = sum / sum_norm;
+    let cos_r = if sum_norm > 0.0 {
+        ua.dot(&centre).min(ub.dot(&centre)).min(uc.dot(&centre))
+    } else {
+        -1.0
+    };
+    let mut closed = 0;
+    if cos_r < CAP_MIN_COS || grid.cells_in_cap(cos_r) > open as f64 {
+        // A wide cone, or few cells left: test the open cells themselves.
+        for w in 0..row.len() {
+            let mut bits = row[w];
+            while bits != 0 {
+                let j = bits.trailing_zeros();
+                bits &= bits - 1;
+                if inside(&grid.dirs[w * 64 + j as usize]) {
+                    row[w] &= !(1 << j);
+                    closed += 1;
+                }
+            }
+        }
+    } else {
+        let sin_r = (1.0 - cos_r * cos_r).max(0.0).sqrt();
+        grid.any_in_cap(&centre, cos_r, sin_r, |i, d| {
+            if is_open(row, i) && inside(d) {
+                row[i / 64] &= !(1 << (i % 64));
+                closed += 1;
+            }
+            false
+        });
+    }
+    closed
+}
+
+/// Computes `PVC_j` for every triangle on `sphere` by casting one ray per
+/// patch and front-facing cell through the hierarchy (any-hit, early exit).
+/// The reference for [`compute`], which gives the same map faster;
+/// `progress(done, total)` is called now and then with the number of patches
+/// traced.
+pub fn compute_by_rays(
     mesh: &TriMesh,
     sphere: &GeodesicSphere,
     options: VisibilityOptions,
@@ -408,6 +814,85 @@ mod tests {
                 assert!(d.z > 0.0 && d.z < 0.5, "cell {i} {d:?}");
             }
             assert_eq!(map.visible(1, i), d.z > 0.0, "lid cell {i}");
+        }
+    }
+}
+
+#[cfg(test)]
+mod raster_tests {
+    use super::*;
+    use crate::mesh::WeldOptions;
+    use crate::setup::samples::{bowl, cavity, dome, rotated, teapot, well, z_to};
+
+    /// The rasterised map equals the ray-cast one, cell for cell, on the
+    /// sample parts (tilted, so nothing lines up with the grid's frame).
+    #[test]
+    fn rasterised_map_equals_ray_casting_on_the_sample_parts() {
+        let axis = Vector3::new(0.3, -0.2, 0.9).normalize();
+        let tilt = z_to(&axis);
+        let options = VisibilityOptions {
+            grazing_margin: 0.0,
+        };
+        for (name, soup, cells) in [
+            ("well", well(10.0, 20.0, 24), 1280),
+            ("bowl", bowl(30.0, 4, 24), 1280),
+            ("cavity", cavity(30.0, 60.0, 6, 18), 1280),
+            ("dome", dome(40.0, 115.0, 6, 18), 720),
+            ("teapot", teapot(10, 12, 5, 6), 1280),
+        ] {
+            let mesh = TriMesh::from_triangles(&rotated(&soup, &tilt), WeldOptions::default())
+                .expect("valid sample");
+            let sphere = GeodesicSphere::with_at_least(cells).unwrap();
+            let fast = compute(&mesh, &sphere, options, &|_, _| {});
+            let rays = compute_by_rays(&mesh, &sphere, options, &|_, _| {});
+            let mut differ = 0;
+            let mut visible = 0;
+            for j in 0..mesh.triangles.len() {
+                visible += rays.pvc_len(j);
+                for i in 0..sphere.len() {
+                    differ += usize::from(fast.visible(j, i) != rays.visible(j, i));
+                }
+            }
+            assert_eq!(
+                differ, 0,
+                "{name}: {differ} of {visible} visible pairs differ"
+            );
+            // Something is hidden and something visible: the test has teeth.
+            let front = (0..mesh.triangles.len())
+                .map(|j| {
+                    sphere
+                        .cells()
+                        .iter()
+                        .filter(|d| d.dot(&mesh.normals[j]) > 0.0)
+                        .count()
+                })
+                .sum::<usize>();
+            assert!(visible > 0 && (visible < front || name == "dome"), "{name}");
+        }
+    }
+
+    #[test]
+    fn grid_lists_every_cell_of_a_cap() {
+        let sphere = GeodesicSphere::with_frequency(12);
+        let grid = CellGrid::new(&sphere);
+        let probe = GeodesicSphere::with_frequency(5);
+        // Also caps around, and grazing, the grid's poles.
+        let pole = grid.frame[2];
+        let near_pole = (pole + grid.frame[0] * 0.02).normalize();
+        let extra = [pole, -pole, near_pole, -near_pole];
+        for u in probe.cells().iter().chain(&extra) {
+            for r in [0.01f64, 0.05, 0.2, 0.7, 1.4] {
+                let mut listed = vec![false; sphere.len()];
+                grid.any_in_cap(u, r.cos(), r.sin(), |i, _| {
+                    listed[i] = true;
+                    false
+                });
+                for (i, d) in sphere.cells().iter().enumerate() {
+                    if d.dot(u) >= r.cos() {
+                        assert!(listed[i], "cell {i} missed, cap {u:?} r {r}");
+                    }
+                }
+            }
         }
     }
 }
