@@ -77,8 +77,13 @@ const OVERCUT_EPS: f64 = 2e-4;
 /// A chain that cuts air would "pass": most of the part must come out within
 /// this of the design (scallops and the junction's rest region excepted), mm.
 const NEAR_DESIGN: f64 = 0.15;
-/// The share of z-map points that must be within `NEAR_DESIGN`.
-const NEAR_DESIGN_SHARE: f64 = 0.8;
+/// The share of z-map points that must be within `NEAR_DESIGN` after the
+/// raster (whole part, scallops ≈ 0.2 mm on the slopes at most).
+const NEAR_DESIGN_SHARE_RASTER: f64 = 0.8;
+/// The same for the corrected naive path: it reaches only the middle
+/// 30 × 30 mm plus R, rows 2 mm apart, and leaves the junction's rest region
+/// (measured 50.4 %).
+const NEAR_DESIGN_SHARE_NAIVE: f64 = 0.4;
 
 /// The seed's compound surface, shifted: height and unit normal.
 fn surface(x: f64, y: f64) -> (f64, [f64; 3]) {
@@ -326,7 +331,18 @@ struct Outcome {
 }
 
 /// `[gouge →] fit → simulate → trace → z-map` for the G0/G1 program `cl`.
-fn mill(dir: &Path, tag: &str, stl: &Path, cl: &Path, tris: &[Tri], gouge: bool) -> Outcome {
+/// `recheck` runs `plan fit` with `--stl/--tool`: the fitted curves are
+/// checked for gouges and refitted (needed: without it `plan fit` can emit
+/// wild curves on corrected paths, see docs/planner-gouge.md).
+fn mill(
+    dir: &Path,
+    tag: &str,
+    stl: &Path,
+    cl: &Path,
+    tris: &[Tri],
+    gouge: bool,
+    recheck: bool,
+) -> Outcome {
     let t0 = Instant::now();
     let mut to_fit = cl.to_path_buf();
     let mut gouge_report = None;
@@ -354,8 +370,8 @@ fn mill(dir: &Path, tag: &str, stl: &Path, cl: &Path, tris: &[Tri], gouge: bool)
         to_fit = fixed;
     }
     let nurbs: PathBuf = dir.join(format!("{tag}-nurbs.ngc"));
-    let fit_tol = FIT_TOL.to_string();
-    let fit = interpd_json(&[
+    let (fit_tol, gouge_tol) = (FIT_TOL.to_string(), TOL.to_string());
+    let mut fit_args = vec![
         "plan",
         "fit",
         "--path",
@@ -365,7 +381,11 @@ fn mill(dir: &Path, tag: &str, stl: &Path, cl: &Path, tris: &[Tri], gouge: bool)
         "--out",
         s(&nurbs),
         "--json",
-    ]);
+    ];
+    if recheck {
+        fit_args.extend(["--stl", s(stl), "--tool", TOOL, "--gouge-tol", &gouge_tol]);
+    }
+    let fit = interpd_json(&fit_args);
     let g62 = std::fs::read_to_string(&nurbs).expect("fit wrote its program");
     let nurbs_blocks = fit["nurbs_blocks"].as_u64().expect("nurbs_blocks");
     let parsed = gcode::parse(&g62).unwrap_or_else(|e| panic!("{tag}: G6.2 parses back: {e}"));
@@ -463,7 +483,7 @@ fn mill(dir: &Path, tag: &str, stl: &Path, cl: &Path, tris: &[Tri], gouge: bool)
     out
 }
 
-fn assert_no_overcut(tag: &str, o: &Outcome) {
+fn assert_no_overcut(tag: &str, o: &Outcome, near_share: f64) {
     assert!(
         o.max_overcut <= TOL + OVERCUT_EPS,
         "{tag}: z-map overcut {:.5} mm at {:?} exceeds {TOL} + {OVERCUT_EPS} mm",
@@ -471,7 +491,7 @@ fn assert_no_overcut(tag: &str, o: &Outcome) {
         o.max_overcut_at
     );
     assert!(
-        o.near_design_share >= NEAR_DESIGN_SHARE,
+        o.near_design_share >= near_share,
         "{tag}: only {:.1} % of the part within {NEAR_DESIGN} mm of the design",
         100.0 * o.near_design_share
     );
@@ -480,8 +500,9 @@ fn assert_no_overcut(tag: &str, o: &Outcome) {
 }
 
 #[test]
-#[ignore = "planner::fit emits wild control points (|X| > 1e5 mm) on corrected paths, \
-            so simulate runs for minutes; see docs/planner-gouge.md, End to end"]
+#[ignore = "planner::fit emits wild control points (|X| > 1e5 mm) on the raster's \
+            corrected rows, going up (the re-check sees no gouge), so simulate \
+            does not end; see docs/planner-gouge.md, End to end"]
 fn raster_gouge_fit_simulate_trace_leaves_no_overcut_beyond_the_tolerance() {
     let t0 = Instant::now();
     let dir = temp_dir("gouge-e2e-raster");
@@ -519,8 +540,8 @@ fn raster_gouge_fit_simulate_trace_leaves_no_overcut_beyond_the_tolerance() {
         "raster: {} passes, {} CL points",
         r["passes"], r["stats"]["points"]
     );
-    let o = mill(&dir, "raster", &stl, &raster, &tris, true);
-    assert_no_overcut("raster", &o);
+    let o = mill(&dir, "raster", &stl, &raster, &tris, true, true);
+    assert_no_overcut("raster", &o, NEAR_DESIGN_SHARE_RASTER);
     println!("raster chain: {:.2} s", t0.elapsed().as_secs_f64());
     std::fs::remove_dir_all(&dir).ok();
 }
@@ -535,7 +556,9 @@ fn the_seeds_naive_path_overcuts_through_fit_and_simulate() {
     let naive = dir.join("naive.ngc");
     std::fs::write(&naive, naive_program()).expect("naive path written");
     // Without the gouge stage the independent z-map must see the gouge.
-    let bad = mill(&dir, "naive", &stl, &naive, &tris, false);
+    // No re-check: it would only turn the gouging curves into G1 moves (which
+    // still gouge) and the 976 corners make the run 16 times longer.
+    let bad = mill(&dir, "naive", &stl, &naive, &tris, false, false);
     assert!(
         bad.max_overcut > 10.0 * TOL,
         "the naive path should gouge the junction, z-map overcut {:.4} mm",
@@ -546,8 +569,6 @@ fn the_seeds_naive_path_overcuts_through_fit_and_simulate() {
 }
 
 #[test]
-#[ignore = "planner::fit emits wild control points (|X| > 1e5 mm) on corrected paths, \
-            so simulate runs for minutes; see docs/planner-gouge.md, End to end"]
 fn the_seeds_naive_path_after_the_gouge_stage_does_not_overcut() {
     let t0 = Instant::now();
     let dir = temp_dir("gouge-e2e-naive-fixed");
@@ -556,8 +577,8 @@ fn the_seeds_naive_path_after_the_gouge_stage_does_not_overcut() {
     write_stl(&stl, &tris);
     let naive = dir.join("naive.ngc");
     std::fs::write(&naive, naive_program()).expect("naive path written");
-    let good = mill(&dir, "naive+gouge", &stl, &naive, &tris, true);
-    assert_no_overcut("naive+gouge", &good);
+    let good = mill(&dir, "naive+gouge", &stl, &naive, &tris, true, true);
+    assert_no_overcut("naive+gouge", &good, NEAR_DESIGN_SHARE_NAIVE);
     let g = good.gouge.as_ref().expect("gouge report");
     assert!(
         g["paths"][0]["interfering_pairs"].as_u64().unwrap_or(0) > 0,
