@@ -155,3 +155,43 @@ fn bad_input_is_named() {
             .is_empty()
     );
 }
+
+/// A corrected row: uneven spacing (a 4.4 µm first span, as gouge correction
+/// leaves them), a lifted stretch and a step. A least-squares curve that only
+/// meets the points may swing far away between them; the fit must stay near
+/// the straight moves it replaces everywhere, not only at the CL points.
+#[test]
+fn fitted_curves_stay_near_the_polyline_between_cl_points() {
+    let mut q = vec![P3::new(0.0, 0.0, 0.0), P3::new(0.0044, 0.0, 0.0)];
+    let mut x = 0.0044;
+    let mut i = 0;
+    while x < 40.0 {
+        i += 1;
+        x += if i % 7 == 0 { 0.05 } else { 0.4 + 0.3 * ((i as f64) * 1.3).sin().abs() };
+        let lift = if (12.0..18.0).contains(&x) { 0.8 } else { 0.0 };
+        let step = if x > 30.0 { -0.3 } else { 0.0 };
+        q.push(P3::new(x, 0.01 * x, 0.2 * (x / 3.0).sin() + lift + step));
+    }
+    let cfg = FitConfig::default();
+    let f = fit::fit(&q, &cfg).unwrap();
+    assert!(f.max_deviation <= cfg.tolerance);
+    let dist_to_polyline = |p: &P3| {
+        q.windows(2)
+            .map(|s| {
+                let ab = s[1] - s[0];
+                let t = ((p - s[0]).dot(&ab) / ab.norm_squared()).clamp(0.0, 1.0);
+                (p - (s[0] + ab * t)).norm()
+            })
+            .fold(f64::INFINITY, f64::min)
+    };
+    let mut worst = 0.0f64;
+    for b in blocks(&f) {
+        let (u0, u1) = (b.knots[b.degree], b.knots[b.knots.len() - b.degree - 1]);
+        for k in 0..=4000 {
+            let u = u0 + (u1 - u0) * k as f64 / 4000.0;
+            worst = worst.max(dist_to_polyline(&b.point(u)));
+        }
+    }
+    // Checked at three points per span; between them a cubic cannot stray far.
+    assert!(worst <= 4.0 * cfg.tolerance, "curve strays {worst} mm from the polyline");
+}

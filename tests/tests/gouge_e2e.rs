@@ -500,9 +500,6 @@ fn assert_no_overcut(tag: &str, o: &Outcome, near_share: f64) {
 }
 
 #[test]
-#[ignore = "planner::fit emits wild control points (|X| > 1e5 mm) on the raster's \
-            corrected rows, going up (the re-check sees no gouge), so simulate \
-            does not end; see docs/planner-gouge.md, End to end"]
 fn raster_gouge_fit_simulate_trace_leaves_no_overcut_beyond_the_tolerance() {
     let t0 = Instant::now();
     let dir = temp_dir("gouge-e2e-raster");

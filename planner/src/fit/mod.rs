@@ -405,11 +405,40 @@ fn lsq(q: &[P3], ub: &[f64], n: usize, p: usize) -> (Vec<f64>, Vec<P3>) {
     (knots, ctrl)
 }
 
+/// Samples per span between two CL points where the fitted curve is checked
+/// against the straight move it replaces.
+const SPAN_CHECKS: usize = 3;
+
+/// The largest distance of the curve from the polyline it replaces: at every
+/// CL point, and at [`SPAN_CHECKS`] parameters inside each span from that
+/// span's segment. Without the second part a least-squares curve may meet
+/// every point and swing far away between them.
 fn max_deviation(q: &[P3], ub: &[f64], knots: &[f64], ctrl: &[P3], p: usize) -> f64 {
-    q.iter()
+    let at_points = q
+        .iter()
         .zip(ub)
         .map(|(pt, &u)| (eval(p, knots, ctrl, u) - pt).norm())
-        .fold(0.0, f64::max)
+        .fold(0.0, f64::max);
+    let between = (0..q.len().saturating_sub(1))
+        .flat_map(|i| (1..=SPAN_CHECKS).map(move |k| (i, k)))
+        .map(|(i, k)| {
+            let t = k as f64 / (SPAN_CHECKS + 1) as f64;
+            let u = ub[i] + (ub[i + 1] - ub[i]) * t;
+            distance_to_segment(&eval(p, knots, ctrl, u), &q[i], &q[i + 1])
+        })
+        .fold(0.0, f64::max);
+    at_points.max(between)
+}
+
+fn distance_to_segment(x: &P3, a: &P3, b: &P3) -> f64 {
+    let ab = b - a;
+    let len2 = ab.norm_squared();
+    let t = if len2 > 0.0 {
+        ((x - a).dot(&ab) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (x - (a + ab * t)).norm()
 }
 
 /// Fits one piece of at least two distinct points with the fewest control
@@ -486,7 +515,14 @@ fn to_piece(q: &[P3], cfg: &FitConfig, tol: f64) -> FitPiece {
     if q.len() == 2 {
         FitPiece::Lines(q.iter().map(|p| [p.x, p.y, p.z]).collect())
     } else {
-        FitPiece::Nurbs(fit_piece(q, cfg.degree, tol))
+        let block = fit_piece(q, cfg.degree, tol);
+        if block.max_deviation <= tol {
+            FitPiece::Nurbs(block)
+        } else {
+            // No curve of at most one control point per CL point stays
+            // within the tolerance: keep the straight moves.
+            FitPiece::Lines(q.iter().map(|p| [p.x, p.y, p.z]).collect())
+        }
     }
 }
 
