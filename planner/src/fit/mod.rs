@@ -409,22 +409,52 @@ fn lsq(q: &[P3], ub: &[f64], n: usize, p: usize) -> (Vec<f64>, Vec<P3>) {
 /// against the straight move it replaces.
 const SPAN_CHECKS: usize = 3;
 
+/// Between two CL points a smooth curve through them may bulge from their
+/// chord by the sagitta of the circle through its neighbours (`L·θ/8` for a
+/// span of length `L` turning by `θ`); it may stray this many sagittas, plus
+/// the tolerance.
+pub const SAGITTA_ALLOWANCE: f64 = 2.0;
+
+/// Turning angle of the polyline at each point (0 at the ends), rad.
+fn turn_angles(q: &[P3]) -> Vec<f64> {
+    let mut a = vec![0.0; q.len()];
+    for i in 1..q.len().saturating_sub(1) {
+        let (u, v) = (q[i] - q[i - 1], q[i + 1] - q[i]);
+        let c = u.dot(&v) / (u.norm() * v.norm());
+        a[i] = if c.is_finite() {
+            c.clamp(-1.0, 1.0).acos()
+        } else {
+            0.0
+        };
+    }
+    a
+}
+
+/// How far the curve may stray from span `i`'s chord beyond the tolerance.
+pub fn span_allowance(q: &[P3], turns: &[f64], i: usize) -> f64 {
+    let theta = turns[i].max(turns[i + 1]);
+    SAGITTA_ALLOWANCE * (q[i + 1] - q[i]).norm() * theta / 8.0
+}
+
 /// The largest distance of the curve from the polyline it replaces: at every
 /// CL point, and at [`SPAN_CHECKS`] parameters inside each span from that
-/// span's segment. Without the second part a least-squares curve may meet
-/// every point and swing far away between them.
+/// span's segment, less the span's [`span_allowance`]. Without the second
+/// part a least-squares curve may meet every point and swing far away
+/// between them.
 fn max_deviation(q: &[P3], ub: &[f64], knots: &[f64], ctrl: &[P3], p: usize) -> f64 {
     let at_points = q
         .iter()
         .zip(ub)
         .map(|(pt, &u)| (eval(p, knots, ctrl, u) - pt).norm())
         .fold(0.0, f64::max);
+    let turns = turn_angles(q);
     let between = (0..q.len().saturating_sub(1))
         .flat_map(|i| (1..=SPAN_CHECKS).map(move |k| (i, k)))
         .map(|(i, k)| {
             let t = k as f64 / (SPAN_CHECKS + 1) as f64;
             let u = ub[i] + (ub[i + 1] - ub[i]) * t;
             distance_to_segment(&eval(p, knots, ctrl, u), &q[i], &q[i + 1])
+                - span_allowance(q, &turns, i)
         })
         .fold(0.0, f64::max);
     at_points.max(between)
