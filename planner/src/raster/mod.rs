@@ -76,6 +76,12 @@ const SAME_CURVE_TOLERANCE: f64 = 1e-12;
 /// with curvature up to 1/(0.1 mm) they differ in between by < 2.5e-8 mm.
 const SAME_CURVE_WIDTH: f64 = 1e-4;
 
+/// A piece at most this far (mm) above the envelope's lower bound is taken
+/// as below it: the path may be this much low, far under the chord
+/// tolerance, and tangent meetings stop bisecting at ~1e-4 mm instead of the
+/// crossing tolerance.
+const PRUNE_TOLERANCE: f64 = 1e-9;
+
 /// Envelope runs and gaps narrower than this (mm) are round-off.
 const MIN_RUN_WIDTH: f64 = 1e-9;
 
@@ -380,6 +386,7 @@ pub fn plan_raster_with_progress(
         same_value: SAME_CURVE_TOLERANCE,
         same_curve_width: SAME_CURVE_WIDTH,
         chord_tolerance: config.chord_tolerance,
+        prune_tolerance: PRUNE_TOLERANCE,
     };
     let done = AtomicUsize::new(0);
     let results: Vec<(RasterPass, usize)> = (0..count)
