@@ -122,6 +122,8 @@ def interp(polylines, x):
         for j in (i - 1, i):
             if 0 <= j < len(line) - 1:
                 a, b = line[j], line[j + 1]
+                if a[2] is None or b[2] is None:
+                    raise SystemExit(f"non-finite z in our path near x={x}: {a} {b}")
                 if a[0] - END_SLACK <= x <= b[0] + END_SLACK:
                     if b[0] == a[0]:
                         cands.append(max(a[2], b[2]))
@@ -186,6 +188,8 @@ def main():
         runs["ocl_wall"].append(w)
         runs["ocl_cpu"].append(c)
     load_after = os.getloadavg()
+    # Timings first, so they survive a failure of the comparison below.
+    print(json.dumps({"timings": runs, "load": [load_before, load_after]}), file=sys.stderr)
 
     max_dz, worst, compared, missing = 0.0, None, 0, 0
     fixture = []

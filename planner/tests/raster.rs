@@ -503,7 +503,10 @@ fn slivers_do_not_change_the_path() {
     );
     assert!(ps.stats.slivers > 0);
     for (k, pass) in pg.passes.iter().enumerate() {
-        for q in pass.polylines.iter().flatten() {
+        // Not within 0.1 mm of the path's ends (the mesh border + R), where
+        // the curves end in vertical tangents and z at a given x is
+        // ill-conditioned.
+        for q in pass.polylines.iter().flatten().filter(|q| q.x.abs() < 10.9) {
             let z = z_on_pass(&ps, k, q.x, q.y).expect("covered");
             // The split point is 1e-7 off the old plane.
             assert!((z - q.z).abs() < INTERP_TOL + 1e-6, "{q:?}: {z}");
@@ -628,6 +631,13 @@ fn paths_match_opencamlib_drop_cutter_on_the_fixture_mesh() {
     for (tool, passes) in tools {
         let cutter: Cutter = tool.parse().unwrap();
         let path = plan_raster(&m, &cutter, &config(stepover)).unwrap();
+        assert!(
+            path.passes
+                .iter()
+                .flat_map(|p| &p.polylines)
+                .flatten()
+                .all(|q| q.z.is_finite())
+        );
         let (mut compared, mut worst) = (0, 0.0f64);
         for pass in passes.as_array().unwrap() {
             let k = pass["pass"].as_u64().unwrap() as usize;

@@ -471,17 +471,20 @@ impl OffsetEdge {
             if b - a <= f64::EPSILON * 4.0 {
                 break;
             }
-            // A concave h is below the secants through (a, c) and (d, b)
-            // extended, so its maximum is below their crossing: stop once
-            // that is within BULL_VALUE_TOLERANCE of the best value found.
+            // A concave h lies below each secant extended beyond it: below
+            // the (d, b) secant on [a, d], below the (a, c) secant on [c, b].
+            // Stop once that bound on its maximum is within
+            // BULL_VALUE_TOLERANCE of the best value found.
             let (s1, s2) = ((fc - fa) / (c - a), (fb - fd) / (b - d));
-            let under = |x: f64| (fc + s1 * (x - c)).min(fd + s2 * (x - d));
-            let mut bound = under(a).max(under(b));
+            let (l1, l2) = (|x: f64| fc + s1 * (x - c), |x: f64| fd + s2 * (x - d));
+            let mut bound = l2(a).max(l2(c)).max(l1(d)).max(l1(b));
             if s1 > s2 {
                 let x = ((fd - s2 * d) - (fc - s1 * c)) / (s1 - s2);
-                if x > a && x < b {
-                    bound = bound.max(under(x));
+                if x > c && x < d {
+                    bound = bound.max(l1(x));
                 }
+            } else {
+                bound = bound.max(l1(c).min(l2(c))).max(l1(d).min(l2(d)));
             }
             let found = fc.max(fd);
             if bound - found <= BULL_VALUE_TOLERANCE {
