@@ -27,20 +27,26 @@ fn brute_drop(e: &OffsetEdge, u: f64, w: f64, cutter: &Cutter) -> f64 {
             (best, bt) = (at(t), t);
         }
     }
-    // Refine on the neighbouring samples (the function is concave there).
+    // Refine on the neighbouring samples: the function is concave where the
+    // cutter reaches and has no value beyond its rim, where the maximum of a
+    // flat cutter often is; the reachable part is an interval around `bt`.
     let (mut lo, mut hi) = (
         (bt - 1.0 / n as f64).max(0.0),
         (bt + 1.0 / n as f64).min(1.0),
     );
     for _ in 0..200 {
         let (c, d) = (lo + (hi - lo) / 3.0, hi - (hi - lo) / 3.0);
-        if at(c) >= at(d) {
-            hi = d;
-        } else {
-            lo = c;
+        let (fc, fd) = (at(c), at(d));
+        match (fc.is_finite(), fd.is_finite()) {
+            (true, false) => hi = d,
+            (false, true) => lo = c,
+            (false, false) if bt <= c => hi = c,
+            (false, false) => lo = d,
+            _ if fc >= fd => hi = d,
+            _ => lo = c,
         }
     }
-    best.max(at(0.5 * (lo + hi)))
+    best.max(at(lo)).max(at(hi))
 }
 
 #[test]
