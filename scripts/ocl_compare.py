@@ -24,6 +24,8 @@ import argparse
 import bisect
 import json
 import os
+import resource
+import statistics
 import struct
 import subprocess
 import sys
@@ -73,6 +75,9 @@ def make_cutter(tool):
 
 
 def ocl_points(tris, tool, ys, xs, zmin, threads):
+    """OCL's drop-cutter points and the wall and CPU seconds of
+    BatchDropCutter.run() (CPU over all threads of this process). The
+    STLSurf (and its kd-tree, built in run()) is rebuilt on every call."""
     # Triangles go in directly: OCL's STLReader takes binary files whose
     # header starts with "solid" for ASCII.
     surf = ocl.STLSurf()
@@ -80,15 +85,29 @@ def ocl_points(tris, tool, ys, xs, zmin, threads):
         surf.addTriangle(ocl.Triangle(ocl.Point(*a), ocl.Point(*b), ocl.Point(*c)))
     bdc = ocl.BatchDropCutter()
     bdc.setSTL(surf)
-    bdc.setCutter(make_cutter(tool))
+    # Held here: the BatchDropCutter keeps only a pointer to it.
+    cutter = make_cutter(tool)
+    bdc.setCutter(cutter)
     bdc.setThreads(threads)
     for y in ys:
         for x in xs:
             bdc.appendPoint(ocl.CLPoint(x, y, zmin))
-    t0 = time.perf_counter()
+    c0, t0 = time.process_time(), time.perf_counter()
     bdc.run()
-    dt = time.perf_counter() - t0
-    return [(p.x, p.y, p.z) for p in bdc.getCLPoints()], dt
+    dt, dc = time.perf_counter() - t0, time.process_time() - c0
+    return [(p.x, p.y, p.z) for p in bdc.getCLPoints()], dt, dc
+
+
+def children_cpu():
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def run_ours(cmd, env):
+    """Runs our CLI once: (summary, wall s, CPU s of the child)."""
+    c0, t0 = children_cpu(), time.perf_counter()
+    out = subprocess.run(cmd, check=True, capture_output=True, text=True, env=env)
+    return json.loads(out.stdout), time.perf_counter() - t0, children_cpu() - c0
 
 
 def interp(polylines, x):
@@ -103,6 +122,8 @@ def interp(polylines, x):
         for j in (i - 1, i):
             if 0 <= j < len(line) - 1:
                 a, b = line[j], line[j + 1]
+                if a[2] is None or b[2] is None:
+                    raise SystemExit(f"non-finite z in our path near x={x}: {a} {b}")
                 if a[0] - END_SLACK <= x <= b[0] + END_SLACK:
                     if b[0] == a[0]:
                         cands.append(max(a[2], b[2]))
@@ -126,6 +147,10 @@ def main():
                     help="compare only every n-th pass so that OCL stays quick (0: all)")
     ap.add_argument("--interpd", default="target/release/interpd")
     ap.add_argument("--fixture", help="write the OCL points as a JSON fixture here")
+    ap.add_argument("--overhang", type=float, default=None,
+                    help="sample this far (mm) beyond the mesh's x range (default: the cutter radius)")
+    ap.add_argument("--repeat", type=int, default=1,
+                    help="time both this many times (alternating) and report min and median")
     args = ap.parse_args()
 
     (x0, x1, y0, y1, z0, z1), tris = read_bounds(args.stl)
@@ -134,10 +159,7 @@ def main():
         cmd = [args.interpd, "plan", "raster", "--stl", args.stl, "--tool", args.tool,
                "--stepover", repr(args.stepover), "--cl-json", cl, "--json", "--quiet"]
         env = dict(os.environ, RAYON_NUM_THREADS=str(args.threads))
-        t0 = time.perf_counter()
-        out = subprocess.run(cmd, check=True, capture_output=True, text=True, env=env)
-        ours_s = time.perf_counter() - t0
-        summary = json.loads(out.stdout)
+        summary, ours_s, ours_cpu = run_ours(cmd, env)
         ours = [[([p[0] for p in line], line) for line in lines]
                 for lines in json.load(open(cl))["passes"]]
 
@@ -148,9 +170,26 @@ def main():
         ks = ks[::stride]
     ys = [y0 + k * args.stepover for k in ks]
     r = float(args.tool.split(":")[1]) / 2
-    nx = int((x1 - x0 + 2 * r) / args.sample) + 1
-    xs = [x0 - r + i * args.sample for i in range(nx)]
-    pts, ocl_s = ocl_points(tris, args.tool, ys, xs, z0 - BELOW, args.threads)
+    over = r if args.overhang is None else args.overhang
+    nx = int(round((x1 - x0 + 2 * over) / args.sample, 9)) + 1
+    xs = [x0 - over + i * args.sample for i in range(nx)]
+    load_before = os.getloadavg()
+    pts, ocl_s, ocl_cpu = ocl_points(tris, args.tool, ys, xs, z0 - BELOW, args.threads)
+    runs = {"ours_wall": [ours_s], "ours_cpu": [ours_cpu], "ours_plan": [summary["plan-s"]],
+            "ocl_wall": [ocl_s], "ocl_cpu": [ocl_cpu]}
+    for _ in range(args.repeat - 1):
+        # Repeats time planning only (no CL dump), as OCL's run() is.
+        i = cmd.index("--cl-json")
+        sm, w, c = run_ours(cmd[:i] + cmd[i + 2:], env)
+        runs["ours_wall"].append(w)
+        runs["ours_cpu"].append(c)
+        runs["ours_plan"].append(sm["plan-s"])
+        _, w, c = ocl_points(tris, args.tool, ys, xs, z0 - BELOW, args.threads)
+        runs["ocl_wall"].append(w)
+        runs["ocl_cpu"].append(c)
+    load_after = os.getloadavg()
+    # Timings first, so they survive a failure of the comparison below.
+    print(json.dumps({"timings": runs, "load": [load_before, load_after]}), file=sys.stderr)
 
     max_dz, worst, compared, missing = 0.0, None, 0, 0
     fixture = []
@@ -176,7 +215,15 @@ def main():
         "speedup_plan": round(ocl_s / summary["plan-s"], 1) if summary["plan-s"] > 0 else None,
         "speedup_wall": round(ocl_s / ours_s, 1), "threads": args.threads,
         "ocl_version": ocl.version(), "triangles": summary["stats"]["triangles"],
+        "our_points": summary["stats"]["points"],
+        "load_avg_before": load_before, "load_avg_after": load_after,
     }
+    for k, v in runs.items():
+        res[k + "_min"] = round(min(v), 3)
+        res[k + "_median"] = round(statistics.median(v), 3)
+    res["repeats"] = args.repeat
+    res["speedup_cpu_min"] = round(min(runs["ocl_cpu"]) / min(runs["ours_cpu"]), 1)
+    res["speedup_wall_min"] = round(min(runs["ocl_wall"]) / min(runs["ours_wall"]), 1)
     print(json.dumps(res))
     if args.fixture:
         json.dump({"stl": os.path.basename(args.stl), "tool": args.tool,

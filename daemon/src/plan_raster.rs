@@ -1,9 +1,10 @@
 //! `interpd plan raster`: 3-axis raster finishing over an STL mesh by slicing
 //! the offset triangle mesh (`planner::raster`, seed `001_…`).
 //!
-//! Writes G-code (`--out`): for each polyline a rapid to the safe height, a
-//! rapid over its start, a plunge at the plunge feed, the cut at the feed, and
-//! a rapid retract to the safe height. `--json` prints a summary on stdout;
+//! Writes G-code (`--out`) through `gcode::emit`: for each polyline a rapid
+//! across at the safe height, a rapid down to just above its start, a plunge
+//! at the plunge feed, the cut at the feed, and a rapid retract straight up to
+//! the safe height. `--json` prints a summary on stdout;
 //! `--cl-json` dumps the CL polylines for the accuracy scripts
 //! (`scripts/ocl_compare.py`).
 
@@ -81,9 +82,6 @@ struct Summary {
     out: Option<String>,
 }
 
-/// Digits after the point in the G-code (0.1 µm).
-const GCODE_DECIMALS: usize = 4;
-
 /// Runs `interpd plan raster`.
 pub fn main(args: &RasterArgs) -> Result<()> {
     let t0 = Instant::now();
@@ -124,7 +122,12 @@ pub fn main(args: &RasterArgs) -> Result<()> {
     let (_, hi) = mesh.bounds();
     let safe_z = hi.z + args.clearance;
     if let Some(out) = &args.out {
-        write_gcode(&path, out, safe_z, args)
+        let moves = GcodeMoves {
+            safe_z,
+            feed: args.feed,
+            plunge_feed: args.plunge_feed,
+        };
+        write_gcode(&path, out, &moves)
             .with_context(|| format!("writing G-code to {}", out.display()))?;
     }
     if let Some(out) = &args.cl_json {
@@ -154,31 +157,91 @@ pub fn main(args: &RasterArgs) -> Result<()> {
     Ok(())
 }
 
-/// Writes the path as G-code with rapids at `safe_z` between polylines
-/// (a small local writer until the `gcode` crate's emitter is merged).
-fn write_gcode(path: &RasterPath, out: &PathBuf, safe_z: f64, args: &RasterArgs) -> Result<()> {
-    let mut f = BufWriter::new(File::create(out)?);
-    let d = GCODE_DECIMALS;
-    writeln!(
-        f,
-        "(interpd plan raster: {} stepover {} angle {})",
-        path.cutter, path.config.stepover, path.config.angle_deg
-    )?;
-    writeln!(f, "G21 G90 G17")?;
-    writeln!(f, "G0 Z{safe_z:.d$}")?;
-    for pass in &path.passes {
-        for line in &pass.polylines {
-            let Some(first) = line.first() else { continue };
-            writeln!(f, "G0 X{:.d$} Y{:.d$}", first.x, first.y)?;
-            writeln!(f, "G1 Z{:.d$} F{:.1}", first.z, args.plunge_feed)?;
-            writeln!(f, "F{:.1}", args.feed)?;
-            for p in &line[1..] {
-                writeln!(f, "G1 X{:.d$} Y{:.d$} Z{:.d$}", p.x, p.y, p.z)?;
+/// How far above a polyline's first point the rapid descent stops before the
+/// plunge at the plunge feed, mm. The tool may drop vertically onto a CL point
+/// without gouging (the CL height is the lowest it can go there).
+const APPROACH_CLEARANCE: f64 = 1.0;
+
+/// Feeds and heights of the G-code around the CL polylines.
+#[derive(Debug, Clone, Copy)]
+struct GcodeMoves {
+    /// Height of every move between polylines, mm.
+    safe_z: f64,
+    /// Cutting feed, mm/min.
+    feed: f64,
+    /// Plunge feed, mm/min.
+    plunge_feed: f64,
+}
+
+/// Turns the path into a program for the `gcode` emitter: per polyline a
+/// rapid across at `safe_z`, a rapid down to `APPROACH_CLEARANCE` above its
+/// first point, a plunge at the plunge feed, G1 moves at the feed, and a
+/// rapid retract straight up to `safe_z` (so the tool never moves sideways
+/// below the safe height between polylines).
+fn raster_program(path: &RasterPath, moves: &GcodeMoves) -> gcode::Program {
+    use gcode::{BlockKind, Feed, LinearMove, ProgramBlock, RapidMove};
+    let mut blocks: Vec<ProgramBlock> = Vec::new();
+    let mut pos: Option<[f64; 3]> = None;
+    let push = |blocks: &mut Vec<ProgramBlock>, kind: BlockKind| {
+        let line = blocks.len() as u32 + 1;
+        blocks.push(ProgramBlock { line, kind });
+    };
+    for line in path.passes.iter().flat_map(|p| &p.polylines) {
+        let Some(first) = line.first() else { continue };
+        let above = [first.x, first.y, moves.safe_z];
+        let approach = [
+            first.x,
+            first.y,
+            moves.safe_z.min(first.z + APPROACH_CLEARANCE),
+        ];
+        let start = [first.x, first.y, first.z];
+        // The first move starts wherever the machine is; the emitter writes
+        // it as one rapid to the point above the first polyline.
+        let mut at = pos.unwrap_or(above);
+        for end in [above, approach] {
+            if end != at {
+                push(&mut blocks, BlockKind::Rapid(RapidMove { start: at, end }));
+                at = end;
             }
-            writeln!(f, "G0 Z{safe_z:.d$}")?;
         }
+        let mut feed = moves.plunge_feed;
+        for p in std::iter::once(start).chain(line[1..].iter().map(|q| [q.x, q.y, q.z])) {
+            push(
+                &mut blocks,
+                BlockKind::Linear(LinearMove {
+                    start: at,
+                    end: p,
+                    feed: Feed::PerMinute(feed),
+                }),
+            );
+            at = p;
+            feed = moves.feed;
+        }
+        let up = [at[0], at[1], moves.safe_z];
+        push(
+            &mut blocks,
+            BlockKind::Rapid(RapidMove { start: at, end: up }),
+        );
+        pos = Some(up);
     }
-    writeln!(f, "M2")?;
+    push(&mut blocks, BlockKind::ProgramEnd);
+    gcode::Program { blocks }
+}
+
+/// The path as G-code text through `gcode::emit`, with a comment naming it.
+fn raster_gcode(path: &RasterPath, moves: &GcodeMoves) -> String {
+    format!(
+        "(interpd plan raster: {} stepover {} angle {})\n{}",
+        path.cutter,
+        path.config.stepover,
+        path.config.angle_deg,
+        gcode::emit(&raster_program(path, moves))
+    )
+}
+
+fn write_gcode(path: &RasterPath, out: &PathBuf, moves: &GcodeMoves) -> Result<()> {
+    let mut f = BufWriter::new(File::create(out)?);
+    f.write_all(raster_gcode(path, moves).as_bytes())?;
     f.flush()?;
     Ok(())
 }
@@ -215,4 +278,115 @@ fn write_cl_json(path: &RasterPath, out: &PathBuf) -> Result<()> {
     serde_json::to_writer(&mut f, &doc)?;
     f.flush()?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use gcode::BlockKind;
+    use planner::mesh::P3;
+
+    /// A small path over a step (floor, wall, top) with a gap, so passes
+    /// have several polylines.
+    fn sample_path() -> RasterPath {
+        let p = P3::new;
+        let quad = |a: P3, b: P3, c: P3, d: P3| [[a, b, c], [a, c, d]];
+        let mut soup = Vec::new();
+        soup.extend(quad(
+            p(-10.0, -4.0, 0.0),
+            p(0.0, -4.0, 0.0),
+            p(0.0, 4.0, 0.0),
+            p(-10.0, 4.0, 0.0),
+        ));
+        soup.extend(quad(
+            p(0.0, -4.0, 0.0),
+            p(0.0, -4.0, 3.0),
+            p(0.0, 4.0, 3.0),
+            p(0.0, 4.0, 0.0),
+        ));
+        soup.extend(quad(
+            p(0.0, -4.0, 3.0),
+            p(8.0, -4.0, 3.0),
+            p(8.0, 4.0, 3.0),
+            p(0.0, 4.0, 3.0),
+        ));
+        // A separate island 10 mm beyond, so each pass has two polylines.
+        soup.extend(quad(
+            p(18.0, -4.0, 1.0),
+            p(24.0, -4.0, 1.0),
+            p(24.0, 4.0, 1.0),
+            p(18.0, 4.0, 1.0),
+        ));
+        let mesh = TriMesh::from_triangles(&soup, WeldOptions::default()).unwrap();
+        let config = RasterConfig {
+            stepover: 1.0,
+            zigzag: true,
+            ..RasterConfig::default()
+        };
+        planner::raster::plan_raster(&mesh, &"ball:4".parse().unwrap(), &config).unwrap()
+    }
+
+    #[test]
+    fn gcode_parses_back_to_the_same_points_with_safe_retracts() {
+        let path = sample_path();
+        let moves = GcodeMoves {
+            safe_z: 8.0,
+            feed: 1200.0,
+            plunge_feed: 250.0,
+        };
+        let text = raster_gcode(&path, &moves);
+        let program = gcode::parse(&text).expect("emitted G-code parses");
+        let lines: Vec<&Vec<P3>> = path.passes.iter().flat_map(|p| &p.polylines).collect();
+        assert!(lines.len() >= 2 * path.passes.len(), "expected gaps");
+        // Feed moves, split at rapids, are exactly the polylines.
+        let mut got: Vec<Vec<[f64; 3]>> = Vec::new();
+        let mut cutting = false;
+        let mut at = None::<[f64; 3]>;
+        for b in &program.blocks {
+            match &b.kind {
+                BlockKind::Rapid(m) => {
+                    // Sideways rapids only at the safe height; vertical ones
+                    // never below the polyline start they lead to.
+                    if m.start[0] != m.end[0] || m.start[1] != m.end[1] {
+                        assert!(
+                            at.is_none() || (m.start[2] == 8.0 && m.end[2] == 8.0),
+                            "line {}: sideways rapid below the safe height",
+                            b.line
+                        );
+                    }
+                    cutting = false;
+                    at = Some(m.end);
+                }
+                BlockKind::Linear(m) => {
+                    let gcode::Feed::PerMinute(f) = m.feed else {
+                        panic!("feed mode")
+                    };
+                    if !cutting {
+                        // The plunge: straight down at the plunge feed.
+                        assert_eq!(f, 250.0);
+                        assert_eq!((m.start[0], m.start[1]), (m.end[0], m.end[1]));
+                        assert!(m.start[2] > m.end[2]);
+                        got.push(vec![m.end]);
+                        cutting = true;
+                    } else {
+                        assert_eq!(f, 1200.0);
+                        got.last_mut().unwrap().push(m.end);
+                    }
+                    at = Some(m.end);
+                }
+                BlockKind::ProgramEnd => {}
+                other => panic!("unexpected block {other:?}"),
+            }
+        }
+        assert_eq!(got.len(), lines.len());
+        for (g, l) in got.iter().zip(&lines) {
+            let want: Vec<[f64; 3]> = l.iter().map(|q| [q.x, q.y, q.z]).collect();
+            // Shortest round-trip numbers: bit for bit.
+            assert_eq!(g, &want);
+        }
+        assert!(matches!(
+            program.blocks.last().map(|b| &b.kind),
+            Some(BlockKind::ProgramEnd)
+        ));
+    }
 }

@@ -379,6 +379,14 @@ impl Welder {
 
     fn index(&mut self, p: &P3) -> u32 {
         let c = self.cell(p);
+        // STL repeats each corner exactly for every facet around it: an
+        // exact copy in its own cell is the closest possible vertex, so the
+        // 27-cell search is only needed for new or inexact corners.
+        if let Some(list) = self.cells.get(&c)
+            && let Some(&i) = list.iter().find(|&&i| self.vertices[i as usize] == *p)
+        {
+            return i;
+        }
         let mut best: Option<(f64, u32)> = None;
         for dx in -1..=1 {
             for dy in -1..=1 {

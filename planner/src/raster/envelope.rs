@@ -38,6 +38,9 @@ pub(crate) struct EnvelopeOptions {
     pub same_curve_width: f64,
     /// Chord tolerance of the output polyline, mm.
     pub chord_tolerance: f64,
+    /// A piece whose upper bound is above the envelope's lower bound by no
+    /// more than this (mm) is dropped: the envelope may be that much low.
+    pub prune_tolerance: f64,
 }
 
 /// Pieces of one pass and what they need for evaluation.
@@ -169,19 +172,43 @@ fn resolve(
         ub: f64,
         z: [f64; 3],
         line: bool,
+        vertex: Option<u32>,
     }
     let mut bounds: Vec<Bound> = Vec::with_capacity(cands.len());
     let mut lower = f64::NEG_INFINITY;
-    for &i in cands {
+    // Faces first: their values are cheap and give `lower`, which then
+    // drops most capsules by a bound that needs no contact solve.
+    let faces = cands
+        .iter()
+        .filter(|&&i| matches!(pieces[i as usize].kind, PieceKind::Line { .. }));
+    let capsules = cands
+        .iter()
+        .filter(|&&i| matches!(pieces[i as usize].kind, PieceKind::Capsule { .. }));
+    for &i in faces.chain(capsules) {
         let p = &pieces[i as usize];
         let (a, b) = (p.u0.max(s), p.u1.min(t));
         if !(b > a) {
             continue;
         }
+        if let PieceKind::Capsule { edge } = p.kind
+            && geo.edges[edge as usize].upper_bound(a, b, geo.w, geo.shape) < lower
+        {
+            continue;
+        }
         let c = 0.5 * (a + b);
-        let (za, _) = geo.eval(i, a);
-        let (zc, _) = geo.eval(i, c);
-        let (zb, _) = geo.eval(i, b);
+        let (za, fa) = geo.eval(i, a);
+        let (zc, fc) = geo.eval(i, c);
+        let (zb, fb) = geo.eval(i, b);
+        // One vertex offset touched at both ends and the middle: the piece
+        // is that vertex's offset on the whole interval (the points whose
+        // contact is a given end of an edge form a convex set, so an
+        // interval of the pass), whichever capsule holds it.
+        let vertex = match (fa, fc, fb) {
+            (Feature::Vertex(x), Feature::Vertex(y), Feature::Vertex(z)) if x == y && y == z => {
+                Some(x)
+            }
+            _ => None,
+        };
         let full = a == s && b == t;
         if full {
             lower = lower.max(za.min(zb));
@@ -196,6 +223,7 @@ fn resolve(
             // on the interval (it is above the chord and concave).
             line: matches!(p.kind, PieceKind::Line { .. })
                 || (za + zb - 2.0 * zc).abs() <= opt.same_value,
+            vertex,
         });
     }
     // Linear lower bounds of the envelope: the chords of the full candidates
@@ -213,13 +241,21 @@ fn resolve(
     // A candidate is below the envelope on [s, m] if its upper line there
     // (the secant through m and t, extended) is below some chord at both ends;
     // likewise on [m, t].
-    let below = |b: &Bound| {
-        if !b.full {
+    // Within `prune_tolerance` counts as below: where a piece meets the
+    // envelope tangentially (a face's offset running into its edge's
+    // cylinder) the secant bounds close in only quadratically, and without
+    // the slack the bisection would go down to `min_split`. The references
+    // themselves are never pruned, so the envelope is never left empty.
+    let eps = opt.prune_tolerance;
+    let below = |k: usize, b: &Bound| {
+        if !b.full || refs.contains(&Some(k)) {
             return false;
         }
         let left = [2.0 * b.z[1] - b.z[2], b.z[1]];
         let right = [b.z[1], 2.0 * b.z[1] - b.z[0]];
-        let under = |r: &Bound, ends: [f64; 2], i: usize| ends[0] < r.z[i] && ends[1] < r.z[i + 1];
+        let under = |r: &Bound, ends: [f64; 2], i: usize| {
+            ends[0] < r.z[i] + eps && ends[1] < r.z[i + 1] + eps
+        };
         refs.iter().flatten().any(|&r| under(&bounds[r], left, 0))
             && refs.iter().flatten().any(|&r| under(&bounds[r], right, 1))
     };
@@ -228,7 +264,7 @@ fn resolve(
     let mut kept: Vec<usize> = Vec::new();
     let mut best: Option<usize> = None;
     for (k, b) in bounds.iter().enumerate() {
-        if !(b.ub >= lower) || below(b) {
+        if !(b.ub >= lower) || below(k, b) {
             continue;
         }
         // The same curve held twice: a straight piece and a concave curve
@@ -239,7 +275,10 @@ fn resolve(
             && kept.iter().any(|&j| {
                 let o = &bounds[j];
                 o.full
-                    && (o.line || b.line || t - s <= opt.same_curve_width)
+                    && (o.line
+                        || b.line
+                        || t - s <= opt.same_curve_width
+                        || (o.vertex.is_some() && o.vertex == b.vertex))
                     && (0..3).all(|q| (o.z[q] - b.z[q]).abs() <= opt.same_value)
             });
         if dup {

@@ -76,6 +76,12 @@ const SAME_CURVE_TOLERANCE: f64 = 1e-12;
 /// with curvature up to 1/(0.1 mm) they differ in between by < 2.5e-8 mm.
 const SAME_CURVE_WIDTH: f64 = 1e-4;
 
+/// A piece at most this far (mm) above the envelope's lower bound is taken
+/// as below it: the path may be this much low, far under the chord
+/// tolerance, and tangent meetings stop bisecting at ~1e-4 mm instead of the
+/// crossing tolerance.
+const PRUNE_TOLERANCE: f64 = 1e-9;
+
 /// Envelope runs and gaps narrower than this (mm) are round-off.
 const MIN_RUN_WIDTH: f64 = 1e-9;
 
@@ -380,6 +386,7 @@ pub fn plan_raster_with_progress(
         same_value: SAME_CURVE_TOLERANCE,
         same_curve_width: SAME_CURVE_WIDTH,
         chord_tolerance: config.chord_tolerance,
+        prune_tolerance: PRUNE_TOLERANCE,
     };
     let done = AtomicUsize::new(0);
     let results: Vec<(RasterPass, usize)> = (0..count)
@@ -481,6 +488,56 @@ fn keep_edge(
     height(far(b), up[a]) < -tol || height(far(a), up[b]) < -tol
 }
 
+/// Bisection steps that move a run's end in from a point with no value
+/// (2^-60 of the run is below f64 resolution).
+const FINITE_END_STEPS: usize = 60;
+
+/// The run with both end values finite (ends moved inwards if needed), or
+/// `None` if no part of it has a value.
+fn finite_run(geo: &PassGeometry<'_>, r: &envelope::Run) -> Option<(envelope::Run, f64, f64)> {
+    let (zs, _) = geo.eval(r.piece, r.s);
+    let (zt, _) = geo.eval(r.piece, r.t);
+    if zs.is_finite() && zt.is_finite() {
+        return Some((*r, zs, zt));
+    }
+    let m = 0.5 * (r.s + r.t);
+    let (zm, _) = geo.eval(r.piece, m);
+    if !zm.is_finite() {
+        return None;
+    }
+    // Bisect between a point without a value and `m` (which has one).
+    let inward = |mut bad: f64| {
+        let mut good = (m, zm);
+        for _ in 0..FINITE_END_STEPS {
+            let x = 0.5 * (bad + good.0);
+            match geo.eval(r.piece, x).0 {
+                z if z.is_finite() => good = (x, z),
+                _ => bad = x,
+            }
+        }
+        good
+    };
+    let (s, zs) = if zs.is_finite() {
+        (r.s, zs)
+    } else {
+        inward(r.s)
+    };
+    let (t, zt) = if zt.is_finite() {
+        (r.t, zt)
+    } else {
+        inward(r.t)
+    };
+    Some((
+        envelope::Run {
+            piece: r.piece,
+            s,
+            t,
+        },
+        zs,
+        zt,
+    ))
+}
+
 /// Turns envelope runs into polylines in world coordinates, splitting at gaps.
 fn trace_runs(
     geo: &PassGeometry<'_>,
@@ -508,16 +565,20 @@ fn trace_runs(
         if r.t - r.s < MIN_RUN_WIDTH && !current.is_empty() {
             continue;
         }
+        // A capsule's section ends where the cutter's rim just reaches its
+        // edge; round-off can put that end a hair out of reach (no value).
+        // Such an end is moved in to the last point that has one.
+        let Some((r, zs, zt)) = finite_run(geo, r) else {
+            continue;
+        };
         if r.s - last_t > MIN_RUN_WIDTH {
             flush(&mut current, &mut polylines);
         }
-        let (zs, _) = geo.eval(r.piece, r.s);
-        let (zt, _) = geo.eval(r.piece, r.t);
         match current.last() {
             Some(&[u, z]) if u == r.s && z == zs => {}
             _ => current.push([r.s, zs]),
         }
-        run_points(geo, opt, r, zs, zt, &mut current);
+        run_points(geo, opt, &r, zs, zt, &mut current);
         last_t = r.t;
     }
     flush(&mut current, &mut polylines);

@@ -56,6 +56,10 @@ enum ShapeKind {
 /// contact: 0.618^80 of the edge is far below f64 resolution of the result.
 const GOLDEN_ITERATIONS: usize = 80;
 
+/// The bull cutter's edge contact search stops once the height is known to
+/// this (mm): far below the envelope's tolerances, well above round-off.
+const BULL_VALUE_TOLERANCE: f64 = 1e-12;
+
 /// Relative slack when a point computed on a domain boundary lands just
 /// outside it by rounding.
 const DOMAIN_SLACK: f64 = 1e-9;
@@ -272,6 +276,61 @@ impl OffsetEdge {
         })
     }
 
+    /// An upper bound of the tip height against this edge over the stretch
+    /// `u ∈ [s, t]` of the pass `w`, without solving the contact: the tip is
+    /// never above the highest point it touches, lowered by the cutter
+    /// profile at the smallest XY distance between the stretch and the edge.
+    pub(crate) fn upper_bound(&self, s: f64, t: f64, w: f64, shape: &CutterShape) -> f64 {
+        let (a, b) = (self.p0, self.p1);
+        // Squared distance from a point to the stretch (a horizontal segment).
+        let to_stretch = |p: F3| {
+            let du = if p[0] < s {
+                s - p[0]
+            } else if p[0] > t {
+                p[0] - t
+            } else {
+                0.0
+            };
+            du * du + (p[1] - w) * (p[1] - w)
+        };
+        let d = [b[0] - a[0], b[1] - a[1]];
+        let dd = d[0] * d[0] + d[1] * d[1];
+        // Squared distance from a stretch end to the edge's XY shadow.
+        let to_edge = |u: f64| {
+            let l = if dd > 0.0 {
+                (((u - a[0]) * d[0] + (w - a[1]) * d[1]) / dd).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let (x, y) = (a[0] + l * d[0] - u, a[1] + l * d[1] - w);
+            x * x + y * y
+        };
+        let (da, db) = (a[1] - w, b[1] - w);
+        let crosses = (da <= 0.0 && db >= 0.0 || da >= 0.0 && db <= 0.0) && {
+            if da == db {
+                a[0].min(b[0]) <= t && a[0].max(b[0]) >= s
+            } else {
+                (s..=t).contains(&(a[0] + da / (da - db) * d[0]))
+            }
+        };
+        let dmin = if crosses {
+            0.0
+        } else {
+            let r2 = shape.radius * shape.radius * (1.0 + DOMAIN_SLACK);
+            let d2 = to_stretch(a)
+                .min(to_stretch(b))
+                .min(to_edge(s))
+                .min(to_edge(t));
+            if d2 > r2 {
+                return f64::NEG_INFINITY;
+            }
+            d2.sqrt()
+        };
+        // Slightly below the exact profile so round-off never makes it a
+        // lower value than an exact evaluation.
+        a[2].max(b[2]) - shape.profile(dmin) * (1.0 - DOMAIN_SLACK)
+    }
+
     /// Tool-tip height at `(u, w)` against the edge and its two ends, and the
     /// feature touched; `NEG_INFINITY` when out of reach.
     pub(crate) fn drop_at(&self, u: f64, w: f64, shape: &CutterShape, edge: u32) -> (f64, Feature) {
@@ -404,6 +463,7 @@ impl OffsetEdge {
         };
         const INV_PHI: f64 = 0.618_033_988_749_894_9;
         let (mut a, mut b) = (t1, t2);
+        let (mut fa, mut fb) = (h(a), h(b));
         let mut c = b - INV_PHI * (b - a);
         let mut d = a + INV_PHI * (b - a);
         let (mut fc, mut fd) = (h(c), h(d));
@@ -411,14 +471,35 @@ impl OffsetEdge {
             if b - a <= f64::EPSILON * 4.0 {
                 break;
             }
+            // A concave h lies below each secant extended beyond it: below
+            // the (d, b) secant on [a, d], below the (a, c) secant on [c, b].
+            // Stop once that bound on its maximum is within
+            // BULL_VALUE_TOLERANCE of the best value found.
+            let (s1, s2) = ((fc - fa) / (c - a), (fb - fd) / (b - d));
+            let (l1, l2) = (|x: f64| fc + s1 * (x - c), |x: f64| fd + s2 * (x - d));
+            let mut bound = l2(a).max(l2(c)).max(l1(d)).max(l1(b));
+            if s1 > s2 {
+                let x = ((fd - s2 * d) - (fc - s1 * c)) / (s1 - s2);
+                if x > c && x < d {
+                    bound = bound.max(l1(x));
+                }
+            } else {
+                bound = bound.max(l1(c).min(l2(c))).max(l1(d).min(l2(d)));
+            }
+            let found = fc.max(fd);
+            if bound - found <= BULL_VALUE_TOLERANCE {
+                break;
+            }
             if fc >= fd {
                 b = d;
+                fb = fd;
                 d = c;
                 fd = fc;
                 c = b - INV_PHI * (b - a);
                 fc = h(c);
             } else {
                 a = c;
+                fa = fc;
                 c = d;
                 fc = fd;
                 d = a + INV_PHI * (b - a);
