@@ -82,6 +82,31 @@ pub struct TriMesh {
     pub dropped_degenerate: usize,
 }
 
+/// An ASCII STL whose first line is a bare `solid` (no name), and whose size
+/// is not that of a binary STL: its text with the first line named, so that
+/// `stl_io` reads it as ASCII. `None` for anything else (reader rewound).
+fn unnamed_ascii_solid<R: Read + Seek>(reader: &mut R) -> std::io::Result<Option<Vec<u8>>> {
+    let mut head = [0u8; 84];
+    let n = reader.read(&mut head)?;
+    let len = reader.seek(std::io::SeekFrom::End(0))?;
+    reader.seek(std::io::SeekFrom::Start(0))?;
+    let first_line = head[..n].split(|&c| c == b'\n').next().unwrap_or(&[]);
+    if first_line.trim_ascii() != b"solid" {
+        return Ok(None);
+    }
+    if n == 84 {
+        let count = u32::from_le_bytes([head[80], head[81], head[82], head[83]]) as u64;
+        if 84 + 50 * count == len {
+            return Ok(None); // a binary STL whose header happens to say "solid"
+        }
+    }
+    let mut text = Vec::with_capacity(len as usize + 8);
+    reader.read_to_end(&mut text)?;
+    let eol = text.iter().position(|&c| c == b'\n').unwrap_or(text.len());
+    text.splice(..eol, b"solid unnamed".iter().copied());
+    Ok(Some(text))
+}
+
 impl TriMesh {
     /// Reads a binary or ASCII STL file.
     pub fn from_stl_path(path: impl AsRef<Path>, options: WeldOptions) -> Result<Self, MeshError> {
@@ -98,6 +123,11 @@ impl TriMesh {
         reader: &mut R,
         options: WeldOptions,
     ) -> Result<Self, MeshError> {
+        if let Some(text) = unnamed_ascii_solid(reader).map_err(MeshError::Stl)? {
+            // `stl_io` takes ASCII only after "solid " with a space; CAD
+            // exporters (and OpenCAMLib's samples) also write a bare "solid".
+            return Self::from_stl_reader(&mut std::io::Cursor::new(text), options);
+        }
         let facets = stl_io::create_stl_reader(reader).map_err(MeshError::Stl)?;
         let mut soup = Vec::new();
         for facet in facets {
@@ -461,6 +491,22 @@ mod tests {
             err.to_string(),
             "facet 1, vertex 1: coordinate is not finite"
         );
+    }
+
+    #[test]
+    fn ascii_stl_with_a_bare_solid_line_reads() {
+        for eol in ["\n", "\r\n"] {
+            let text = format!(
+                "solid{eol}facet normal 0 0 0{eol}outer loop{eol}vertex 0 0 0{eol}vertex 1 0 0{eol}\
+                 vertex 0 1 0{eol}endloop{eol}endfacet{eol}endsolid{eol}"
+            );
+            let m = TriMesh::from_stl_reader(
+                &mut std::io::Cursor::new(text.into_bytes()),
+                WeldOptions::default(),
+            )
+            .expect("bare solid reads");
+            assert_eq!(m.triangles.len(), 1);
+        }
     }
 
     #[test]
