@@ -2,7 +2,7 @@
 //! back-pressure (at most [`WINDOW`] requests unanswered; the server answers a
 //! block only once it is queued), shows progress, and waits for the end.
 //!
-//! `start` is sent as soon as the server stops answering for [`STALL`] (its
+//! `start` is sent (on a second connection) as soon as the server stops answering for [`STALL`] (its
 //! queue is full: the program is longer than the look-ahead) or after the
 //! whole program was accepted, whichever comes first; so a program that fits
 //! runs exactly as `simulate` would. Ctrl-C sends `hold`, then `abort`.
@@ -65,7 +65,6 @@ struct Status {
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Expect {
     Block,
-    Other,
 }
 
 /// Reads the program's request lines: G-code (`.ngc`, `.nc`) and JSON
@@ -130,6 +129,49 @@ pub fn main(args: &SendArgs) -> Result<()> {
         Outcome::Done => Ok(()),
         Outcome::Refused(e) => bail!("the server refused the program: {e}"),
         Outcome::Interrupted => bail!("interrupted: held and aborted"),
+    }
+}
+
+/// Sends `start` on a connection of its own (authenticated like the stream).
+async fn start_aside(args: &SendArgs) -> Result<()> {
+    async fn ask<S: AsyncRead + AsyncWrite + Unpin>(io: S, args: &SendArgs) -> Result<()> {
+        let (rd, mut wr) = tokio::io::split(io);
+        let mut rd = BufReader::new(rd).lines();
+        if let Some(t) = &args.token {
+            wr.write_all(format!("auth {t}\n").as_bytes()).await?;
+        }
+        wr.write_all(b"start\n").await?;
+        let expected = if args.token.is_some() { 2 } else { 1 };
+        for _ in 0..expected {
+            let r = rd
+                .next_line()
+                .await?
+                .ok_or_else(|| anyhow!("the server closed the start connection"))?;
+            if !r.starts_with("ok") {
+                bail!("start refused: {r}");
+            }
+        }
+        Ok(())
+    }
+    match &args.socket {
+        Some(p) => {
+            ask(
+                tokio::net::UnixStream::connect(p)
+                    .await
+                    .with_context(|| format!("connecting to {} for start", p.display()))?,
+                args,
+            )
+            .await
+        }
+        None => {
+            ask(
+                tokio::net::TcpStream::connect(args.addr)
+                    .await
+                    .with_context(|| format!("connecting to {} for start", args.addr))?,
+                args,
+            )
+            .await
+        }
     }
 }
 
@@ -221,9 +263,11 @@ pub async fn stream<S: AsyncRead + AsyncWrite + Unpin>(
             r = tokio::time::timeout(STALL, next_reply(&mut rd)) => match r {
                 Err(_) => {
                     // Back-pressure: the queue is full; let the machine run.
+                    // `start` goes over a second connection: on this one it
+                    // would wait behind the block the server is holding
+                    // until the queue drains, which needs `start`.
                     if !started {
-                        wr.write_all(b"start\n").await?;
-                        expect.push_back(Expect::Other);
+                        start_aside(args).await?;
                         started = true;
                     }
                 }
@@ -237,7 +281,6 @@ pub async fn stream<S: AsyncRead + AsyncWrite + Unpin>(
                                 refused = Some(format!("block {} of {total}: {line}", acked + 1));
                             }
                         }
-                        Some(Expect::Other) => {}
                         None => bail!("unexpected reply {line:?}"),
                     }
                     progress.show(&format!("{} {acked}/{total} blocks queued", bar(acked, total)), false);

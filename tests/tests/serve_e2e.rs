@@ -415,3 +415,48 @@ fn remote_listening_needs_a_flag_and_a_token() {
     assert_eq!(c.ask("auth s3cret"), "ok auth");
     assert!(c.ask("status").starts_with("status {"));
 }
+
+/// `interpd send` of a program longer than the look-ahead: the server holds
+/// the block that does not fit until the machine moves, so `start` must not
+/// wait behind it on the same connection (it did: a deadlock whenever the
+/// server answered every block within the stall time).
+#[test]
+fn send_streams_a_program_longer_than_the_look_ahead_to_its_end() {
+    let service = service_name("long");
+    let dir = temp_dir("long");
+    let srv = Server::start(&service, &["--no-socket"]);
+    // 150 collinear 10 mm lines: 1,500 mm, more than the 1,024 mm profile
+    // ring plus the 16 planned blocks the RT queue holds, so the server must
+    // hold a block back before the machine has started.
+    let n = 150;
+    let mut text = String::new();
+    for i in 1..=n {
+        text.push_str(&line_to([10.0 * i as f64, 0.0, 0.0], 15_000.0, i));
+        text.push('\n');
+    }
+    let program = dir.join("long.jsonl");
+    std::fs::write(&program, text).unwrap();
+    let child = std::process::Command::new(interpd())
+        .args(["send", "--json", "--addr"])
+        .arg(format!("127.0.0.1:{}", srv.port))
+        .arg(&program)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("interpd send");
+    let out = wait_child(child, "interpd send of a long program");
+    assert!(
+        out.status.success(),
+        "send failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let status: serde_json::Value = serde_json::from_slice(&out.stdout).expect("status JSON");
+    assert_eq!(status["state"], "done", "{status}");
+    assert_eq!(status["blocks_accepted"], n);
+    assert_eq!(status["pieces_pushed"], n);
+    assert_eq!(
+        status["position"],
+        serde_json::json!([20.0 * n as f64, 0.0, 0.0])
+    );
+    drop(srv);
+}
