@@ -456,7 +456,7 @@ fn send_streams_a_program_longer_than_the_look_ahead_to_its_end() {
     assert_eq!(status["pieces_pushed"], n);
     assert_eq!(
         status["position"],
-        serde_json::json!([20.0 * n as f64, 0.0, 0.0])
+        serde_json::json!([10.0 * n as f64, 0.0, 0.0])
     );
     drop(srv);
 }
