@@ -20,6 +20,27 @@ const POLYLINE: [[f64; 3]; 4] = [
     [0.0, 4.0, 1.5],
 ];
 
+/// Runs `interpd replay` on `trace`, asserts it is bit-identical and returns
+/// how many setpoints it compared.
+fn replay_bit_identical(trace: &std::path::Path) -> u64 {
+    let out = std::process::Command::new(interpd())
+        .arg("replay")
+        .arg(trace)
+        .output()
+        .expect("interpd replay");
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "replay failed: {said} {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(said.contains("bit-identical"), "{said}");
+    said.split_whitespace()
+        .nth(3)
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no count in {said:?}"))
+}
+
 #[test]
 fn streamed_program_is_published_gapless_on_the_path_and_ends_at_rest_at_its_end() {
     let dir = temp_dir("e2e");
@@ -101,19 +122,8 @@ fn streamed_program_is_published_gapless_on_the_path_and_ends_at_rest_at_its_end
     assert!(text.contains("stopped:"), "{text}");
     assert!(text.contains("0 records dropped"), "{text}");
 
-    // The recording replays bit for bit (`interpd replay` re-simulates its blocks).
-    let out = std::process::Command::new(interpd())
-        .arg("replay")
-        .arg(&trace)
-        .output()
-        .expect("interpd replay");
-    let said = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "replay failed: {said} {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    assert!(said.contains("bit-identical"), "{said}");
+    // The recording replays bit for bit (`interpd replay`).
+    let compared = replay_bit_identical(&trace);
     // Every moving tick the subscriber saw is in the trace.
     let moving = rows
         .iter()
@@ -121,11 +131,6 @@ fn streamed_program_is_published_gapless_on_the_path_and_ends_at_rest_at_its_end
         .map(|r| r.tick)
         .max()
         .unwrap();
-    let compared: u64 = said
-        .split_whitespace()
-        .nth(3)
-        .and_then(|n| n.parse().ok())
-        .unwrap_or_else(|| panic!("no count in {said:?}"));
     assert!(
         compared >= moving,
         "{compared} compared, {moving} ticks seen"
@@ -279,23 +284,7 @@ fn hold_resume_and_abort_stop_on_the_path_and_a_new_program_starts_there() {
 
     // The whole session (three programs, blocks committed while moving,
     // override, hold, resume, abort) replays bit for bit by its schedule.
-    let out = std::process::Command::new(interpd())
-        .arg("replay")
-        .arg(&trace)
-        .output()
-        .expect("interpd replay");
-    let said = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "replay failed: {said} {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    assert!(said.contains("bit-identical"), "{said}");
-    let compared: u64 = said
-        .split_whitespace()
-        .nth(3)
-        .and_then(|n| n.parse().ok())
-        .unwrap_or_else(|| panic!("no count in {said:?}"));
+    let compared = replay_bit_identical(&trace);
     let ticks = d["ticks"].as_u64().unwrap();
     assert!(compared >= ticks, "{compared} of {ticks} ticks replayed");
 }
