@@ -441,20 +441,19 @@ pub fn span_allowance(q: &[P3], turns: &[f64], i: usize) -> f64 {
 /// span's segment, less the span's [`span_allowance`]. Without the second
 /// part a least-squares curve may meet every point and swing far away
 /// between them.
-fn max_deviation(q: &[P3], ub: &[f64], knots: &[f64], ctrl: &[P3], p: usize) -> f64 {
+fn max_deviation(q: &[P3], turns: &[f64], ub: &[f64], knots: &[f64], ctrl: &[P3], p: usize) -> f64 {
     let at_points = q
         .iter()
         .zip(ub)
         .map(|(pt, &u)| (eval(p, knots, ctrl, u) - pt).norm())
         .fold(0.0, f64::max);
-    let turns = turn_angles(q);
     let between = (0..q.len().saturating_sub(1))
         .flat_map(|i| (1..=SPAN_CHECKS).map(move |k| (i, k)))
         .map(|(i, k)| {
             let t = k as f64 / (SPAN_CHECKS + 1) as f64;
             let u = ub[i] + (ub[i + 1] - ub[i]) * t;
             distance_to_segment(&eval(p, knots, ctrl, u), &q[i], &q[i + 1])
-                - span_allowance(q, &turns, i)
+                - span_allowance(q, turns, i)
         })
         .fold(0.0, f64::max);
     at_points.max(between)
@@ -477,9 +476,11 @@ pub fn fit_piece(q: &[P3], degree: usize, tol: f64) -> NurbsBlock {
     let m = q.len() - 1;
     let p = degree.min(m).max(1);
     let ub = chord_params(q);
+    // The polyline's turns do not depend on the attempt: once per piece.
+    let turns = turn_angles(q);
     let attempt = |n: usize| {
         let (knots, ctrl) = lsq(q, &ub, n, p);
-        let dev = max_deviation(q, &ub, &knots, &ctrl, p);
+        let dev = max_deviation(q, &turns, &ub, &knots, &ctrl, p);
         (knots, ctrl, dev)
     };
     // Doubling, then bisection on the control-point count n + 1.
