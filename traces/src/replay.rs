@@ -184,16 +184,12 @@ pub fn replay(trace: &Trace) -> Result<ReplayReport, ReplayError> {
                 SimItem::Block(b) => {
                     let rec = trace.blocks.get(block_k);
                     block_k += 1;
-                    let same = rec.is_some_and(|r| r.segments == b.segments);
-                    if !same {
-                        return Err(Mismatch {
-                            seq: u64::from(b.index),
-                            field: format!("blocks[{}].segments", b.index),
-                            recorded: rec
-                                .map(|r| serde_json::to_string(&r.segments).unwrap_or_default())
-                                .unwrap_or_else(|| "(absent)".into()),
-                            replayed: serde_json::to_string(&b.segments).unwrap_or_default(),
-                        });
+                    if rec.is_none_or(|r| r.segments != b.segments) {
+                        return Err(split_mismatch(
+                            b.index,
+                            rec.map(|r| r.segments.as_slice()),
+                            &b.segments,
+                        ));
                     }
                 }
                 SimItem::Config(_) | SimItem::Event(_) => {}
@@ -284,41 +280,21 @@ pub fn replay_schedule(trace: &Trace) -> Result<ReplayReport, ReplayError> {
                         let id = e.count.unwrap_or(0) as u32;
                         if pending.front().is_none_or(|b| b.id != id) {
                             // A new block: the next recorded one that starts with this id.
-                            pending.clear();
                             let tail = ip.planner().tail();
-                            loop {
-                                let Some(b) = blocks.next() else {
-                                    return Err(bad(
-                                        e,
-                                        format!("no recorded block has segment {id}"),
-                                    ));
-                                };
-                                if b.segments.first().map(|s| s.block_id) != Some(id) {
-                                    continue; // flushed by an abort before any commit
-                                }
-                                let program = Program {
-                                    start: Some([tail.x, tail.y, tail.z]),
-                                    blocks: vec![b.block.clone()],
-                                };
-                                let mut x = program.expand(config.max_ctrl_per_block, id).map_err(
-                                    |err| bad(e, format!("expanding block {}: {err}", b.index)),
-                                )?;
-                                let eb =
-                                    x.blocks.pop().ok_or_else(|| bad(e, "empty block".into()))?;
-                                if eb.info != b.segments {
-                                    return Err(ReplayError::Mismatch(Mismatch {
-                                        seq: u64::from(b.index),
-                                        field: format!("blocks[{}].segments", b.index),
-                                        recorded: serde_json::to_string(&b.segments)
-                                            .unwrap_or_default(),
-                                        replayed: serde_json::to_string(&eb.info)
-                                            .unwrap_or_default(),
-                                    }));
-                                }
-                                pending.extend(eb.segments);
-                                used_blocks += 1;
-                                break;
-                            }
+                            pending.clear();
+                            pending.extend(
+                                next_block_segments(
+                                    &mut blocks,
+                                    id,
+                                    [tail.x, tail.y, tail.z],
+                                    config.max_ctrl_per_block,
+                                )
+                                .map_err(|err| match err {
+                                    ReplayError::Schedule(why) => bad(e, why),
+                                    other => other,
+                                })?,
+                            );
+                            used_blocks += 1;
                         }
                         let seg = pending
                             .pop_front()
@@ -359,4 +335,53 @@ pub fn replay_schedule(trace: &Trace) -> Result<ReplayReport, ReplayError> {
         missing_in_trace: missing,
         blocks: used_blocks,
     })
+}
+
+/// A block split differently on replay than on recording (`recorded` absent:
+/// the trace has no such block).
+fn split_mismatch(
+    index: u32,
+    recorded: Option<&[crate::messages::SegmentInfo]>,
+    replayed: &[crate::messages::SegmentInfo],
+) -> Mismatch {
+    Mismatch {
+        seq: u64::from(index),
+        field: format!("blocks[{index}].segments"),
+        recorded: recorded
+            .map(|r| serde_json::to_string(r).unwrap_or_default())
+            .unwrap_or_else(|| "(absent)".into()),
+        replayed: serde_json::to_string(replayed).unwrap_or_default(),
+    }
+}
+
+/// The segments of the next recorded block whose first segment is `id`,
+/// expanded from `start` as the control plane expanded it; blocks before it
+/// that an abort flushed before any commit are skipped.
+fn next_block_segments<'a>(
+    blocks: &mut impl Iterator<Item = &'a crate::messages::BlockMsg>,
+    id: u32,
+    start: [f64; 3],
+    max_ctrl: usize,
+) -> Result<Vec<interp_core::Block>, ReplayError> {
+    let b = blocks
+        .find(|b| b.segments.first().map(|s| s.block_id) == Some(id))
+        .ok_or_else(|| ReplayError::Schedule(format!("no recorded block has segment {id}")))?;
+    let program = Program {
+        start: Some(start),
+        blocks: vec![b.block.clone()],
+    };
+    let eb = program
+        .expand(max_ctrl, id)
+        .map_err(|err| ReplayError::Schedule(format!("expanding block {}: {err}", b.index)))?
+        .blocks
+        .pop()
+        .ok_or_else(|| ReplayError::Schedule("empty block".into()))?;
+    if eb.info != b.segments {
+        return Err(ReplayError::Mismatch(split_mismatch(
+            b.index,
+            Some(&b.segments),
+            &eb.info,
+        )));
+    }
+    Ok(eb.segments)
 }
