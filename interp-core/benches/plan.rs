@@ -94,6 +94,20 @@ fn bench(c: &mut Criterion) {
         per_run / seconds * 1e3
     );
     // Worst-case latency: one block arriving while 1,000 are queued.
+    one_block_with_1000_queued("push", |ip, b| {
+        let t = Instant::now();
+        ip.push(b).unwrap();
+        t.elapsed().as_secs_f64()
+    });
+}
+
+/// Mean and max over 200 trials of `op` (which times itself, in seconds) on
+/// the 1,001st line of [`polyline`] with the first 1,000 queued.
+fn one_block_with_1000_queued(
+    what: &str,
+    mut op: impl FnMut(&mut Interpolator<1024>, &Block) -> f64,
+) {
+    let cfg = InterpConfig::default();
     let lines = polyline(1_001);
     let mut worst = 0.0f64;
     let mut total = 0.0;
@@ -102,15 +116,13 @@ fn bench(c: &mut Criterion) {
         for b in &lines[..1000] {
             ip.push(b).unwrap();
         }
-        let t = Instant::now();
-        ip.push(&lines[1000]).unwrap();
-        let dt = t.elapsed().as_secs_f64();
+        let dt = op(&mut ip, &lines[1000]);
         worst = worst.max(dt);
         total += dt;
         black_box(ip.queued_length());
     }
     println!(
-        "push with 1,000 blocks queued: mean {:.1} µs, max {:.1} µs (200 trials)",
+        "{what} with 1,000 blocks queued: mean {:.2} µs, max {:.2} µs (200 trials)",
         total / 200.0 * 1e6,
         worst * 1e6
     );
@@ -152,28 +164,13 @@ fn plan_and_commit() {
         commit_total / n * 1e6,
         commit_worst * 1e6
     );
-    let lines = polyline(1_001);
-    let mut worst = 0.0f64;
-    let mut total = 0.0;
-    for _ in 0..200 {
-        let mut ip: Box<Interpolator<1024>> = Box::new(Interpolator::new(cfg, [0.0; 6]).unwrap());
-        for b in &lines[..1000] {
-            ip.push(b).unwrap();
-        }
+    one_block_with_1000_queued("commit", |ip, b| {
         let mut plan = Box::new(PlannedBlock::new());
-        ip.planner().plan(&lines[1000], &mut plan).unwrap();
+        ip.planner().plan(b, &mut plan).unwrap();
         let t = Instant::now();
         ip.commit(&plan).unwrap();
-        let dt = t.elapsed().as_secs_f64();
-        worst = worst.max(dt);
-        total += dt;
-        black_box(ip.queued_length());
-    }
-    println!(
-        "commit with 1,000 blocks queued: mean {:.2} µs, max {:.2} µs (200 trials)",
-        total / 200.0 * 1e6,
-        worst * 1e6
-    );
+        t.elapsed().as_secs_f64()
+    });
 }
 
 fn bench_split(_: &mut Criterion) {
