@@ -45,6 +45,22 @@ pub fn sleep_until_ns(deadline: i64) {
     }
 }
 
+/// Waits until `deadline` (ns on the monotonic clock): sleeps until `spin_ns`
+/// before it, then spins on the clock. Spinning keeps the core from idling
+/// just before the deadline, so that waking from idle (and, in a VM, the host
+/// rescheduling the virtual CPU) is paid before the deadline, not after it.
+/// Never returns before the deadline.
+pub fn wait_until_ns(deadline: i64, spin_ns: i64) {
+    if spin_ns <= 0 {
+        sleep_until_ns(deadline);
+        return;
+    }
+    sleep_until_ns(deadline - spin_ns);
+    while now_ns() < deadline {
+        core::hint::spin_loop();
+    }
+}
+
 /// Asks for the smallest timer slack (1 ns) on the calling thread, so that
 /// absolute sleeps are not rounded up by the default 50 µs of a normal-priority
 /// thread. Unprivileged; returns whether it took effect.
@@ -95,5 +111,19 @@ mod tests {
         // A past deadline returns at once.
         sleep_until_ns(t0);
         assert!(now_ns() >= t0);
+    }
+
+    #[test]
+    fn a_spinning_wait_returns_at_the_deadline_and_not_before() {
+        for spin_ns in [0, 300_000, 5_000_000] {
+            let deadline = now_ns() + 1_000_000;
+            wait_until_ns(deadline, spin_ns);
+            let woke = now_ns();
+            assert!(
+                woke >= deadline,
+                "spin {spin_ns} ns woke {} ns early",
+                deadline - woke
+            );
+        }
     }
 }

@@ -150,8 +150,8 @@ pub fn run(args: &DemoArgs, direct: &Summary) -> Result<ServiceRun> {
         ..InterpConfig::default()
     };
     let mut sargs = ServeArgs::in_process(&service);
-    sargs.period_us = args.period_us.clamp(250, 10_000);
-    sargs.no_rt = args.no_rt;
+    sargs.rt.period_us = args.period_us.clamp(250, 10_000);
+    sargs.rt.no_rt = args.no_rt;
     sargs.position = Some(butterfly::START.to_vec());
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating the output directory {}", args.out.display()))?;

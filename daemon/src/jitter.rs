@@ -12,10 +12,10 @@ use interp_core::InterpConfig;
 use interp_core::samples::butterfly;
 use serde::Serialize;
 
-use crate::clock::{now_ns, sleep_until_ns};
+use crate::clock::{now_ns, wait_until_ns};
 use crate::histogram::Histogram;
-use crate::rt::RtOptions;
-use crate::serve::{DEFAULT_PRIORITY, Percentiles, ServeArgs};
+use crate::rt::RtArgs;
+use crate::serve::{Percentiles, ServeArgs};
 
 /// Programmed feed of the jitter program, mm/min.
 const FEED_MM_MIN: f64 = 6000.0;
@@ -30,20 +30,9 @@ pub struct JitterArgs {
     /// Seconds for each of the two loops.
     #[arg(long, default_value_t = 10.0)]
     pub seconds: f64,
-    /// Period, µs.
-    #[arg(long, value_name = "US", default_value_t = 1000,
-          value_parser = clap::value_parser!(u32).range(250..=10_000))]
-    pub period_us: u32,
-    /// SCHED_FIFO priority.
-    #[arg(long, default_value_t = DEFAULT_PRIORITY,
-          value_parser = clap::value_parser!(i32).range(1..=99))]
-    pub priority: i32,
-    /// Normal scheduling for both loops.
-    #[arg(long)]
-    pub no_rt: bool,
-    /// CPU for the RT thread (default: the last one).
-    #[arg(long)]
-    pub cpu: Option<usize>,
+    /// Period and scheduling of both loops, as `interpd serve` takes them.
+    #[command(flatten)]
+    pub rt: RtArgs,
     /// Print the result as JSON.
     #[arg(long)]
     pub json: bool,
@@ -69,6 +58,8 @@ pub struct JitterReport {
     pub seconds: f64,
     /// Period, µs.
     pub period_us: u32,
+    /// Spin before each deadline (`--spin-us`), µs.
+    pub spin_us: u32,
     /// The bare loop.
     pub bare: LoopFigures,
     /// The full pipeline.
@@ -99,15 +90,7 @@ fn parse_loadavg(text: &str) -> Option<[f64; 3]> {
 }
 
 fn bare_loop(args: &JitterArgs) -> Result<(LoopFigures, Vec<String>)> {
-    let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let opts = RtOptions {
-        period_ns: i64::from(args.period_us) * 1000,
-        fifo_priority: (!args.no_rt).then_some(args.priority),
-        cpu: (!args.no_rt).then(|| args.cpu.unwrap_or(cpus - 1)),
-        lock_memory: !args.no_rt,
-        service: String::new(),
-        autostart: false,
-    };
+    let opts = args.rt.options("", false)?;
     let seconds = args.seconds;
     std::thread::Builder::new()
         .name("interpd-bare".into())
@@ -119,7 +102,7 @@ fn bare_loop(args: &JitterArgs) -> Result<(LoopFigures, Vec<String>)> {
             let mut next = now_ns();
             while next < end {
                 next += opts.period_ns;
-                sleep_until_ns(next);
+                wait_until_ns(next, opts.spin_ns);
                 let wake = now_ns();
                 late.record((wake - next).max(0) as u64);
                 let t1 = now_ns();
@@ -176,10 +159,7 @@ pub fn main(args: &JitterArgs) -> Result<()> {
     std::thread::sleep(Duration::from_millis(500));
 
     let mut sargs = ServeArgs::in_process(&service);
-    sargs.period_us = args.period_us;
-    sargs.priority = args.priority;
-    sargs.no_rt = args.no_rt;
-    sargs.cpu = args.cpu;
+    sargs.rt = args.rt.clone();
     sargs.position = Some(butterfly::START.to_vec());
     let svc = crate::serve::start(&sargs, InterpConfig::default(), false, None)?;
     let addr = svc.addr;
@@ -223,7 +203,8 @@ pub fn main(args: &JitterArgs) -> Result<()> {
     };
     let report = JitterReport {
         seconds: args.seconds,
-        period_us: args.period_us,
+        period_us: args.rt.period_us,
+        spin_us: args.rt.spin_us,
         bare,
         full: LoopFigures {
             lateness_us: summary.lateness_us,
@@ -248,8 +229,8 @@ pub fn main(args: &JitterArgs) -> Result<()> {
 
 fn print_report(r: &JitterReport) {
     println!(
-        "interpd jitter: {} s per loop, period {} µs",
-        r.seconds, r.period_us
+        "interpd jitter: {} s per loop, period {} µs, spin {} µs before each deadline",
+        r.seconds, r.period_us, r.spin_us
     );
     let row = |name: &str, p: &Option<Percentiles>| match p {
         Some(p) => println!(

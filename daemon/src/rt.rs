@@ -28,12 +28,12 @@ use std::sync::Arc;
 use std::sync::mpsc;
 use std::thread::JoinHandle;
 
-use anyhow::{Context, Result, anyhow};
+use anyhow::{Context, Result, anyhow, bail};
 use heapless::spsc::{Consumer, Producer, Queue};
 use interp_core::interp::PushError;
 use interp_core::{InterpConfig, Interpolator, PlannedBlock, RunState, Setpoint};
 
-use crate::clock::{minimise_timer_slack, now_ns, sleep_until_ns};
+use crate::clock::{minimise_timer_slack, now_ns, wait_until_ns};
 use crate::histogram::Histogram;
 use crate::publish::SetpointPublisher;
 
@@ -178,11 +178,82 @@ impl RtStatus {
     }
 }
 
+/// Default period of the loop, µs.
+pub const DEFAULT_PERIOD_US: u32 = 1000;
+/// Default SCHED_FIFO priority of the RT thread.
+pub const DEFAULT_PRIORITY: i32 = 80;
+
+/// The RT thread's scheduling flags, shared by `interpd serve` and
+/// `interpd jitter` so that both loops of a jitter run are scheduled as
+/// `serve` would be.
+#[derive(Clone, Debug, clap::Args)]
+pub struct RtArgs {
+    /// Interpolation period, µs (250..=10000).
+    #[arg(long, value_name = "US", default_value_t = DEFAULT_PERIOD_US,
+          value_parser = clap::value_parser!(u32).range(250..=10_000))]
+    pub period_us: u32,
+    /// SCHED_FIFO priority of the RT thread (1..=99).
+    #[arg(long, default_value_t = DEFAULT_PRIORITY,
+          value_parser = clap::value_parser!(i32).range(1..=99))]
+    pub priority: i32,
+    /// Normal scheduling: no SCHED_FIFO, no mlockall, no pinning.
+    #[arg(long)]
+    pub no_rt: bool,
+    /// CPU to pin the RT thread to (default: the last one).
+    #[arg(long)]
+    pub cpu: Option<usize>,
+    /// Wake this many µs before each deadline and spin on the clock to it
+    /// (at most half the period). Keeps the core awake so that the setpoint
+    /// goes out on time, at the cost of that much CPU per period; 0 sleeps
+    /// to the deadline.
+    #[arg(long, value_name = "US", default_value_t = 0)]
+    pub spin_us: u32,
+}
+
+impl Default for RtArgs {
+    /// The defaults of `interpd serve` with no flags.
+    fn default() -> Self {
+        RtArgs {
+            period_us: DEFAULT_PERIOD_US,
+            priority: DEFAULT_PRIORITY,
+            no_rt: false,
+            cpu: None,
+            spin_us: 0,
+        }
+    }
+}
+
+impl RtArgs {
+    /// The RT thread's options for these flags (the last CPU unless `--cpu`
+    /// or `--no-rt`), publishing on `service`.
+    pub fn options(&self, service: &str, autostart: bool) -> Result<RtOptions> {
+        if u64::from(self.spin_us) * 2 > u64::from(self.period_us) {
+            bail!(
+                "--spin-us {} is more than half the period ({} µs)",
+                self.spin_us,
+                self.period_us
+            );
+        }
+        let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
+        Ok(RtOptions {
+            period_ns: i64::from(self.period_us) * 1000,
+            spin_ns: i64::from(self.spin_us) * 1000,
+            fifo_priority: (!self.no_rt).then_some(self.priority),
+            cpu: (!self.no_rt).then(|| self.cpu.unwrap_or(cpus - 1)),
+            lock_memory: !self.no_rt,
+            service: service.to_owned(),
+            autostart,
+        })
+    }
+}
+
 /// How the RT thread is scheduled.
 #[derive(Clone, Debug)]
 pub struct RtOptions {
     /// Period, ns.
     pub period_ns: i64,
+    /// Spin on the clock for this long before each deadline instead of sleeping, ns.
+    pub spin_ns: i64,
     /// SCHED_FIFO priority (1..=99); `None` keeps normal scheduling.
     pub fifo_priority: Option<i32>,
     /// CPU to pin the thread to; `None` leaves affinity alone.
@@ -320,6 +391,7 @@ pub fn spawn(cfg: InterpConfig, position: [f64; 6], opts: RtOptions) -> Result<R
                 status: st,
                 stop: sp,
                 period_ns: opts.period_ns,
+                spin_ns: opts.spin_ns,
                 started: opts.autostart,
                 autostart: opts.autostart,
                 position,
@@ -440,6 +512,7 @@ struct Loop {
     status: Arc<RtStatus>,
     stop: Arc<AtomicBool>,
     period_ns: i64,
+    spin_ns: i64,
     started: bool,
     autostart: bool,
     position: [f64; 6],
@@ -553,7 +626,7 @@ impl Loop {
         let mut next = now_ns();
         loop {
             next += self.period_ns;
-            sleep_until_ns(next);
+            wait_until_ns(next, self.spin_ns);
             let wake = now_ns();
             lateness.record((wake - next).max(0) as u64);
             if self.stop.load(Ordering::Acquire) {
@@ -697,6 +770,8 @@ mod tests {
         let start = butterfly::START;
         let opts = RtOptions {
             period_ns: 250_000,
+            // The spinning wait is on the path under test too.
+            spin_ns: 50_000,
             fifo_priority: None,
             cpu: None,
             lock_memory: false,
@@ -767,5 +842,37 @@ mod tests {
         // per published sample came from the RT pool.
         assert_eq!(report.loop_allocations, Some(0));
         assert!(crate::rt_alloc::served() >= report.published);
+    }
+
+    #[test]
+    fn rt_flags_become_the_loop_options_and_a_spin_over_half_the_period_is_refused() {
+        let rt = RtArgs {
+            period_us: 500,
+            priority: 70,
+            cpu: Some(0),
+            spin_us: 250,
+            ..RtArgs::default()
+        };
+        let o = rt.options("svc", true).expect("half the period is allowed");
+        assert_eq!((o.period_ns, o.spin_ns), (500_000, 250_000));
+        assert_eq!(
+            (o.fifo_priority, o.cpu, o.lock_memory),
+            (Some(70), Some(0), true)
+        );
+        assert_eq!((o.service.as_str(), o.autostart), ("svc", true));
+        let plain = RtArgs {
+            no_rt: true,
+            ..rt.clone()
+        }
+        .options("svc", false)
+        .expect("valid");
+        assert_eq!(
+            (plain.fifo_priority, plain.cpu, plain.lock_memory),
+            (None, None, false)
+        );
+        let err = RtArgs { spin_us: 251, ..rt }
+            .options("svc", false)
+            .expect_err("more than half the period");
+        assert!(err.to_string().contains("--spin-us 251"), "{err}");
     }
 }

@@ -17,25 +17,22 @@ use serde::Serialize;
 use crate::control::{Control, Stream, serve_connection};
 use crate::histogram::Histogram;
 use crate::publish::{DEFAULT_SERVICE, remove_dead_nodes, state_name};
-use crate::rt::{Applied, RtOptions, RtRecord, RtReport};
+use crate::rt::{Applied, RtArgs, RtRecord, RtReport};
 
 /// What the recorder thread calls for every tick the RT thread handed it.
 pub type TickSink = Box<dyn FnMut(&RtRecord) + Send>;
 
 /// Default TCP port of the control plane.
 pub const DEFAULT_PORT: u16 = 47_110;
-/// Default SCHED_FIFO priority of the RT thread.
-pub const DEFAULT_PRIORITY: i32 = 80;
 /// The recorder drains its queue this often.
 const RECORDER_POLL: Duration = Duration::from_millis(5);
 
 /// Options of `interpd serve`.
 #[derive(Clone, Debug, clap::Args)]
 pub struct ServeArgs {
-    /// Interpolation period, µs (250..=10000).
-    #[arg(long, value_name = "US", default_value_t = 1000,
-          value_parser = clap::value_parser!(u32).range(250..=10_000))]
-    pub period_us: u32,
+    /// The RT thread's period and scheduling.
+    #[command(flatten)]
+    pub rt: RtArgs,
     /// TCP address to listen on (loopback unless --allow-remote).
     #[arg(long, default_value = "127.0.0.1")]
     pub listen: IpAddr,
@@ -57,16 +54,6 @@ pub struct ServeArgs {
     /// iceoryx2 service name of the setpoints.
     #[arg(long, default_value = DEFAULT_SERVICE)]
     pub service: String,
-    /// SCHED_FIFO priority of the RT thread (1..=99).
-    #[arg(long, default_value_t = DEFAULT_PRIORITY,
-          value_parser = clap::value_parser!(i32).range(1..=99))]
-    pub priority: i32,
-    /// Normal scheduling: no SCHED_FIFO, no mlockall, no pinning.
-    #[arg(long)]
-    pub no_rt: bool,
-    /// CPU to pin the RT thread to (default: the last one).
-    #[arg(long)]
-    pub cpu: Option<usize>,
     /// The first program moves without waiting for `start`.
     #[arg(long)]
     pub autostart: bool,
@@ -88,7 +75,7 @@ impl ServeArgs {
     /// Defaults as `interpd serve` with no flags, on `service`, any free port, no socket.
     pub fn in_process(service: &str) -> Self {
         ServeArgs {
-            period_us: 1000,
+            rt: RtArgs::default(),
             listen: IpAddr::from([127, 0, 0, 1]),
             port: 0,
             allow_remote: false,
@@ -96,9 +83,6 @@ impl ServeArgs {
             socket: None,
             no_socket: true,
             service: service.to_owned(),
-            priority: DEFAULT_PRIORITY,
-            no_rt: false,
-            cpu: None,
             autostart: false,
             position: None,
             record: None,
@@ -264,7 +248,7 @@ pub fn start(
         }
     }
     let cfg = InterpConfig {
-        period: f64::from(args.period_us) * 1e-6,
+        period: f64::from(args.rt.period_us) * 1e-6,
         ..cfg
     };
     let pos = args.position.clone().unwrap_or_else(|| vec![0.0; 3]);
@@ -273,19 +257,7 @@ pub fn start(
     if cleaned > 0 {
         eprintln!("interpd: removed the iceoryx2 resources of {cleaned} dead node(s)");
     }
-    let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let opts = RtOptions {
-        period_ns: i64::from(args.period_us) * 1000,
-        fifo_priority: (!args.no_rt).then_some(args.priority),
-        cpu: if args.no_rt {
-            None
-        } else {
-            Some(args.cpu.unwrap_or(cpus - 1))
-        },
-        lock_memory: !args.no_rt,
-        service: args.service.clone(),
-        autostart: args.autostart,
-    };
+    let opts = args.rt.options(&args.service, args.autostart)?;
     // The trace recorder (traces crate): its own thread and bounded queue.
     let (trace_tx, trace_rec) = match &args.record {
         Some(path) => {
@@ -337,7 +309,7 @@ pub fn start(
         commands: Mutex::new(rt.commands),
         failures: Mutex::new(rt.failures),
         status: Arc::clone(&rt.status),
-        period: Duration::from_micros(u64::from(args.period_us)),
+        period: Duration::from_micros(u64::from(args.rt.period_us)),
         max_feed_override: cfg.max_feed_override,
         token: args.token.clone(),
         abort_epoch: AtomicU64::new(0),
@@ -562,7 +534,7 @@ pub fn main(args: &ServeArgs) -> Result<()> {
     }
     println!(
         "interpd: publishing setpoints on iceoryx2 service {:?} every {} us",
-        args.service, args.period_us
+        args.service, args.rt.period_us
     );
     use std::io::Write;
     std::io::stdout().flush().ok();
