@@ -287,6 +287,33 @@ fn hold_resume_and_abort_stop_on_the_path_and_a_new_program_starts_there() {
     let compared = replay_bit_identical(&trace);
     let ticks = d["ticks"].as_u64().unwrap();
     assert!(compared >= ticks, "{compared} of {ticks} ticks replayed");
+
+    // `interpd trace summary` analyses the whole session: the segments of
+    // the later programs come from following the schedule.
+    let out = std::process::Command::new(interpd())
+        .args(["trace", "summary", "--json"])
+        .arg(&trace)
+        .output()
+        .expect("interpd trace summary");
+    assert!(
+        out.status.success(),
+        "trace summary: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let sum: serde_json::Value = serde_json::from_slice(&out.stdout).expect("summary JSON");
+    assert_eq!(sum["setpoints"].as_u64(), Some(compared), "{sum}");
+    assert_eq!(sum["missing_setpoints"], 0, "{sum}");
+    assert_eq!(sum["input_blocks"], 4, "{sum}");
+    assert_eq!(
+        sum["final_point"],
+        serde_json::json!([x, 8.0, 0.0]),
+        "{sum}"
+    );
+    // Along X to where the abort stopped, then 5 mm and 3 mm along Y.
+    let length = sum["length_mm"].as_f64().unwrap();
+    assert!((length - (x + 8.0)).abs() < 1e-6, "{length} mm for {x} + 8");
+    assert!(sum["max_chord_error_mm"].as_f64().unwrap() < 1e-9, "{sum}");
+    assert!(sum["events"]["abort"].as_u64() >= Some(1), "{sum}");
 }
 
 #[test]

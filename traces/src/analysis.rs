@@ -99,6 +99,9 @@ pub struct Analyzer {
     prev_accel: f64,
     summary: Summary,
     mrr_range: Option<[f64; 2]>,
+    /// A segment id was reused since the last setpoint: a new program of a
+    /// session, which starts where the last one stopped.
+    new_program: bool,
 }
 
 fn p3(sp: &Setpoint) -> Vec3 {
@@ -145,7 +148,18 @@ impl Analyzer {
             prev,
             prev_accel: 0.0,
             mrr_range: None,
+            new_program: false,
         }
+    }
+
+    /// Adds a segment committed during the run. Segment ids restart with
+    /// each program of a live session: a reused id replaces the old segment
+    /// from here on.
+    pub fn add_segment(&mut self, seg: &Block) {
+        if self.segments.insert(seg.id, *seg).is_some() {
+            self.new_program = true;
+        }
+        self.summary.segments += 1;
     }
 
     /// Chord error of the tick from `a` to `b` over the blocks between.
@@ -199,7 +213,13 @@ impl Analyzer {
             None => (0.0, None),
         };
         let chord_error = if ticks == 1 {
-            self.chord_error(&self.prev, sp)
+            let mut from = self.prev;
+            if core::mem::take(&mut self.new_program) {
+                // The old program's segment ids mean the new program's now:
+                // the tick starts at the new program's first segment.
+                from.block_id = 0;
+            }
+            self.chord_error(&from, sp)
         } else {
             0.0
         };
@@ -304,6 +324,9 @@ pub enum TraceProgramError {
         /// As recorded.
         recorded: Vec<(u32, f64, f64)>,
     },
+    /// A live recording's schedule could not be followed to its segments.
+    #[error("following the recorded schedule: {0}")]
+    Schedule(String),
 }
 
 /// The program a trace ran (from its config and block messages).
@@ -334,6 +357,25 @@ fn split_key(b: &BlockMsg) -> Vec<(u32, f64, f64)> {
 
 /// Derived samples and the summary of a recorded run.
 pub fn analyse(trace: &Trace) -> Result<(Summary, Vec<Sample>), TraceProgramError> {
+    if crate::replay::has_schedule(trace) {
+        // A live session (`serve --record`): programs after the first start
+        // where the last one ended or was aborted, so only the replay of its
+        // schedule knows where each block was expanded from.
+        let config = trace.config.clone().ok_or(TraceProgramError::NoConfig)?;
+        let segments = crate::replay::schedule_segments(trace)
+            .map_err(|e| TraceProgramError::Schedule(e.to_string()))?;
+        let mut an = Analyzer::new(&config, trace.blocks.len(), &[]);
+        let mut next = segments.iter().peekable();
+        let mut samples = Vec::with_capacity(trace.setpoints.len());
+        for m in &trace.setpoints {
+            // Segments expanded by a commit before this tick.
+            while let Some((_, seg)) = next.next_if(|(tick, _)| *tick < m.seq) {
+                an.add_segment(seg);
+            }
+            samples.push(an.push(&m.to_setpoint()));
+        }
+        return Ok(finish_analysis(an, trace, samples));
+    }
     let (config, program) = program_of(trace)?;
     let expanded = program.expand(config.max_ctrl_per_block, crate::sim::FIRST_BLOCK_ID)?;
     for (eb, rec) in expanded.blocks.iter().zip(&trace.blocks) {
@@ -351,12 +393,26 @@ pub fn analyse(trace: &Trace) -> Result<(Summary, Vec<Sample>), TraceProgramErro
             });
         }
     }
-    let mut an = Analyzer::new(&config, expanded.blocks.len(), expanded.segments());
+    let an = Analyzer::new(&config, expanded.blocks.len(), expanded.segments());
+    Ok(run_analysis(an, trace))
+}
+
+/// Feeds the trace's setpoints, events and loop timing through `an`.
+fn run_analysis(mut an: Analyzer, trace: &Trace) -> (Summary, Vec<Sample>) {
     let samples = trace
         .setpoints
         .iter()
         .map(|m| an.push(&m.to_setpoint()))
         .collect();
+    finish_analysis(an, trace, samples)
+}
+
+/// Adds the trace's events and loop timing to `an`'s summary.
+fn finish_analysis(
+    mut an: Analyzer,
+    trace: &Trace,
+    samples: Vec<Sample>,
+) -> (Summary, Vec<Sample>) {
     for e in &trace.events {
         an.event(e.kind);
     }
@@ -365,7 +421,7 @@ pub fn analyse(trace: &Trace) -> Result<(Summary, Vec<Sample>), TraceProgramErro
             an.lateness(ns);
         }
     }
-    Ok((an.summary(), samples))
+    (an.summary(), samples)
 }
 
 impl fmt::Display for Summary {

@@ -227,6 +227,26 @@ pub fn replay(trace: &Trace) -> Result<ReplayReport, ReplayError> {
 /// committed (exactly as the control plane expanded it); segments an abort
 /// flushed before their commit are skipped.
 pub fn replay_schedule(trace: &Trace) -> Result<ReplayReport, ReplayError> {
+    follow_schedule(trace, None)
+}
+
+/// The interpolator segments a live recording ran, each with the ticks done
+/// before the commit that expanded its block: each block is expanded from
+/// the queue end at its first commit as [`replay_schedule`] does (which needs
+/// the replay: after an abort the queue ends where the machine stopped).
+/// Segment ids restart with each program. The setpoints are compared on the
+/// way, so a trace that does not replay bit for bit gives no segments.
+pub fn schedule_segments(trace: &Trace) -> Result<Vec<(u64, interp_core::Block)>, ReplayError> {
+    let mut segments = Vec::new();
+    follow_schedule(trace, Some(&mut segments))?;
+    Ok(segments)
+}
+
+/// [`replay_schedule`], also collecting every expanded segment into `segments`.
+fn follow_schedule(
+    trace: &Trace,
+    mut segments: Option<&mut Vec<(u64, interp_core::Block)>>,
+) -> Result<ReplayReport, ReplayError> {
     use interp_core::interp::DEFAULT_QUEUE;
     use interp_core::{Block, Interpolator};
     let config = trace.config.clone().ok_or(TraceProgramError::NoConfig)?;
@@ -295,6 +315,9 @@ pub fn replay_schedule(trace: &Trace) -> Result<ReplayReport, ReplayError> {
                                 })?,
                             );
                             used_blocks += 1;
+                            if let Some(out) = segments.as_deref_mut() {
+                                out.extend(pending.iter().map(|seg| (ticks, *seg)));
+                            }
                         }
                         let seg = pending
                             .pop_front()
