@@ -13,7 +13,13 @@
 //! ```text
 //! cargo bench -p interp-core --bench tick_latency            # 1,000,000 ticks per case
 //! cargo bench -p interp-core --bench tick_latency -- --ticks 5000000 --csv
+//! cargo bench -p interp-core --bench tick_latency -- --ticks 20000 --sleep-us 1000
 //! ```
+//!
+//! `--sleep-us N` sleeps N µs before every tick, as the fixed-period loop
+//! does: the tick then runs on caches the sleep let go cold (and, in a VM,
+//! after the host ran something else on the core), which is the cost the
+//! service sees, not the back-to-back cost.
 //!
 //! Without `--bench` on the command line (`cargo test --all-targets` runs this
 //! binary that way) it only does a quick 10,000-tick smoke run per case.
@@ -22,7 +28,7 @@
 mod common;
 
 use core::hint::black_box;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use common::{MODES, butterfly_blocks, config_with, cubic_blocks, loaded, mode_name, reload};
 use interp_core::{Block, RunState};
@@ -55,7 +61,12 @@ fn dist(ns: &mut [u64]) -> Dist {
 }
 
 /// Latency of `n` ticks on `blocks` with `mode`, ns each.
-fn measure(blocks: &[Block], mode: interp_core::ParamUpdate, n: usize) -> (Vec<u64>, u64) {
+fn measure(
+    blocks: &[Block],
+    mode: interp_core::ParamUpdate,
+    n: usize,
+    sleep: Option<Duration>,
+) -> (Vec<u64>, u64) {
     let cfg = config_with(mode);
     let mut ip = loaded(cfg, blocks);
     common::run_to_end(&mut ip); // warm-up
@@ -63,6 +74,9 @@ fn measure(blocks: &[Block], mode: interp_core::ParamUpdate, n: usize) -> (Vec<u
     let mut ns = Vec::with_capacity(n);
     let mut reloads = 0;
     while ns.len() < n {
+        if let Some(d) = sleep {
+            std::thread::sleep(d);
+        }
         let t0 = Instant::now();
         let sp = ip.tick();
         let dt = t0.elapsed();
@@ -85,6 +99,12 @@ fn main() {
         .and_then(|i| args.get(i + 1))
         .and_then(|v| v.parse().ok())
         .unwrap_or(if full { FULL_TICKS } else { QUICK_TICKS });
+    let sleep = args
+        .iter()
+        .position(|a| a == "--sleep-us")
+        .and_then(|i| args.get(i + 1))
+        .and_then(|v| v.parse().ok())
+        .map(Duration::from_micros);
 
     // Cost of the measurement itself.
     let mut empty = Vec::with_capacity(ticks);
@@ -104,6 +124,9 @@ fn main() {
         if !full {
             println!("(quick run: {ticks} ticks per case; `cargo bench` runs {FULL_TICKS})");
         }
+        if let Some(d) = sleep {
+            println!("(sleeping {} µs before every tick)", d.as_micros());
+        }
         println!(
             "{:<15} {:<13} {:>9} {:>6} {:>8} {:>7} {:>7} {:>7} {:>8} {:>9}",
             "curve", "mode", "ticks", "runs", "mean ns", "p50", "p90", "p99", "p99.9", "max"
@@ -119,7 +142,7 @@ fn main() {
     ];
     for (name, blocks) in &curves {
         for mode in MODES {
-            let (mut ns, reloads) = measure(blocks, mode, ticks);
+            let (mut ns, reloads) = measure(blocks, mode, ticks, sleep);
             let d = dist(&mut ns);
             if csv {
                 println!(
