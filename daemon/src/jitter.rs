@@ -4,7 +4,10 @@
 //! only sleeps to its deadlines. Prints p50/p99/p99.9/max of wake lateness and
 //! of tick+publish compute for both.
 
+use core::sync::atomic::{AtomicBool, Ordering};
 use std::process::{Command, Stdio};
+use std::sync::Arc;
+use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, anyhow, bail};
@@ -14,7 +17,7 @@ use serde::Serialize;
 
 use crate::clock::{now_ns, wait_until_ns};
 use crate::histogram::Histogram;
-use crate::rt::RtArgs;
+use crate::rt::{RtArgs, RtOptions};
 use crate::serve::{Percentiles, ServeArgs};
 
 /// Programmed feed of the jitter program, mm/min.
@@ -60,8 +63,11 @@ pub struct JitterReport {
     pub period_us: u32,
     /// Spin before each deadline (`--spin-us`), µs.
     pub spin_us: u32,
-    /// The bare loop.
+    /// The bare loop, run before the pipeline.
     pub bare: LoopFigures,
+    /// A bare loop run alongside the pipeline, on the same CPU with the same
+    /// scheduling, its deadlines half a period after the RT thread's.
+    pub bare_alongside: LoopFigures,
     /// The full pipeline.
     pub full: LoopFigures,
     /// Samples the subscriber process received.
@@ -72,6 +78,8 @@ pub struct JitterReport {
     pub recorder_drops: u64,
     /// Full-pipeline p99 lateness / bare-loop p99 lateness.
     pub p99_lateness_ratio: Option<f64>,
+    /// Full-pipeline p99 lateness / p99 lateness of the bare loop alongside.
+    pub p99_lateness_ratio_alongside: Option<f64>,
     /// Scheduling refused.
     pub scheduling_warnings: Vec<String>,
     /// 1-, 5- and 15-minute load averages (`/proc/loadavg`) when the run
@@ -89,18 +97,23 @@ fn parse_loadavg(text: &str) -> Option<[f64; 3]> {
     Some([it.next()?.ok()?, it.next()?.ok()?, it.next()?.ok()?])
 }
 
-fn bare_loop(args: &JitterArgs) -> Result<(LoopFigures, Vec<String>)> {
-    let opts = args.rt.options("", false)?;
-    let seconds = args.seconds;
+/// A bare loop: wait for each deadline as the RT thread does, read the clock,
+/// nothing else. Deadlines are `first`, `first + period`, … until `end` or
+/// `stop`.
+fn spawn_bare_loop(
+    opts: RtOptions,
+    first: i64,
+    end: i64,
+    stop: Arc<AtomicBool>,
+) -> Result<JoinHandle<(LoopFigures, Vec<String>)>> {
     std::thread::Builder::new()
         .name("interpd-bare".into())
         .spawn(move || {
             let warnings = crate::rt::apply_scheduling(&opts);
             let (mut late, mut comp) = (Histogram::new(), Histogram::new());
             let mut overruns = 0u64;
-            let end = now_ns() + (seconds * 1e9) as i64;
-            let mut next = now_ns();
-            while next < end {
+            let mut next = first - opts.period_ns;
+            while next + opts.period_ns < end && !stop.load(Ordering::Relaxed) {
                 next += opts.period_ns;
                 wait_until_ns(next, opts.spin_ns);
                 let wake = now_ns();
@@ -123,9 +136,20 @@ fn bare_loop(args: &JitterArgs) -> Result<(LoopFigures, Vec<String>)> {
                 warnings,
             )
         })
-        .context("spawning the bare loop")?
-        .join()
-        .map_err(|_| anyhow!("the bare loop panicked"))
+        .context("spawning the bare loop")
+}
+
+fn join_bare(h: JoinHandle<(LoopFigures, Vec<String>)>) -> Result<(LoopFigures, Vec<String>)> {
+    h.join().map_err(|_| anyhow!("the bare loop panicked"))
+}
+
+/// The first deadline half a period after one of the RT loop's (whose
+/// deadlines are `epoch + k · period`) and at least a period from now.
+fn alongside_first_deadline(epoch: i64, period: i64, now: i64) -> i64 {
+    let half = epoch + period / 2;
+    // The smallest k with half + k · period ≥ now + period (a ceiling division).
+    let k = -(half - now - period).div_euclid(period);
+    half + k * period
 }
 
 /// The jitter program: the butterfly and a line back to its start, `loops` times.
@@ -144,7 +168,14 @@ pub fn main(args: &JitterArgs) -> Result<()> {
         bail!("--seconds must be positive");
     }
     let load_before = load_average();
-    let (bare, mut warnings) = bare_loop(args)?;
+    let opts = args.rt.options("", false)?;
+    let never = Arc::new(AtomicBool::new(false));
+    let (bare, mut warnings) = join_bare(spawn_bare_loop(
+        opts.clone(),
+        now_ns() + opts.period_ns,
+        now_ns() + (args.seconds * 1e9) as i64,
+        never,
+    )?)?;
 
     let service = format!("interpd/jitter/{}", std::process::id());
     let exe = std::env::current_exe().context("locating the interpd binary")?;
@@ -185,9 +216,25 @@ pub fn main(args: &JitterArgs) -> Result<()> {
             })
     });
     let t0 = Instant::now();
+    // The second bare loop runs alongside the pipeline, on the RT thread's
+    // CPU with its scheduling, half a period out of phase: both see the
+    // same moments of the machine.
+    while !svc.status.running.load(Ordering::Acquire) {
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    let epoch = svc.status.epoch_ns.load(Ordering::Acquire);
+    let stop = Arc::new(AtomicBool::new(false));
+    let alongside = spawn_bare_loop(
+        opts.clone(),
+        alongside_first_deadline(epoch, opts.period_ns, now_ns()),
+        i64::MAX,
+        Arc::clone(&stop),
+    )?;
     while t0.elapsed().as_secs_f64() < args.seconds {
         std::thread::sleep(Duration::from_millis(50));
     }
+    stop.store(true, Ordering::Relaxed);
+    let (bare_alongside, _) = join_bare(alongside)?;
     let summary = svc.shutdown()?;
     let _ = streamer.join();
     let out = child
@@ -197,10 +244,11 @@ pub fn main(args: &JitterArgs) -> Result<()> {
         .map_err(|e| anyhow!("reading the subscriber's summary: {e}"))?;
     warnings.extend(summary.scheduling_warnings.iter().cloned());
     warnings.dedup();
-    let ratio = match (bare.lateness_us, summary.lateness_us) {
+    let ratio = |bare: &LoopFigures| match (bare.lateness_us, summary.lateness_us) {
         (Some(b), Some(f)) if b.p99 > 0.0 => Some(f.p99 / b.p99),
         _ => None,
     };
+    let (p99_lateness_ratio, p99_lateness_ratio_alongside) = (ratio(&bare), ratio(&bare_alongside));
     let report = JitterReport {
         seconds: args.seconds,
         period_us: args.rt.period_us,
@@ -215,7 +263,9 @@ pub fn main(args: &JitterArgs) -> Result<()> {
         subscriber_received: sub["received"].as_u64().unwrap_or(0),
         subscriber_gaps: sub["gaps"].as_u64().unwrap_or(u64::MAX),
         recorder_drops: summary.recorder_drops,
-        p99_lateness_ratio: ratio,
+        p99_lateness_ratio,
+        bare_alongside,
+        p99_lateness_ratio_alongside,
         scheduling_warnings: warnings,
         load_average: [load_before, load_average()],
     };
@@ -241,6 +291,10 @@ fn print_report(r: &JitterReport) {
     };
     row("bare loop: wake lateness", &r.bare.lateness_us);
     row("bare loop: compute (clock reads)", &r.bare.compute_us);
+    row(
+        "bare loop alongside: lateness",
+        &r.bare_alongside.lateness_us,
+    );
     row("full pipeline: wake lateness", &r.full.lateness_us);
     row("full pipeline: tick+publish", &r.full.compute_us);
     row(
@@ -257,6 +311,9 @@ fn print_report(r: &JitterReport) {
     );
     if let Some(x) = r.p99_lateness_ratio {
         println!("  p99 lateness full / bare: {x:.2}");
+    }
+    if let Some(x) = r.p99_lateness_ratio_alongside {
+        println!("  p99 lateness full / bare alongside: {x:.2}");
     }
     let fmt = |l: &Option<[f64; 3]>| {
         l.map_or_else(
@@ -277,6 +334,24 @@ fn print_report(r: &JitterReport) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_loop_alongside_is_half_a_period_out_of_phase_and_a_period_ahead() {
+        let period = 1_000_000;
+        for (epoch, now) in [
+            (0, 0),
+            (5, 123_456_789),
+            (-7_300_001, 42),
+            (1_000, 1_500_000),
+        ] {
+            let d = alongside_first_deadline(epoch, period, now);
+            assert_eq!((d - epoch).rem_euclid(period), period / 2, "{epoch} {now}");
+            assert!(
+                d >= now + period && d < now + 2 * period,
+                "{epoch} {now} -> {d}"
+            );
+        }
+    }
 
     #[test]
     fn load_averages_are_read_from_proc_loadavg_text() {

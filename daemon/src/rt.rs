@@ -23,7 +23,7 @@
 //! A commit's cost is measured apart from the tick's (`compute_with_push`),
 //! see `docs/daemon.md`.
 
-use core::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
+use core::sync::atomic::{AtomicBool, AtomicI64, AtomicU32, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::sync::mpsc;
 use std::thread::JoinHandle;
@@ -165,6 +165,10 @@ pub struct RtStatus {
     pub finished: AtomicBool,
     /// The RT thread is in its loop.
     pub running: AtomicBool,
+    /// Tick k of the loop is due at this + k · period (ns on the monotonic
+    /// clock); set before `running`. A missed period is skipped, so the
+    /// deadlines stay on this grid.
+    pub epoch_ns: AtomicI64,
 }
 
 impl RtStatus {
@@ -622,8 +626,9 @@ impl Loop {
             axes: self.position,
             ..Setpoint::default()
         };
-        self.status.running.store(true, Ordering::Release);
         let mut next = now_ns();
+        self.status.epoch_ns.store(next, Ordering::Release);
+        self.status.running.store(true, Ordering::Release);
         loop {
             next += self.period_ns;
             wait_until_ns(next, self.spin_ns);

@@ -168,6 +168,8 @@ pub struct Service {
     pub socket: Option<PathBuf>,
     shutdown: Option<tokio::sync::oneshot::Sender<()>>,
     thread: Option<JoinHandle<Result<ServeSummary>>>,
+    /// The RT thread's live status.
+    pub status: Arc<crate::rt::RtStatus>,
 }
 
 impl Service {
@@ -290,6 +292,7 @@ pub fn start(
         (_, f) => f,
     };
     let rt = crate::rt::spawn(cfg, position, opts)?;
+    let rt_status = Arc::clone(&rt.status);
     let control = Arc::new(Control {
         stream: tokio::sync::Mutex::new(Stream {
             blocks: rt.blocks,
@@ -449,6 +452,7 @@ pub fn start(
         socket,
         shutdown: Some(tx),
         thread: Some(thread),
+        status: rt_status,
     })
 }
 
