@@ -18,6 +18,7 @@ mod jitter;
 mod plan_gouge;
 mod plan_raster;
 mod plan_setup;
+mod plan_writer;
 mod protocol;
 mod publish;
 mod replay;

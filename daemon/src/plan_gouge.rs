@@ -15,6 +15,8 @@ use planner::gouge::{self, CcSurface, GougeConfig};
 use planner::mesh::{P3, TriMesh, WeldOptions};
 use planner::predict::{self, PredictConfig};
 
+use crate::plan_writer::{Moves, PathWriter};
+
 /// Clearance above the first point of a path for the approach rapid, mm.
 const APPROACH_CLEARANCE: f64 = 5.0;
 /// Feed written when the input program has none, mm/min.
@@ -174,17 +176,6 @@ fn read_program(path: &Path) -> Result<ClProgram> {
     Ok(prog)
 }
 
-/// How a written program moves into, along and out of its paths.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Moves {
-    /// Rapids between paths go across at this height, mm.
-    pub safe_z: f64,
-    /// Feed of the plunge to each path's first point, mm/min.
-    pub plunge_feed: f64,
-    /// Feed along the paths, mm/min.
-    pub feed: f64,
-}
-
 impl ClProgram {
     /// The input's feeds, and a safe height at least `APPROACH_CLEARANCE`
     /// above every point of `paths` (the paths written, which a correction
@@ -197,97 +188,10 @@ impl ClProgram {
             .fold(f64::NEG_INFINITY, f64::max);
         Moves {
             safe_z: (path_top + APPROACH_CLEARANCE).max(self.top_z.unwrap_or(f64::NEG_INFINITY)),
+            approach_clearance: APPROACH_CLEARANCE,
             plunge_feed: self.plunge_feed.unwrap_or(feed),
             feed,
         }
-    }
-}
-
-/// Builds a program path by path, as `plan raster` writes one: a rapid
-/// across at the safe height, a rapid down to `APPROACH_CLEARANCE` above the
-/// first point, a plunge at the plunge feed, the cut at the feed, and a
-/// rapid retract straight up, so that the tool never moves sideways below
-/// the safe height between paths.
-struct PathWriter {
-    blocks: Vec<gcode::ProgramBlock>,
-    /// Where the tool is (`None` before the first move: wherever the machine is).
-    at: Option<[f64; 3]>,
-    moves: Moves,
-}
-
-impl PathWriter {
-    fn new(moves: Moves) -> Self {
-        PathWriter {
-            blocks: Vec::new(),
-            at: None,
-            moves,
-        }
-    }
-
-    fn push(&mut self, kind: gcode::BlockKind) {
-        let line = self.blocks.len() as u32 + 1;
-        self.blocks.push(gcode::ProgramBlock { line, kind });
-    }
-
-    fn rapid_to(&mut self, end: [f64; 3]) {
-        // The first move starts wherever the machine is: the emitter writes
-        // it as one rapid to the point above the first path.
-        let start = self.at.unwrap_or(end);
-        if start != end {
-            self.push(gcode::BlockKind::Rapid(gcode::RapidMove { start, end }));
-        }
-        self.at = Some(end);
-    }
-
-    fn line_to(&mut self, end: [f64; 3], feed: f64) {
-        let start = self.at.unwrap_or(end);
-        self.push(gcode::BlockKind::Linear(gcode::LinearMove {
-            start,
-            end,
-            feed: gcode::Feed::PerMinute(feed),
-        }));
-        self.at = Some(end);
-    }
-
-    /// Over to `p` at the safe height, down and plunge onto it.
-    fn enter(&mut self, p: &P3) {
-        let safe = self.moves.safe_z;
-        self.rapid_to([p.x, p.y, safe]);
-        self.rapid_to([p.x, p.y, safe.min(p.z + APPROACH_CLEARANCE)]);
-        self.line_to([p.x, p.y, p.z], self.moves.plunge_feed);
-    }
-
-    fn cut_to(&mut self, p: [f64; 3]) {
-        self.line_to(p, self.moves.feed);
-    }
-
-    fn nurbs(&mut self, b: &planner::fit::NurbsBlock) {
-        let first_line = self.blocks.len() as u32 + 1;
-        let feed = gcode::Feed::PerMinute(self.moves.feed);
-        self.push(gcode::BlockKind::Nurbs(gcode::NurbsMove {
-            first_line,
-            plane: gcode::Plane::Xy,
-            degree: b.degree,
-            points: b.control_points.clone(),
-            weights: b.weights.clone(),
-            knots: b.knots.clone(),
-            feed,
-        }));
-        self.at = b.control_points.last().copied();
-    }
-
-    /// Straight up to the safe height.
-    fn leave(&mut self) {
-        if let Some([x, y, _]) = self.at {
-            self.rapid_to([x, y, self.moves.safe_z]);
-        }
-    }
-
-    fn finish(mut self) -> String {
-        self.push(gcode::BlockKind::ProgramEnd);
-        gcode::emit(&gcode::Program {
-            blocks: self.blocks,
-        })
     }
 }
 
@@ -295,13 +199,13 @@ impl PathWriter {
 pub fn write_g1(paths: &[Vec<P3>], moves: Moves) -> String {
     let mut w = PathWriter::new(moves);
     for path in paths {
-        w.enter(&path[0]);
+        w.enter([path[0].x, path[0].y, path[0].z]);
         for p in &path[1..] {
             w.cut_to([p.x, p.y, p.z]);
         }
         w.leave();
     }
-    w.finish()
+    gcode::emit(&w.into_program())
 }
 
 /// Writes fitted paths through the `gcode` emitter: curves as G6.2 NURBS
@@ -310,7 +214,7 @@ pub fn write_g1(paths: &[Vec<P3>], moves: Moves) -> String {
 pub fn write_g62(fitted: &[(P3, fit::Fitted)], moves: Moves) -> String {
     let mut w = PathWriter::new(moves);
     for (start, f) in fitted {
-        w.enter(start);
+        w.enter([start.x, start.y, start.z]);
         for piece in &f.pieces {
             match piece {
                 FitPiece::Lines(pts) => {
@@ -323,7 +227,7 @@ pub fn write_g62(fitted: &[(P3, fit::Fitted)], moves: Moves) -> String {
         }
         w.leave();
     }
-    w.finish()
+    gcode::emit(&w.into_program())
 }
 
 /// `interpd plan gouge`.
@@ -570,6 +474,7 @@ mod tests {
             moves,
             Moves {
                 safe_z: 20.0,
+                approach_clearance: APPROACH_CLEARANCE,
                 plunge_feed: 300.0,
                 feed: 1200.0
             }
@@ -631,6 +536,7 @@ mod tests {
         let f = fit::fit(&pts, &FitConfig::default()).unwrap();
         let moves = Moves {
             safe_z: 20.0,
+            approach_clearance: APPROACH_CLEARANCE,
             plunge_feed: 300.0,
             feed: 800.0,
         };

@@ -19,6 +19,8 @@ use planner::mesh::{TriMesh, WeldOptions};
 use planner::raster::{RasterConfig, RasterPath, plan_raster_with_progress};
 use serde::Serialize;
 
+use crate::plan_writer::{Moves, PathWriter};
+
 /// Options of `interpd plan raster`.
 #[derive(Clone, Debug, clap::Args)]
 pub struct RasterArgs {
@@ -122,8 +124,9 @@ pub fn main(args: &RasterArgs) -> Result<()> {
     let (_, hi) = mesh.bounds();
     let safe_z = hi.z + args.clearance;
     if let Some(out) = &args.out {
-        let moves = GcodeMoves {
+        let moves = Moves {
             safe_z,
+            approach_clearance: APPROACH_CLEARANCE,
             feed: args.feed,
             plunge_feed: args.plunge_feed,
         };
@@ -162,74 +165,25 @@ pub fn main(args: &RasterArgs) -> Result<()> {
 /// without gouging (the CL height is the lowest it can go there).
 const APPROACH_CLEARANCE: f64 = 1.0;
 
-/// Feeds and heights of the G-code around the CL polylines.
-#[derive(Debug, Clone, Copy)]
-struct GcodeMoves {
-    /// Height of every move between polylines, mm.
-    safe_z: f64,
-    /// Cutting feed, mm/min.
-    feed: f64,
-    /// Plunge feed, mm/min.
-    plunge_feed: f64,
-}
-
-/// Turns the path into a program for the `gcode` emitter: per polyline a
-/// rapid across at `safe_z`, a rapid down to `APPROACH_CLEARANCE` above its
-/// first point, a plunge at the plunge feed, G1 moves at the feed, and a
-/// rapid retract straight up to `safe_z` (so the tool never moves sideways
-/// below the safe height between polylines).
-fn raster_program(path: &RasterPath, moves: &GcodeMoves) -> gcode::Program {
-    use gcode::{BlockKind, Feed, LinearMove, ProgramBlock, RapidMove};
-    let mut blocks: Vec<ProgramBlock> = Vec::new();
-    let mut pos: Option<[f64; 3]> = None;
-    let push = |blocks: &mut Vec<ProgramBlock>, kind: BlockKind| {
-        let line = blocks.len() as u32 + 1;
-        blocks.push(ProgramBlock { line, kind });
-    };
+/// Turns the path into a program for the `gcode` emitter
+/// ([`PathWriter`]): per polyline a rapid across at the safe height, a rapid
+/// down to `APPROACH_CLEARANCE` above its first point, a plunge at the plunge
+/// feed, G1 moves at the feed, and a rapid retract straight up.
+fn raster_program(path: &RasterPath, moves: &Moves) -> gcode::Program {
+    let mut w = PathWriter::new(*moves);
     for line in path.passes.iter().flat_map(|p| &p.polylines) {
         let Some(first) = line.first() else { continue };
-        let above = [first.x, first.y, moves.safe_z];
-        let approach = [
-            first.x,
-            first.y,
-            moves.safe_z.min(first.z + APPROACH_CLEARANCE),
-        ];
-        let start = [first.x, first.y, first.z];
-        // The first move starts wherever the machine is; the emitter writes
-        // it as one rapid to the point above the first polyline.
-        let mut at = pos.unwrap_or(above);
-        for end in [above, approach] {
-            if end != at {
-                push(&mut blocks, BlockKind::Rapid(RapidMove { start: at, end }));
-                at = end;
-            }
+        w.enter([first.x, first.y, first.z]);
+        for q in &line[1..] {
+            w.cut_to([q.x, q.y, q.z]);
         }
-        let mut feed = moves.plunge_feed;
-        for p in std::iter::once(start).chain(line[1..].iter().map(|q| [q.x, q.y, q.z])) {
-            push(
-                &mut blocks,
-                BlockKind::Linear(LinearMove {
-                    start: at,
-                    end: p,
-                    feed: Feed::PerMinute(feed),
-                }),
-            );
-            at = p;
-            feed = moves.feed;
-        }
-        let up = [at[0], at[1], moves.safe_z];
-        push(
-            &mut blocks,
-            BlockKind::Rapid(RapidMove { start: at, end: up }),
-        );
-        pos = Some(up);
+        w.leave();
     }
-    push(&mut blocks, BlockKind::ProgramEnd);
-    gcode::Program { blocks }
+    w.into_program()
 }
 
 /// The path as G-code text through `gcode::emit`, with a comment naming it.
-fn raster_gcode(path: &RasterPath, moves: &GcodeMoves) -> String {
+fn raster_gcode(path: &RasterPath, moves: &Moves) -> String {
     format!(
         "(interpd plan raster: {} stepover {} angle {})\n{}",
         path.cutter,
@@ -239,7 +193,7 @@ fn raster_gcode(path: &RasterPath, moves: &GcodeMoves) -> String {
     )
 }
 
-fn write_gcode(path: &RasterPath, out: &PathBuf, moves: &GcodeMoves) -> Result<()> {
+fn write_gcode(path: &RasterPath, out: &PathBuf, moves: &Moves) -> Result<()> {
     let mut f = BufWriter::new(File::create(out)?);
     f.write_all(raster_gcode(path, moves).as_bytes())?;
     f.flush()?;
@@ -329,8 +283,9 @@ mod tests {
     #[test]
     fn gcode_parses_back_to_the_same_points_with_safe_retracts() {
         let path = sample_path();
-        let moves = GcodeMoves {
+        let moves = Moves {
             safe_z: 8.0,
+            approach_clearance: APPROACH_CLEARANCE,
             feed: 1200.0,
             plunge_feed: 250.0,
         };
