@@ -1,8 +1,9 @@
 //! `interpd jitter --seconds N`: the full pipeline (a long program
 //! interpolating, publishing to a subscriber process, the recorder thread
-//! draining) and, in the same run, a bare loop with the same scheduling that
-//! only sleeps to its deadlines. Prints p50/p99/p99.9/max of wake lateness and
-//! of tick+publish compute for both.
+//! draining) and, in the same run, bare loops with the same scheduling that
+//! only wait for their deadlines: one before the pipeline, one alongside it
+//! (half a period out of phase). Prints p50/p99/p99.9/max of wake lateness
+//! and of tick+publish compute.
 
 use core::sync::atomic::{AtomicBool, Ordering};
 use std::process::{Command, Stdio};
