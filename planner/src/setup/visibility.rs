@@ -331,30 +331,52 @@ pub fn compute(
     let caster = RayCaster::new(mesh);
     let grid = CellGrid::new(sphere);
     let cells = sphere.cells();
-    let n = mesh.triangles.len();
-    let mut map = VisibilityMap::new(cells.len(), n);
-    let words = map.words;
     let min_dot = options.grazing_margin.sin();
-    let done = AtomicUsize::new(0);
+    fill_rows(
+        mesh,
+        cells.len(),
+        progress,
+        Vec::new,
+        |stack, t, origin, normal, row| {
+            let mut open = 0usize;
+            for (i, d) in cells.iter().enumerate() {
+                if d.dot(normal) > min_dot {
+                    row[i / 64] |= 1 << (i % 64);
+                    open += 1;
+                }
+            }
+            caster.rasterise(origin, normal, t, &grid, row, open, stack);
+        },
+    )
+}
+
+/// The map of `cells` cells over `mesh`'s patches, filled one patch row at a
+/// time in parallel: `patch(state, t, origin, normal, row)` sets the cells
+/// open from triangle `t` (centroid `origin`) in `row`, with `state` made by
+/// `init` once per worker. `progress(done, total)` is called every
+/// `PROGRESS_CHUNK` patches.
+fn fill_rows<S>(
+    mesh: &TriMesh,
+    cells: usize,
+    progress: &(dyn Fn(usize, usize) + Sync),
+    init: impl Fn() -> S + Sync + Send,
+    patch: impl Fn(&mut S, usize, &Point3<f64>, &Vector3<f64>, &mut [u64]) + Sync + Send,
+) -> VisibilityMap {
     /// Patches per progress report.
     const PROGRESS_CHUNK: usize = 64;
+    let n = mesh.triangles.len();
+    let mut map = VisibilityMap::new(cells, n);
+    let words = map.words;
+    let done = AtomicUsize::new(0);
     map.bits
         .par_chunks_mut(words * PROGRESS_CHUNK)
         .enumerate()
-        .for_each_init(Vec::new, |stack, (chunk, bits)| {
+        .for_each_init(init, |state, (chunk, bits)| {
             for (k, row) in bits.chunks_mut(words).enumerate() {
                 let t = chunk * PROGRESS_CHUNK + k;
                 let [a, b, c] = mesh.corners(t);
                 let origin = Point3::from((a.coords + b.coords + c.coords) / 3.0);
-                let normal = mesh.normals[t];
-                let mut open = 0usize;
-                for (i, d) in cells.iter().enumerate() {
-                    if d.dot(&normal) > min_dot {
-                        row[i / 64] |= 1 << (i % 64);
-                        open += 1;
-                    }
-                }
-                caster.rasterise(&origin, &normal, t, &grid, row, open, stack);
+                patch(state, t, &origin, &mesh.normals[t], row);
             }
             let now = done.fetch_add(bits.len() / words, Ordering::Relaxed) + bits.len() / words;
             progress(now, n);
@@ -723,47 +745,31 @@ pub fn compute_by_rays(
 ) -> VisibilityMap {
     let caster = RayCaster::new(mesh);
     let cells = sphere.cells();
-    let n = mesh.triangles.len();
-    let mut map = VisibilityMap::new(cells.len(), n);
-    let words = map.words;
     let min_dot = options.grazing_margin.sin();
-    let done = AtomicUsize::new(0);
-    /// Patches per progress report.
-    const PROGRESS_CHUNK: usize = 64;
-    map.bits
-        .par_chunks_mut(words * PROGRESS_CHUNK)
-        .enumerate()
-        .for_each_init(
-            || (Vec::new(), Vec::new()),
-            |(stack, front), (chunk, bits)| {
-                for (k, row) in bits.chunks_mut(words).enumerate() {
-                    let t = chunk * PROGRESS_CHUNK + k;
-                    let [a, b, c] = mesh.corners(t);
-                    let origin = Point3::from((a.coords + b.coords + c.coords) / 3.0);
-                    let normal = mesh.normals[t];
-                    // Most patches of a part have few triangles in front of them
-                    // (none on convex regions): test those directly.
-                    caster.in_front(&origin, &normal, t, stack, front);
-                    let small = front.len() <= BRUTE_FORCE_MAX;
-                    for (i, d) in cells.iter().enumerate() {
-                        if d.dot(&normal) > min_dot {
-                            let blocked = if small {
-                                caster.occluded_by(&origin, d, front)
-                            } else {
-                                caster.occluded(&origin, d, t, stack)
-                            };
-                            if !blocked {
-                                row[i / 64] |= 1 << (i % 64);
-                            }
-                        }
+    fill_rows(
+        mesh,
+        cells.len(),
+        progress,
+        || (Vec::new(), Vec::new()),
+        |(stack, front), t, origin, normal, row| {
+            // Most patches of a part have few triangles in front of them
+            // (none on convex regions): test those directly.
+            caster.in_front(origin, normal, t, stack, front);
+            let small = front.len() <= BRUTE_FORCE_MAX;
+            for (i, d) in cells.iter().enumerate() {
+                if d.dot(normal) > min_dot {
+                    let blocked = if small {
+                        caster.occluded_by(origin, d, front)
+                    } else {
+                        caster.occluded(origin, d, t, stack)
+                    };
+                    if !blocked {
+                        row[i / 64] |= 1 << (i % 64);
                     }
                 }
-                let now =
-                    done.fetch_add(bits.len() / words, Ordering::Relaxed) + bits.len() / words;
-                progress(now, n);
-            },
-        );
-    map
+            }
+        },
+    )
 }
 
 #[cfg(test)]
