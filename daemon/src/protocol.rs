@@ -133,6 +133,7 @@ pub fn nurbs_json(
         source_line: None,
         feed: feed_mm_min,
         mrr: None,
+        blending: Default::default(),
         path: PathSpec::Nurbs {
             degree,
             points: points.to_vec(),

@@ -87,7 +87,12 @@ pub fn program_from_gcode(g: &gcode::Program, rapid_speed: f64) -> Result<Progra
     };
     let mut start: Option<[f64; 3]> = None;
     let mut blocks = Vec::new();
+    let mut blending = traces::blocks::BlendingSpec::ExactPath;
     for b in &g.blocks {
+        if let BlockKind::PathControl(mode) = &b.kind {
+            blending = gcode::core_blending(*mode).into();
+            continue;
+        }
         let (from, block) = match &b.kind {
             BlockKind::Rapid(m) => (
                 m.start,
@@ -95,6 +100,7 @@ pub fn program_from_gcode(g: &gcode::Program, rapid_speed: f64) -> Result<Progra
                     source_line: Some(b.line),
                     feed: rapid_speed * 60.0,
                     mrr: None,
+                    blending,
                     path: PathSpec::Line { end: m.end },
                 },
             ),
@@ -104,6 +110,7 @@ pub fn program_from_gcode(g: &gcode::Program, rapid_speed: f64) -> Result<Progra
                     source_line: Some(b.line),
                     feed: per_minute(m.feed, b.line)?,
                     mrr: None,
+                    blending,
                     path: PathSpec::Line { end: m.end },
                 },
             ),
@@ -113,6 +120,7 @@ pub fn program_from_gcode(g: &gcode::Program, rapid_speed: f64) -> Result<Progra
                     source_line: Some(b.line),
                     feed: per_minute(m.feed, b.line)?,
                     mrr: None,
+                    blending,
                     path: PathSpec::Arc {
                         end: m.end,
                         centre: m.centre,
@@ -128,6 +136,7 @@ pub fn program_from_gcode(g: &gcode::Program, rapid_speed: f64) -> Result<Progra
                     source_line: Some(m.first_line),
                     feed: per_minute(m.feed, b.line)?,
                     mrr: None,
+                    blending,
                     path: PathSpec::Nurbs {
                         degree: m.degree,
                         points: m.points.clone(),

@@ -2,10 +2,23 @@
 
 use interp_core::Vec3;
 use interp_core::nurbs::{MAX_CTRL, SplitError, split_program_curve};
-use interp_core::path::{Arc, Block, Line, Path, PathError};
+use interp_core::path::{Arc, Blending, Block, Line, Path, PathError};
 
 use crate::error::ConvertError;
-use crate::program::{BlockKind, Feed, Program};
+use crate::program::{BlockKind, Feed, PathControl, Program};
+
+/// The interp-core blending mode of a path control mode: G61.1 exact stop,
+/// G61 exact path, G64 `P` (G64's `Q` merges nothing here: runs of short
+/// moves are the interpolator's to compress within `P`).
+pub fn core_blending(mode: PathControl) -> Blending {
+    match mode {
+        PathControl::ExactStop => Blending::ExactStop,
+        PathControl::ExactPath => Blending::ExactPath,
+        PathControl::Blend { path_tolerance, .. } => Blending::Within {
+            tolerance: path_tolerance,
+        },
+    }
+}
 
 /// Seconds per minute: G-code feeds are per minute, interp-core's per second.
 const SECONDS_PER_MINUTE: f64 = 60.0;
@@ -54,7 +67,9 @@ impl Program {
     ///   [`split_program_curve`] into pieces of at most [`MAX_CTRL`] control
     ///   points that are the same curve;
     /// - moves of zero length are dropped (RS274/NGC allows them; they move nothing);
-    /// - dwell, spindle, tool and path-control blocks carry no path and are skipped.
+    /// - dwell, spindle, tool and path-control blocks carry no path and are
+    ///   skipped; the path control mode in force (G61.1, G61, G64 P; G61
+    ///   until the program sets one) becomes each block's `blending`.
     ///
     /// Feeds become mm/s (G93 inverse time: the move's length × F / 60).
     pub fn for_each_core_block<E>(
@@ -62,8 +77,14 @@ impl Program {
         opts: &CoreOptions,
         mut sink: impl FnMut(Block) -> Result<(), E>,
     ) -> Result<(), ConvertOrSinkError<E>> {
+        let mut blending = Blending::ExactPath;
+        let mut sink = |b: Block, mode: Blending| sink(b.with_blending(mode));
         for b in &self.blocks {
             let line = b.line;
+            if let BlockKind::PathControl(mode) = &b.kind {
+                blending = core_blending(*mode);
+                continue;
+            }
             let path_err =
                 |error: PathError| ConvertOrSinkError::Convert(ConvertError::Path { line, error });
             match &b.kind {
@@ -78,7 +99,8 @@ impl Program {
                         0.0,
                         line,
                     )?;
-                    sink(Block::new(line, path, feed)).map_err(ConvertOrSinkError::Sink)?;
+                    sink(Block::new(line, path, feed), blending)
+                        .map_err(ConvertOrSinkError::Sink)?;
                 }
                 BlockKind::Linear(m) => {
                     let l = match Line::new(v3(m.start), v3(m.end)) {
@@ -87,7 +109,7 @@ impl Program {
                         Err(e) => return Err(path_err(e)),
                     };
                     let feed = feed_mm_s(m.feed, l.length(), line)?;
-                    sink(Block::new(line, Path::Line(l), feed))
+                    sink(Block::new(line, Path::Line(l), feed), blending)
                         .map_err(ConvertOrSinkError::Sink)?;
                 }
                 BlockKind::Arc(m) => {
@@ -98,7 +120,8 @@ impl Program {
                         Arc::from_centre(v3(m.start), v3(m.end), v3(m.centre), axis, m.extra_turns)
                             .map_err(path_err)?;
                     let feed = feed_mm_s(m.feed, a.length(), line)?;
-                    sink(Block::new(line, Path::Arc(a), feed)).map_err(ConvertOrSinkError::Sink)?;
+                    sink(Block::new(line, Path::Arc(a), feed), blending)
+                        .map_err(ConvertOrSinkError::Sink)?;
                 }
                 BlockKind::Nurbs(m) => {
                     let mut pieces = Vec::new();
@@ -131,7 +154,7 @@ impl Program {
                     };
                     let feed = feed_mm_s(m.feed, length, line)?;
                     for seg in pieces {
-                        sink(Block::new(line, Path::Nurbs(seg), feed))
+                        sink(Block::new(line, Path::Nurbs(seg), feed), blending)
                             .map_err(ConvertOrSinkError::Sink)?;
                     }
                 }

@@ -17,7 +17,7 @@ pub mod generate;
 mod parser;
 mod program;
 
-pub use convert::{ConvertOrSinkError, CoreOptions};
+pub use convert::{ConvertOrSinkError, CoreOptions, core_blending};
 pub use emit::{EMIT_HEADER, emit};
 pub use error::{ConvertError, ParseError, ParseErrorKind};
 pub use expr::{MAX_EXPRESSION_DEPTH, NEAR_INT_TOL, PARAMETER_COUNT};

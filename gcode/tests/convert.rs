@@ -144,3 +144,27 @@ fn g64_p_is_the_programs_path_tolerance_in_mm() {
     assert_eq!(tol("G64\nG1 X1 F1\n"), None);
     assert_eq!(tol("G1 X1 F1\n"), None);
 }
+
+#[test]
+fn the_path_control_mode_in_force_becomes_each_blocks_blending() {
+    use interp_core::Blending;
+    let p = parse("G1 X1 F60\nG61.1\nG1 X2\nG64 P0.005\nG1 X3\nG64\nG1 X4\nG61\nG1 X5\n").unwrap();
+    let modes: Vec<Blending> = p
+        .to_core_blocks(&CoreOptions::default())
+        .unwrap()
+        .iter()
+        .map(|b| b.blending)
+        .collect();
+    assert_eq!(
+        modes,
+        [
+            Blending::ExactPath,
+            Blending::ExactStop,
+            Blending::Within {
+                tolerance: Some(0.005)
+            },
+            Blending::Within { tolerance: None },
+            Blending::ExactPath,
+        ]
+    );
+}

@@ -91,6 +91,9 @@ pub struct InterpConfig {
     /// Newton iteration cap (then it keeps its best iterate). Default 10;
     /// two or three are typical.
     pub newton_max_iter: u32,
+    /// Path tolerance of `G64` given without `P` (`Blending::Within { tolerance:
+    /// None }`), mm. Default 0.01.
+    pub default_blend_tolerance: f64,
 }
 
 impl Default for InterpConfig {
@@ -119,6 +122,7 @@ impl Default for InterpConfig {
             param_update: ParamUpdate::Corrected,
             newton_rel_tol: 1e-13,
             newton_max_iter: 10,
+            default_blend_tolerance: 0.01,
         }
     }
 }
@@ -237,6 +241,9 @@ impl InterpConfig {
         }
         if self.newton_max_iter == 0 || self.newton_max_iter > 50 {
             return Err(ConfigError::OutOfRange("newton-max-iter"));
+        }
+        if !pos(self.default_blend_tolerance) {
+            return Err(ConfigError::OutOfRange("default-blend-tolerance"));
         }
         Ok(())
     }

@@ -220,6 +220,8 @@ pub struct Interpolator<const Q: usize = DEFAULT_QUEUE> {
     tail_s: f64,
     /// Derivatives (order 3) at the end of the last queued segment.
     tail_derivs: Option<Derivs>,
+    /// The last queued block asks to come to rest at its end (G61.1).
+    tail_exact_stop: bool,
     seq: u64,
     block_id: u32,
     finished: bool,
@@ -258,6 +260,7 @@ impl<const Q: usize> Interpolator<Q> {
             tail: p,
             tail_s: 0.0,
             tail_derivs: None,
+            tail_exact_stop: false,
             seq: 0,
             block_id: 0,
             finished: false,
@@ -462,7 +465,11 @@ impl<const Q: usize> Interpolator<Q> {
         self.profile.extend_to(g_last);
         // The junction with what is queued (the old tail was a provisional stop).
         if let (Some(left), false) = (self.tail_derivs, was_empty) {
-            let v = junction_speed(&left, &plan.entry, &self.cfg);
+            let v = if self.tail_exact_stop {
+                0.0
+            } else {
+                junction_speed(&left, &plan.entry, &self.cfg)
+            };
             let stop = self.apply_junction(v, old_tail_s);
             if let Some(last) = self.queue.back_mut() {
                 last.stop_at_end = stop;
@@ -486,6 +493,7 @@ impl<const Q: usize> Interpolator<Q> {
         self.tail = plan.end;
         self.tail_s = plan.s1;
         self.tail_derivs = Some(plan.exit);
+        self.tail_exact_stop = plan.exact_stop;
         let from = self.profile.index_of(old_tail_s) - 2;
         self.replan(from, old_tail_s);
         if let (true, Some(front)) = (was_empty, self.queue.front()) {

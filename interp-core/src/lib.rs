@@ -27,5 +27,5 @@ pub use config::{InterpConfig, ParamUpdate};
 pub use geom::{Curve, Derivs, Vec3};
 pub use interp::{Interpolator, RunState, Setpoint};
 pub use nurbs::{Nurbs, NurbsError};
-pub use path::{Arc, Block, Line, Path};
+pub use path::{Arc, Blending, Block, Line, Path};
 pub use prepare::{BlockPlanner, PlannedBlock};

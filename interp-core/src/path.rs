@@ -439,6 +439,27 @@ pub struct MrrParams {
     pub tool_side: ToolSide,
 }
 
+/// How the path may pass the end of a block: the RS274/NGC path control
+/// mode in force when the block was programmed (G61.1, G61, G64 P).
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "kebab-case"))]
+pub enum Blending {
+    /// G61.1: come to rest at the end of the block.
+    ExactStop,
+    /// G61: follow the programmed path exactly. A corner is a stop; a
+    /// tangent join (or one within `tangent_tolerance`) is passed.
+    #[default]
+    ExactPath,
+    /// G64 P: corners and the facets of runs of short moves may be passed
+    /// within `tolerance` mm of the programmed path; `None` (G64 without P)
+    /// takes `InterpConfig::default_blend_tolerance`.
+    Within {
+        /// G64 `P`, mm.
+        tolerance: Option<f64>,
+    },
+}
+
 /// One motion block as the interpolator receives it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Block {
@@ -450,16 +471,24 @@ pub struct Block {
     pub feed: f64,
     /// Constant-MRR law parameters; `None` leaves that law off for this block.
     pub mrr: Option<MrrParams>,
+    /// How the path may pass this block's end (G61.1, G61, G64 P).
+    pub blending: Blending,
 }
 
 impl Block {
-    /// A block with programmed feed `feed` (mm/s) and no MRR law.
+    /// A block with programmed feed `feed` (mm/s), no MRR law and exact path (G61).
     pub fn new(id: u32, path: Path, feed: f64) -> Self {
         Block {
             id,
             path,
             feed,
             mrr: None,
+            blending: Blending::ExactPath,
         }
+    }
+
+    /// The same block with another blending mode.
+    pub fn with_blending(self, blending: Blending) -> Self {
+        Block { blending, ..self }
     }
 }

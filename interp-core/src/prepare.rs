@@ -59,6 +59,8 @@ pub struct PlannedBlock {
     /// Derivatives (order 3) at its start and end, for junction pricing.
     pub(crate) entry: Derivs,
     pub(crate) exit: Derivs,
+    /// The block asks to come to rest at its end (G61.1).
+    pub(crate) exact_stop: bool,
     /// Pieces (cut at tangent breaks), with their arc lengths in the run.
     pub(crate) segments: [Option<Segment>; MAX_PIECES],
     pub(crate) n_segments: usize,
@@ -89,6 +91,7 @@ impl PlannedBlock {
             end: Vec3::zeros(),
             entry: Derivs::ZERO,
             exit: Derivs::ZERO,
+            exact_stop: false,
             segments: [None; MAX_PIECES],
             n_segments: 0,
             corner: [f64::INFINITY; MAX_PIECES],
@@ -298,6 +301,7 @@ impl BlockPlanner {
         }
         let last = &pieces[n_pieces - 1];
         out.exit = last.eval(last.u_end(), 3);
+        out.exact_stop = block.blending == crate::path::Blending::ExactStop;
         out.end = block.path.end_point();
         out.s1 = s;
         self.tail = out.end;

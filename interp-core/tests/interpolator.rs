@@ -467,6 +467,7 @@ fn constant_mrr_law_slows_concave_parts_only() {
                 depth_of_cut: 1.0,
                 tool_side: side,
             }),
+            blending: Default::default(),
         }
     };
     let cfg = InterpConfig::default();

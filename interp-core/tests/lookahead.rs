@@ -8,7 +8,7 @@ mod common;
 use common::{LIMIT_REL_TOL, Lcg, check_kinematics};
 use interp_core::geom::{Curve, Vec3};
 use interp_core::interp::PushError;
-use interp_core::path::{Arc, Block, Line, Path};
+use interp_core::path::{Arc, Blending, Block, Line, Path};
 use interp_core::{InterpConfig, Interpolator, PlannedBlock, RunState, Setpoint};
 use proptest::prelude::*;
 
@@ -388,6 +388,35 @@ fn a_right_angle_corner_stops_and_a_shallow_one_is_blended() {
         slowest > cfg.junction_min_speed,
         "slowest near the joint {slowest}"
     );
+}
+
+#[test]
+fn exact_stop_comes_to_rest_at_a_collinear_join_that_exact_path_passes() {
+    let cfg = InterpConfig::default();
+    let (p0, p1, p2) = (
+        Vec3::zeros(),
+        Vec3::new(10.0, 0.0, 0.0),
+        Vec3::new(20.0, 0.0, 0.0),
+    );
+    let l = |a: Vec3, b: Vec3, id| Block::new(id, Path::Line(Line::new(a, b).unwrap()), 100.0);
+    let at_rest_on_p1 = |run: &Run| {
+        run.sps
+            .iter()
+            .any(|s| s.feed == 0.0 && (v3(&s.axes) - p1).norm() < 1e-9)
+    };
+    let exact_path = [l(p0, p1, 1), l(p1, p2, 2)];
+    let run = run_with(cfg, &exact_path, |_, _| {});
+    assert_program_properties(&cfg, &exact_path, &run);
+    assert!(!at_rest_on_p1(&run));
+    // G61.1 on the first block: rest at its end, then go on.
+    let exact_stop = [
+        l(p0, p1, 1).with_blending(Blending::ExactStop),
+        l(p1, p2, 2),
+    ];
+    let run = run_with(cfg, &exact_stop, |_, _| {});
+    assert_program_properties(&cfg, &exact_stop, &run);
+    assert!(at_rest_on_p1(&run));
+    assert_eq!(run.ip.stats().junctions_stopped, 1);
 }
 
 #[test]

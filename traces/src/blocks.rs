@@ -10,7 +10,7 @@
 use interp_core::interp::JOIN_TOLERANCE;
 use interp_core::nurbs::{SplitError, split_program_curve};
 use interp_core::path::{MrrParams, PathError, ToolSide};
-use interp_core::{Arc, Block, Curve, Line, NurbsError, Path, Vec3};
+use interp_core::{Arc, Blending, Block, Curve, Line, NurbsError, Path, Vec3};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
@@ -42,9 +42,57 @@ pub struct InputBlock {
     /// Constant-MRR law parameters (seed eq. 23); absent: the law is off for this block.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mrr: Option<MrrSpec>,
+    /// How the path may pass the block's end (G61.1 `exact-stop`, G61
+    /// `exact-path`, G64 P `{"within": {"tolerance": P}}`); absent: exact path.
+    #[serde(default, skip_serializing_if = "BlendingSpec::is_exact_path")]
+    pub blending: BlendingSpec,
     /// The geometry.
     #[serde(flatten)]
     pub path: PathSpec,
+}
+
+/// How the path may pass a block's end (`interp_core::Blending`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum BlendingSpec {
+    /// G61.1: come to rest at the block's end.
+    ExactStop,
+    /// G61: the programmed path exactly (the default).
+    #[default]
+    ExactPath,
+    /// G64 P: within `tolerance` mm of the programmed path (absent: the
+    /// configured default).
+    Within {
+        /// G64 `P`, mm.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        tolerance: Option<f64>,
+    },
+}
+
+impl BlendingSpec {
+    fn is_exact_path(&self) -> bool {
+        *self == BlendingSpec::ExactPath
+    }
+}
+
+impl From<BlendingSpec> for Blending {
+    fn from(b: BlendingSpec) -> Self {
+        match b {
+            BlendingSpec::ExactStop => Blending::ExactStop,
+            BlendingSpec::ExactPath => Blending::ExactPath,
+            BlendingSpec::Within { tolerance } => Blending::Within { tolerance },
+        }
+    }
+}
+
+impl From<Blending> for BlendingSpec {
+    fn from(b: Blending) -> Self {
+        match b {
+            Blending::ExactStop => BlendingSpec::ExactStop,
+            Blending::ExactPath => BlendingSpec::ExactPath,
+            Blending::Within { tolerance } => BlendingSpec::Within { tolerance },
+        }
+    }
 }
 
 /// Geometry of a block; it starts where the previous block ends.
@@ -295,6 +343,7 @@ fn expand_block(
         path,
         feed,
         mrr,
+        blending: input.blending.into(),
     };
     let check_start = |start: Vec3| {
         let gap = (start - at).norm();
