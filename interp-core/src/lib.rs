@@ -16,12 +16,15 @@ pub mod config;
 pub mod feed;
 pub mod geom;
 pub mod interp;
+pub mod lp;
 pub mod metrics;
 pub mod nurbs;
 pub mod path;
 pub mod plan;
 pub mod prepare;
 pub mod samples;
+pub mod spline;
+pub mod stop;
 
 pub use config::{InterpConfig, ParamUpdate};
 pub use geom::{Curve, Derivs, Vec3};

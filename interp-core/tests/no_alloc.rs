@@ -14,6 +14,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use interp_core::geom::{Curve, Vec3};
 use interp_core::path::{Arc, Block, Path};
+use interp_core::interp::PushError;
 use interp_core::{InterpConfig, Interpolator, RunState};
 
 struct Counting;
@@ -108,7 +109,12 @@ fn run() -> (u64, u64, u64) {
                 .unwrap();
                 Block::new(99, Path::Arc(helix), 60.0)
             };
-            ip.push(&block).unwrap();
+            match ip.push(&block) {
+                Ok(()) => {}
+                // The look-ahead reaches far enough for now.
+                Err(PushError::ProfileFull | PushError::Pending | PushError::Full { .. }) => break,
+                Err(e) => panic!("{e}"),
+            }
             tail = block.path.end_point();
             next = (next + 1) % (lap.len() + 1);
         }
