@@ -910,7 +910,16 @@ impl<const Q: usize> Interpolator<Q> {
 
     /// Marks the end of the program: reaching the end of the queue then means `Done`.
     pub fn finish(&mut self) {
+        if self.finish_requested {
+            // Once per program: after an abort flushed it, a new one starts with `push`.
+            return;
+        }
         self.finish_requested = true;
+        self.complete_finish();
+    }
+
+    /// The end of the program once its last parts are planned.
+    fn complete_finish(&mut self) {
         self.pump();
         if !self.planner.has_pending() && !self.exec.finished {
             self.sync_machine();
@@ -1051,7 +1060,7 @@ impl<const Q: usize> Interpolator<Q> {
         if self.planner.has_pending() {
             self.pump();
             if !self.planner.has_pending() && self.finish_requested {
-                self.finish();
+                self.complete_finish();
             }
         }
         self.replan_if_resumed();

@@ -101,12 +101,17 @@ fn run_with(
     let mut ip = Box::new(Interpolator::<256>::new(cfg, start_of(blocks)).unwrap());
     let mut sps = Vec::new();
     let mut next = 0;
+    let mut feeding = true;
     for t in 0..2_000_000 {
-        next += common::push_what_fits(&mut ip, &blocks[next..]);
-        if next == blocks.len() {
-            ip.finish();
+        if feeding {
+            next += common::push_what_fits(&mut ip, &blocks[next..]);
+            if next == blocks.len() {
+                ip.finish();
+            }
         }
         command(t, &mut ip);
+        // An abort ends the program: the rest of it is not sent.
+        feeding &= ip.state() != RunState::Stopping;
         let sp = ip.tick();
         sps.push(sp);
         if matches!(sp.state, RunState::Done | RunState::Idle) && sp.feed == 0.0 && t > 0 {
@@ -574,9 +579,14 @@ fn a_plan_for_another_queue_end_is_refused_and_a_resynced_planner_goes_on() {
     assert_eq!(ip.commit(&plans[1]), Err(PushError::Stale));
     assert_eq!(ip.queued_segments(), queued);
     // Abort part way: plans made before it no longer fit.
+    // (While the stop ends short of the queue's end.)
+    let queued_length: f64 = blocks[..3].iter().map(|b| b.path.length()).sum();
     let mut last = Setpoint::default();
-    for _ in 0..300 {
+    for _ in 0..100_000 {
         last = ip.tick();
+        if last.feed > 0.0 && ip.hold_stop_position() < queued_length - 1e-3 {
+            break;
+        }
     }
     ip.abort();
     assert_eq!(ip.commit(&plans[3]), Err(PushError::Aborting));
