@@ -579,6 +579,28 @@ impl Window {
         self.data.tail = s;
     }
 
+    /// Where a re-solve of everything ahead of the machine starts (a new
+    /// feed override): the first piece strictly after `machine`, or the rest
+    /// point it still rests on (see [`Self::freeze`]).
+    pub fn freeze_after(&self, machine: f64, machine_at_rest: bool) -> Freeze {
+        let d = &self.data;
+        if d.n_pieces == 0 {
+            return Freeze::Rest(d.origin);
+        }
+        if d.pieces[0].rest_start && machine_at_rest && machine <= d.pieces[0].x0 {
+            return Freeze::Rest(d.pieces[0].x0);
+        }
+        let mut f = 1;
+        while f < d.n_pieces && d.pieces[f].x0 <= machine {
+            f += 1;
+        }
+        if f < d.n_pieces {
+            Freeze::At(f)
+        } else {
+            Freeze::Rest(d.pieces[d.n_pieces - 1].x1)
+        }
+    }
+
     /// Where a re-solve starts. The freeze piece is the first one at least a
     /// stopping distance (from the fastest planned speed on the way) before
     /// the end of the current plan and strictly after `machine` (where the

@@ -345,7 +345,8 @@ impl BlockPlanner {
     pub fn replan(&mut self, ovr: f64, out: &mut PlannedBlock) -> Result<(), PushError> {
         self.speed_only(out);
         self.ovr = ovr;
-        let freeze = self.freeze();
+        // From the machine on (not only the plan's end): the new feed counts everywhere ahead.
+        let freeze = self.window.freeze_after(self.machine, self.machine_at_rest);
         // The speed and acceleration the plan has at the freeze point: the
         // new feed limit may not fall below what braking from there allows.
         let lift = match freeze {
