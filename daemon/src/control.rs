@@ -3,6 +3,14 @@
 //! [`crate::protocol`]. Blocks are parsed, checked and split here and handed
 //! to the RT thread through its SPSC queue; a full queue is back-pressure (the
 //! reply waits, so the client's writes stall), never a drop.
+//!
+//! A program belongs to the connection that sent its first block (or
+//! `begin`) until it ends: `done`, an abort, or a fault. Another connection
+//! sending blocks or `end` meanwhile is refused as `busy`, naming the owner;
+//! every connection may ask for the status, hold, resume, override, start
+//! and abort. A connection that leaves mid-program holds the machine if it
+//! moves, and its program can be taken over by the next connection that
+//! sends a block or `end`.
 
 use core::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -10,20 +18,24 @@ use std::time::Duration;
 
 use heapless::spsc::{Consumer, Producer};
 use interp_core::{BlockPlanner, PlannedBlock, RunState, Vec3};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use tokio::io::{AsyncBufRead, AsyncBufReadExt, AsyncRead, AsyncWrite, AsyncWriteExt, BufReader};
 
-use crate::protocol::{MAX_LINE_BYTES, Request, parse};
+use crate::protocol::{MAX_LINE_BYTES, Reply, Request, parse};
 use crate::publish::state_name;
-use crate::rt::{Command, PushFailure, RtStatus};
+use crate::rt::{Command, Plan, PushFailure, RtStatus};
 
 /// How long `abort` waits for the machine to come to rest before replying.
 pub const ABORT_WAIT: Duration = Duration::from_secs(30);
 
 /// Shared by every connection.
 pub struct Control {
-    /// Block producer and the end of what was accepted (one streamer at a time).
+    /// Block producer and the end of what was accepted (held while a block
+    /// waits for room in the queue).
     pub stream: tokio::sync::Mutex<Stream>,
+    /// The current program and its owner (short critical sections only:
+    /// a busy client is told so without waiting for the stream).
+    pub programs: Mutex<Programs>,
     /// Command producer (short critical sections only).
     pub commands: Mutex<Producer<'static, Command>>,
     /// Refused blocks reported by the RT thread.
@@ -34,6 +46,8 @@ pub struct Control {
     pub period: Duration,
     /// Largest feed override accepted.
     pub max_feed_override: f64,
+    /// The machine's path-speed limit, mm/s (what a rapid runs at).
+    pub max_path_speed: f64,
     /// Token every connection must present first (`None`: no authentication).
     pub token: Option<String>,
     /// Incremented by every abort: a stream waiting on a full queue drops its block.
@@ -42,16 +56,85 @@ pub struct Control {
     pub blocks_accepted: AtomicU64,
     /// Lines refused with an error.
     pub errors: AtomicU64,
+    /// Connections accepted (numbers them from 1).
+    pub connections: AtomicU64,
     /// Last refused block reported by the RT thread.
     pub last_refusal: Mutex<Option<String>>,
     /// The trace recorder's queue, if recording (taken at shutdown).
     pub recorder: Mutex<Option<traces::RecordTx>>,
 }
 
+/// Where a program is in its life.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Phase {
+    /// No program yet.
+    None,
+    /// Taking blocks.
+    Open,
+    /// `end` was sent: it runs to its end.
+    Ended,
+    /// It reached `done`.
+    Done,
+    /// It was aborted.
+    Aborted,
+    /// The interpolator faulted.
+    Fault,
+}
+
+/// A connection, as ownership and errors name it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Peer {
+    /// Its number, from 1 in the order of connecting.
+    pub id: u64,
+    /// `tcp ADDRESS` or `unix`.
+    pub name: String,
+}
+
+impl core::fmt::Display for Peer {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "connection {} ({})", self.id, self.name)
+    }
+}
+
+/// The current program.
+#[derive(Debug)]
+pub struct Programs {
+    /// Its number (0: none yet).
+    pub program: u32,
+    /// Its phase as the control plane last set it (see [`Control::phase`]).
+    pub phase: Phase,
+    /// The connection it belongs to (`None`: its connection left).
+    pub owner: Option<Peer>,
+    /// `start` was accepted for it.
+    pub started: bool,
+    /// Blocks accepted into it.
+    pub blocks: u32,
+}
+
+impl Programs {
+    /// Before the first program.
+    pub fn new() -> Self {
+        Programs {
+            program: 0,
+            phase: Phase::None,
+            owner: None,
+            started: false,
+            blocks: 0,
+        }
+    }
+}
+
+impl Default for Programs {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 /// The streaming side: the RT thread's plan queue and where the next block starts.
 pub struct Stream {
     /// Producer of the RT thread's queue of planned blocks.
-    pub blocks: Producer<'static, Box<PlannedBlock>>,
+    pub blocks: Producer<'static, Plan>,
     /// Plan buffers the RT thread handed back.
     pub spent: Consumer<'static, Box<PlannedBlock>>,
     /// Plans blocks against the end of what was accepted (the costly half of
@@ -63,8 +146,8 @@ pub struct Stream {
     pub next_id: u32,
     /// Blocks accepted in this program.
     pub index: u32,
-    /// `end` was sent: the next block starts a new program.
-    pub ended: bool,
+    /// The program the fields above belong to.
+    pub program: u32,
 }
 
 impl core::fmt::Debug for Control {
@@ -81,19 +164,28 @@ impl core::fmt::Debug for Stream {
         f.debug_struct("Stream")
             .field("tail", &self.tail)
             .field("next_id", &self.next_id)
+            .field("program", &self.program)
             .finish_non_exhaustive()
     }
 }
 
 /// The reply to `status`.
-#[derive(Debug, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct StatusReply {
     /// Interpolator state.
-    pub state: &'static str,
-    /// Whether `start` was given for this program.
+    pub state: String,
+    /// Whether `start` was given for the program the machine runs.
     pub started: bool,
     /// Whether `end` was applied.
     pub finished: bool,
+    /// The current program's number (0: none yet).
+    pub program: u32,
+    /// Its phase.
+    pub program_phase: Phase,
+    /// The connection it belongs to, if one does.
+    pub program_owner: Option<String>,
+    /// The program the interpolator runs (its last commit; 0: none yet).
+    pub machine_program: u32,
     /// Interpolator ticks.
     pub ticks: u64,
     /// Samples published.
@@ -108,6 +200,8 @@ pub struct StatusReply {
     pub s: f64,
     /// Applied feed override.
     pub feed_override: f64,
+    /// The machine's path-speed limit, mm/s (rapids run at it).
+    pub max_path_speed: f64,
     /// Segments queued in the interpolator.
     pub queued_segments: u32,
     /// Protocol blocks accepted.
@@ -166,13 +260,94 @@ impl Control {
             tokio::time::sleep(self.period).await;
         }
         // Drain what the RT thread flushed; the next program starts where it stopped.
-        let mut s = self.stream.lock().await;
-        s.tail = None;
+        self.stream.lock().await.tail = None;
+        let mut p = self.lock_programs();
+        if matches!(p.phase, Phase::Open | Phase::Ended) {
+            p.phase = Phase::Aborted;
+        }
+        p.owner = None;
         Ok(())
     }
 
+    /// The current program's phase: `Open` and `Ended` become `Done` or
+    /// `Fault` once the RT thread reports its program so.
+    pub fn phase(&self, s: &Programs) -> Phase {
+        let on_machine = self.status.program.load(Ordering::Acquire) == s.program;
+        match (s.phase, self.status.run_state()) {
+            (Phase::Open | Phase::Ended, RunState::Fault) if on_machine => Phase::Fault,
+            (Phase::Ended, RunState::Done) if on_machine => Phase::Done,
+            (p, _) => p,
+        }
+    }
+
+    /// Makes `peer` the owner of the program its block (or `begin` or
+    /// `end`) belongs to: the current one if it owns it (or the current one
+    /// lost its connection), else a new one once the current one is over.
+    fn claim(&self, s: &mut Programs, peer: &Peer) -> Result<u32, String> {
+        let phase = self.phase(s);
+        let mine = s.owner.as_ref() == Some(peer);
+        match phase {
+            Phase::Open if mine => return Ok(s.program),
+            Phase::Open if s.owner.is_none() => {
+                eprintln!("interpd: {peer} takes over program {}", s.program);
+                s.owner = Some(peer.clone());
+                return Ok(s.program);
+            }
+            // Its own ended program still runs: the next one queues behind it.
+            Phase::Ended if mine => {}
+            Phase::Open | Phase::Ended => {
+                return Err(match &s.owner {
+                    Some(o) => format!("busy: program {} belongs to {o}", s.program),
+                    None => format!(
+                        "busy: program {} is running to its end (its connection left); \
+                         wait for done or abort it",
+                        s.program
+                    ),
+                });
+            }
+            Phase::None | Phase::Done | Phase::Aborted | Phase::Fault => {}
+        }
+        s.program += 1;
+        s.phase = Phase::Open;
+        s.owner = Some(peer.clone());
+        s.started = false;
+        s.blocks = 0;
+        Ok(s.program)
+    }
+
+    /// The program state (a poisoned lock is taken as it is: it holds plain data).
+    fn lock_programs(&self) -> std::sync::MutexGuard<'_, Programs> {
+        self.programs
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+
+    /// Moves the stream on to `program` if it is a new one: segment ids from
+    /// 1, as `simulate` numbers them, from where the last one ends (or where
+    /// the machine is).
+    fn follow(&self, s: &mut Stream, program: u32) {
+        if s.program == program {
+            return;
+        }
+        if s.tail.is_none() && self.status.published.load(Ordering::Acquire) > 0 {
+            // Where the machine is (at rest: start, or after an abort), bit
+            // for bit as the interpolator's queue end.
+            let p = self.status.position();
+            let at = f64::from_bits(self.status.s.load(Ordering::Acquire));
+            s.planner.resync(Vec3::new(p[0], p[1], p[2]), at);
+        }
+        s.program = program;
+        s.next_id = 1;
+        s.index = 0;
+    }
+
+    /// Where the next block of the current program starts.
+    fn next_start(&self, s: &Stream) -> [f64; 3] {
+        s.tail.unwrap_or_else(|| self.status.position())
+    }
+
     /// The current status.
-    pub fn status(&self) -> StatusReply {
+    pub async fn status(&self) -> StatusReply {
         if let Ok(mut f) = self.failures.lock() {
             while let Some(x) = f.dequeue() {
                 if let Ok(mut l) = self.last_refusal.lock() {
@@ -180,12 +355,24 @@ impl Control {
                 }
             }
         }
+        let (program, program_phase, program_owner) = {
+            let s = self.lock_programs();
+            (
+                s.program,
+                self.phase(&s),
+                s.owner.as_ref().map(ToString::to_string),
+            )
+        };
         let s = &self.status;
         let f = |a: &AtomicU64| f64::from_bits(a.load(Ordering::Acquire));
         StatusReply {
-            state: state_name(s.run_state()),
+            state: state_name(s.run_state()).to_owned(),
             started: s.started.load(Ordering::Acquire),
             finished: s.finished.load(Ordering::Acquire),
+            program,
+            program_phase,
+            program_owner,
+            machine_program: s.program.load(Ordering::Acquire),
             ticks: s.ticks.load(Ordering::Acquire),
             published: s.published.load(Ordering::Acquire),
             block_id: s.block_id.load(Ordering::Acquire),
@@ -193,6 +380,7 @@ impl Control {
             feed: f(&s.feed),
             s: f(&s.s),
             feed_override: f(&s.feed_override),
+            max_path_speed: self.max_path_speed,
             queued_segments: s.queued_segments.load(Ordering::Acquire),
             blocks_accepted: self.blocks_accepted.load(Ordering::Acquire),
             pieces_pushed: s.blocks_pushed.load(Ordering::Acquire),
@@ -230,24 +418,129 @@ impl Control {
         }
     }
 
-    /// Parses, checks, plans and queues one block; waits while the RT queue is full.
-    async fn block(&self, b: &traces::InputBlock) -> Result<String, String> {
-        let epoch = self.abort_epoch.load(Ordering::Acquire);
+    /// `begin`: claims a program for `peer`; names it and where it starts.
+    async fn begin(&self, peer: &Peer) -> Result<Reply, String> {
+        let program = self.claim(&mut self.lock_programs(), peer)?;
         let mut s = self.stream.lock().await;
-        if s.tail.is_none() || s.ended {
-            // A new program: segment ids from 1, as `simulate` numbers them.
-            s.next_id = 1;
-            s.index = 0;
-            s.ended = false;
+        self.follow(&mut s, program);
+        Ok(Reply::Begin {
+            program,
+            at: self.next_start(&s),
+        })
+    }
+
+    /// `end`: the owner's program ends after the blocks it sent.
+    async fn end(&self, peer: &Peer) -> Result<Reply, String> {
+        let program = self.end_program(&mut self.lock_programs(), peer)?;
+        if let Some(p) = program {
+            self.command(Command::End(p)).await;
         }
-        if s.tail.is_none() && self.status.published.load(Ordering::Acquire) > 0 {
-            // Where the machine is (at rest: start, or after an abort), bit
-            // for bit as the interpolator's queue end.
-            let p = self.status.position();
-            let at = f64::from_bits(self.status.s.load(Ordering::Acquire));
-            s.planner.resync(Vec3::new(p[0], p[1], p[2]), at);
+        Ok(Reply::End)
+    }
+
+    /// The program `end` ends (`None`: it had ended already).
+    fn end_program(&self, s: &mut Programs, peer: &Peer) -> Result<Option<u32>, String> {
+        match self.phase(s) {
+            Phase::Open => {}
+            Phase::Ended if s.owner.as_ref() == Some(peer) => return Ok(None),
+            Phase::Ended => {}
+            p => {
+                return Err(format!(
+                    "end: no program is open (program {} is {})",
+                    s.program,
+                    phase_name(p)
+                ));
+            }
         }
-        let start = s.tail.unwrap_or_else(|| self.status.position());
+        self.claim(s, peer)?;
+        if s.blocks == 0 {
+            return Err(format!("end: program {} has no blocks", s.program));
+        }
+        s.phase = Phase::Ended;
+        Ok(Some(s.program))
+    }
+
+    /// `start`: lets the current program move; every refusal says why.
+    async fn start(&self) -> Result<Reply, String> {
+        let p = self.start_program(&mut self.lock_programs())?;
+        self.command(Command::Start(p)).await;
+        Ok(Reply::Start)
+    }
+
+    /// The program `start` starts, or why there is none to start.
+    fn start_program(&self, s: &mut Programs) -> Result<u32, String> {
+        let phase = self.phase(s);
+        let state = self.status.run_state();
+        let p = s.program;
+        match phase {
+            Phase::None => return Err("start: no program (send its blocks first)".into()),
+            Phase::Done | Phase::Aborted | Phase::Fault => {
+                return Err(format!(
+                    "start: program {p} is {} (send a new program first)",
+                    phase_name(phase)
+                ));
+            }
+            Phase::Open | Phase::Ended => {}
+        }
+        if s.blocks == 0 {
+            return Err(format!("start: program {p} has no blocks yet"));
+        }
+        if state == RunState::Holding {
+            return Err(format!(
+                "start: the machine is holding program {p} (send resume)"
+            ));
+        }
+        if state == RunState::Stopping {
+            return Err("start: the machine is stopping (an abort is in progress)".into());
+        }
+        if s.started {
+            return Err(format!("start: program {p} is already started"));
+        }
+        s.started = true;
+        Ok(p)
+    }
+
+    /// `hold`: only while the machine moves a program.
+    async fn hold(&self) -> Result<Reply, String> {
+        match self.status.run_state() {
+            RunState::Running if self.status.started.load(Ordering::Acquire) => {
+                self.command(Command::Hold).await;
+                Ok(Reply::Hold)
+            }
+            RunState::Holding => Err("hold: the machine is already holding".into()),
+            st => Err(format!(
+                "hold: nothing is moving (state {}{})",
+                state_name(st),
+                if st == RunState::Running {
+                    ", not started"
+                } else {
+                    ""
+                }
+            )),
+        }
+    }
+
+    /// `resume`: only while holding.
+    async fn resume(&self) -> Result<Reply, String> {
+        match self.status.run_state() {
+            RunState::Holding => {
+                self.command(Command::Resume).await;
+                Ok(Reply::Resume)
+            }
+            st => Err(format!(
+                "resume: the machine is not holding (state {})",
+                state_name(st)
+            )),
+        }
+    }
+
+    /// Parses, checks, plans and queues one block; waits while the RT queue is full.
+    async fn block(&self, b: &traces::InputBlock, peer: &Peer) -> Result<Reply, String> {
+        let epoch = self.abort_epoch.load(Ordering::Acquire);
+        let program = self.claim(&mut self.lock_programs(), peer)?;
+        let mut s = self.stream.lock().await;
+        self.follow(&mut s, program);
+        let start = self.next_start(&s);
         let id = s.next_id;
         let (pieces, info) = crate::protocol::expand(b, start, id)?;
         let n = pieces.len();
@@ -264,7 +557,7 @@ impl Control {
             let planner = s.planner;
             // Law sampling takes milliseconds for a long NURBS: off the
             // runtime's thread, so status and hold are answered meanwhile.
-            let (planner, mut item, planned) = tokio::task::spawn_blocking(move || {
+            let (planner, buf, planned) = tokio::task::spawn_blocking(move || {
                 let (mut planner, mut buf) = (planner, buf);
                 let r = planner.plan(&piece, &mut buf);
                 (planner, buf, r)
@@ -290,6 +583,10 @@ impl Control {
                 // their commits come (an abort may flush some).
                 self.record_block(s.index, b, info);
             }
+            let mut item = Plan {
+                program,
+                block: buf,
+            };
             loop {
                 if self.abort_epoch.load(Ordering::Acquire) != epoch {
                     return Err(format!(
@@ -308,12 +605,44 @@ impl Control {
         s.tail = end;
         s.next_id = id + n as u32;
         s.index += 1;
+        self.lock_programs().blocks += 1;
         self.blocks_accepted.fetch_add(1, Ordering::AcqRel);
-        Ok(format!(
-            "ok block {} segments {id}..={}",
-            s.index,
-            id + n as u32 - 1
-        ))
+        Ok(Reply::Block {
+            index: s.index,
+            first: id,
+            last: id + n as u32 - 1,
+        })
+    }
+
+    /// `peer` left: a program it owns loses its owner (another connection
+    /// may take it over); one still open holds the machine if it moves.
+    async fn left(&self, peer: &Peer) {
+        let open = {
+            let mut s = self.lock_programs();
+            if s.owner.as_ref() != Some(peer) {
+                return;
+            }
+            s.owner = None;
+            self.phase(&s) == Phase::Open
+        };
+        if open {
+            eprintln!("interpd: {peer} left mid-program: feed hold if moving (resume to continue)");
+            if self.status.run_state() == RunState::Running {
+                self.command(Command::Hold).await;
+            }
+        }
+    }
+}
+
+/// Lower-case name of a phase, as errors print it.
+pub fn phase_name(p: Phase) -> &'static str {
+    match p {
+        Phase::None => "none",
+        Phase::Open => "open",
+        Phase::Ended => "ended",
+        Phase::Done => "done",
+        Phase::Aborted => "aborted",
+        Phase::Fault => "faulted",
     }
 }
 
@@ -365,11 +694,18 @@ async fn read_line<R: AsyncBufRead + Unpin>(r: &mut R) -> std::io::Result<ReadLi
 
 /// Serves one connection until it closes. A connection that sent blocks and
 /// leaves without `end` (or `abort`) holds the machine: what was accepted stays queued.
-pub async fn serve_connection<S: AsyncRead + AsyncWrite + Unpin>(ctl: Arc<Control>, io: S) {
+pub async fn serve_connection<S: AsyncRead + AsyncWrite + Unpin>(
+    ctl: Arc<Control>,
+    io: S,
+    name: String,
+) {
+    let peer = Peer {
+        id: ctl.connections.fetch_add(1, Ordering::AcqRel) + 1,
+        name,
+    };
     let (rd, mut wr) = tokio::io::split(io);
     let mut rd = BufReader::new(rd);
     let mut authed = ctl.token.is_none();
-    let mut mid_program = false;
     let mut line_no = 0u64;
     loop {
         let line = match read_line(&mut rd).await {
@@ -377,7 +713,7 @@ pub async fn serve_connection<S: AsyncRead + AsyncWrite + Unpin>(ctl: Arc<Contro
             Ok(l) => l,
         };
         line_no += 1;
-        let reply: Result<String, String> = match line {
+        let reply: Result<Reply, String> = match line {
             ReadLine::Eof => unreachable!(),
             ReadLine::TooLong(n) => Err(format!(
                 "line of {n} bytes exceeds the limit of {MAX_LINE_BYTES} bytes"
@@ -388,7 +724,7 @@ pub async fn serve_connection<S: AsyncRead + AsyncWrite + Unpin>(ctl: Arc<Contro
                 Ok(Request::Auth(t)) => {
                     if ctl.token.as_deref().is_none_or(|want| want == t) {
                         authed = true;
-                        Ok("ok auth".into())
+                        Ok(Reply::Auth)
                     } else {
                         Err("wrong token".into())
                     }
@@ -402,50 +738,36 @@ pub async fn serve_connection<S: AsyncRead + AsyncWrite + Unpin>(ctl: Arc<Contro
                         .await;
                     break;
                 }
-                Ok(req) => handle(&ctl, req, &mut mid_program).await,
+                Ok(req) => handle(&ctl, req, &peer).await,
             },
         };
         let out = match reply {
-            Ok(s) => s,
-            Err(e) => {
+            Ok(r) => r,
+            Err(problem) => {
                 ctl.errors.fetch_add(1, Ordering::AcqRel);
-                format!("err {line_no} {e}")
+                Reply::Err {
+                    line: line_no,
+                    problem,
+                }
             }
         };
-        if wr.write_all(out.as_bytes()).await.is_err() || wr.write_all(b"\n").await.is_err() {
+        let out = format!("{out}\n");
+        if wr.write_all(out.as_bytes()).await.is_err() {
             break;
         }
     }
-    if mid_program {
-        // Disconnected mid-stream: hold; keep everything accepted.
-        ctl.command(Command::Hold).await;
-        eprintln!("interpd: a client left mid-program: feed hold (resume to continue)");
-    }
+    ctl.left(&peer).await;
 }
 
-async fn handle(ctl: &Control, req: Request, mid_program: &mut bool) -> Result<String, String> {
+async fn handle(ctl: &Control, req: Request, peer: &Peer) -> Result<Reply, String> {
     match req {
-        Request::Nothing => Ok("ok".into()),
+        Request::Nothing => Ok(Reply::Ok),
         Request::Auth(_) => unreachable!("handled by the caller"),
-        Request::Block(b) => {
-            let r = ctl.block(&b).await;
-            if r.is_ok() {
-                *mid_program = true;
-            }
-            r
-        }
-        Request::Start => {
-            ctl.command(Command::Start).await;
-            Ok("ok start".into())
-        }
-        Request::Hold => {
-            ctl.command(Command::Hold).await;
-            Ok("ok hold".into())
-        }
-        Request::Resume => {
-            ctl.command(Command::Resume).await;
-            Ok("ok resume".into())
-        }
+        Request::Block(b) => ctl.block(&b, peer).await,
+        Request::Begin => ctl.begin(peer).await,
+        Request::Start => ctl.start().await,
+        Request::Hold => ctl.hold().await,
+        Request::Resume => ctl.resume().await,
         Request::Override(x) => {
             if !(x >= 0.0 && x <= ctl.max_feed_override) {
                 return Err(format!(
@@ -454,21 +776,13 @@ async fn handle(ctl: &Control, req: Request, mid_program: &mut bool) -> Result<S
                 ));
             }
             ctl.command(Command::Override(x)).await;
-            Ok(format!("ok override {x}"))
+            Ok(Reply::Override(x))
         }
-        Request::End => {
-            ctl.command(Command::End).await;
-            ctl.stream.lock().await.ended = true;
-            *mid_program = false;
-            Ok("ok end".into())
-        }
+        Request::End => ctl.end(peer).await,
         Request::Abort => {
-            *mid_program = false;
             ctl.abort().await?;
-            Ok("ok abort".into())
+            Ok(Reply::Abort)
         }
-        Request::Status => serde_json::to_string(&ctl.status())
-            .map(|j| format!("status {j}"))
-            .map_err(|e| e.to_string()),
+        Request::Status => Ok(Reply::Status(Box::new(ctl.status().await))),
     }
 }

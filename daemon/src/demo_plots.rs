@@ -21,6 +21,7 @@ use traces::plot::{Chart, ChartLine, plot_charts};
 const LAW_DERIVS: usize = 3;
 
 /// What the plots are made of.
+#[derive(Debug)]
 pub struct PlotInput<'a> {
     /// The run's configuration.
     pub cfg: &'a InterpConfig,

@@ -217,7 +217,8 @@ pub fn run(args: &DemoArgs, direct: &Summary) -> Result<ServiceRun> {
             let s = tokio::net::TcpStream::connect(addr)
                 .await
                 .with_context(|| format!("connecting to the service at {addr}"))?;
-            crate::send::stream(s, &[line], &send_args).await
+            let load = |_: [f64; 3], _: f64| Ok(vec![line.clone()]);
+            crate::send::stream(s, &load, &send_args).await
         });
     let sub = subscriber
         .join()

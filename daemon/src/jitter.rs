@@ -212,7 +212,8 @@ pub fn main(args: &JitterArgs) -> Result<()> {
             .block_on(async {
                 let s = tokio::net::TcpStream::connect(addr).await?;
                 // Aborted at shutdown: the outcome does not matter here.
-                let _ = crate::send::stream(s, &lines, &send_args).await;
+                let load = |_: [f64; 3], _: f64| Ok(lines.clone());
+                let _ = crate::send::stream(s, &load, &send_args).await;
                 Ok(())
             })
     });

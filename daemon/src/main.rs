@@ -1,39 +1,14 @@
-//! `interpd`, the real-time CNC interpolator service.
-//!
-//! Per `DESIGN.md`, this binary will be the only part of the workspace that owns
-//! threads, sockets and files: the tokio control plane, the RT thread that
-//! ticks the interpolator and publishes setpoints over iceoryx2, and the
-//! recorder thread, behind the subcommands `serve`, `send`, `simulate`,
-//! `replay`, `jitter`, `plan` and `trace`, each added by the issue that
-//! implements it. For now it has `demo`: the bundled butterfly NURBS through
-//! the fixed-period interpolator loop (see [`demo`]).
+//! `interpd`, the real-time CNC interpolator service: the command line over
+//! the `interpd` library (`lib.rs`).
 
-mod clock;
-mod control;
-mod demo;
-mod demo_plots;
-mod demo_service;
-mod histogram;
-mod jitter;
-mod plan_gouge;
-mod plan_raster;
-mod plan_setup;
-mod plan_writer;
-mod protocol;
-mod publish;
-mod replay;
-mod rt;
-mod rt_alloc;
-mod send;
-mod serve;
-mod simulate;
-mod trace_cmd;
-mod watch;
+use interpd::{
+    demo, jitter, plan_gouge, plan_raster, plan_setup, replay, rt_alloc, send, serve, simulate,
+    trace_cmd, watch,
+};
 
 /// The system allocator behind the RT thread's fixed pool (`rt_alloc`):
-/// iceoryx2 allocates a small object per published sample. The daemon's unit
-/// tests install the same pool in front of a counting allocator (`demo.rs`).
-#[cfg(not(test))]
+/// iceoryx2 allocates a small object per published sample. The library's
+/// unit tests install the same pool in front of a counting allocator.
 #[global_allocator]
 static ALLOCATOR: rt_alloc::RtPool<std::alloc::System> = rt_alloc::RtPool(std::alloc::System);
 

@@ -21,6 +21,7 @@ pub struct Moves {
 /// Builds a program path by path: a rapid across at the safe height, a rapid
 /// down to the approach clearance above the first point, a plunge at the
 /// plunge feed, the cut at the feed, and a rapid retract straight up.
+#[derive(Debug)]
 pub struct PathWriter {
     blocks: Vec<gcode::ProgramBlock>,
     /// Where the tool is (`None` before the first move: wherever the machine is).

@@ -54,19 +54,28 @@ pub const RT_STACK_BYTES: usize = 32 << 20;
 /// Stack prefaulted after `mlockall`, so the first deep `push` does not page-fault.
 const PREFAULT_STACK_BYTES: usize = 512 << 10;
 
+/// One planned segment of a program, queued for the RT thread.
+#[derive(Debug)]
+pub struct Plan {
+    /// The program it belongs to (numbered by the control plane from 1).
+    pub program: u32,
+    /// The plan (handed back through the spent queue once committed).
+    pub block: Box<PlannedBlock>,
+}
+
 /// An operator command, applied between two ticks.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Command {
-    /// Cycle start: let the queued program move.
-    Start,
-    /// Feed hold.
+    /// Cycle start of a program: it moves once its first segment is committed.
+    Start(u32),
+    /// Feed hold (applied only while the machine moves a program).
     Hold,
-    /// Leave a feed hold.
+    /// Leave a feed hold (applied only while holding).
     Resume,
     /// Feed override, 1 = 100 % (validated by the sender).
     Override(f64),
     /// The program ends after the blocks already sent.
-    End,
+    End(u32),
     /// Stop on the path within the limits, flush everything queued.
     Abort,
 }
@@ -161,6 +170,8 @@ pub struct RtStatus {
     pub aborts: AtomicU64,
     /// Whether `start` was given for the current program.
     pub started: AtomicBool,
+    /// The program of the last commit (0: none yet).
+    pub program: AtomicU32,
     /// Whether `end` was given and applied (`Interpolator::finish`).
     pub finished: AtomicBool,
     /// The RT thread is in its loop.
@@ -308,7 +319,7 @@ fn count_allocations<R>(f: impl FnOnce() -> R) -> (R, Option<u64>) {
 /// The non-RT ends of the RT thread's queues.
 pub struct RtHandles {
     /// Planned blocks to commit.
-    pub blocks: Producer<'static, Box<PlannedBlock>>,
+    pub blocks: Producer<'static, Plan>,
     /// Plan buffers the RT thread is done with (reuse them).
     pub spent: Consumer<'static, Box<PlannedBlock>>,
     /// Commands.
@@ -341,7 +352,7 @@ fn leak<T, const N: usize>() -> &'static mut Queue<T, N> {
 /// Starts the RT thread: builds the interpolator (at rest at `position`) and
 /// the publisher on it, then runs the loop until `stop`.
 pub fn spawn(cfg: InterpConfig, position: [f64; 6], opts: RtOptions) -> Result<RtHandles> {
-    let (blocks_tx, blocks_rx) = leak::<Box<PlannedBlock>, BLOCK_SLOTS>().split();
+    let (blocks_tx, blocks_rx) = leak::<Plan, BLOCK_SLOTS>().split();
     let (spent_tx, spent_rx) = leak::<Box<PlannedBlock>, SPENT_SLOTS>().split();
     let (cmd_tx, cmd_rx) = leak::<Command, CMD_SLOTS>().split();
     let (fail_tx, fail_rx) = leak::<PushFailure, EVENT_SLOTS>().split();
@@ -398,6 +409,8 @@ pub fn spawn(cfg: InterpConfig, position: [f64; 6], opts: RtOptions) -> Result<R
                 spin_ns: opts.spin_ns,
                 started: opts.autostart,
                 autostart: opts.autostart,
+                program: 0,
+                start_for: 0,
                 position,
                 aborting: false,
             };
@@ -508,7 +521,7 @@ fn prefault_stack() {
 struct Loop {
     ip: Box<Interpolator>,
     publisher: SetpointPublisher,
-    blocks: Consumer<'static, Box<PlannedBlock>>,
+    blocks: Consumer<'static, Plan>,
     spent: Producer<'static, Box<PlannedBlock>>,
     commands: Consumer<'static, Command>,
     failures: Producer<'static, PushFailure>,
@@ -519,6 +532,10 @@ struct Loop {
     spin_ns: i64,
     started: bool,
     autostart: bool,
+    /// The program of the last commit (0: none yet).
+    program: u32,
+    /// The last program `start` was given for (it may not be committed yet).
+    start_for: u32,
     position: [f64; 6],
     /// An abort is bringing the machine to rest (ticks go on without `start`).
     aborting: bool,
@@ -549,21 +566,28 @@ impl Loop {
         self.record(RtRecord::Applied { tick, what });
     }
 
-    fn apply_commands(
-        &mut self,
-        end_requested: &mut bool,
-        pending: &mut Option<Box<PlannedBlock>>,
-    ) {
+    fn apply_commands(&mut self, end_requested: &mut Option<u32>, pending: &mut Option<Plan>) {
         while let Some(c) = self.commands.dequeue() {
             match c {
-                Command::Start => self.started = true,
+                Command::Start(p) => {
+                    self.start_for = p;
+                    if p == self.program {
+                        self.started = true;
+                    }
+                }
+                // Only motion is held: a hold while nothing moves is not
+                // remembered for the next program.
                 Command::Hold => {
-                    self.ip.feed_hold();
-                    self.applied(Applied::Hold);
+                    if self.started && self.ip.state() == RunState::Running {
+                        self.ip.feed_hold();
+                        self.applied(Applied::Hold);
+                    }
                 }
                 Command::Resume => {
-                    self.ip.resume();
-                    self.applied(Applied::Resume);
+                    if self.ip.state() == RunState::Holding {
+                        self.ip.resume();
+                        self.applied(Applied::Resume);
+                    }
                 }
                 Command::Override(x) => {
                     // The control plane checked the range; a refusal leaves the old value.
@@ -571,23 +595,47 @@ impl Loop {
                         self.applied(Applied::Override(x));
                     }
                 }
-                Command::End => *end_requested = true,
+                Command::End(p) => *end_requested = Some(p),
                 Command::Abort => {
                     self.ip.abort();
                     self.applied(Applied::Abort);
                     if let Some(p) = pending.take() {
-                        self.recycle(p);
+                        self.recycle(p.block);
                     }
                     while let Some(p) = self.blocks.dequeue() {
-                        self.recycle(p);
+                        self.recycle(p.block);
                     }
-                    *end_requested = false;
+                    *end_requested = None;
                     // Tick until at rest; `start` is needed again after that.
                     self.aborting = true;
                     self.status.aborts.fetch_add(1, Ordering::AcqRel);
                 }
             }
         }
+    }
+
+    /// Whether `plan` may be committed now: a plan of the running program
+    /// always; the first plan of the next one once the last one is over
+    /// (`done`, or at rest after an abort), leaving `done` for it.
+    fn ready_for(&mut self, plan: &Plan, last: &mut Setpoint) -> bool {
+        if plan.program == self.program {
+            return true;
+        }
+        match self.ip.state() {
+            RunState::Done => {
+                // A new program after a finished one: leave Done.
+                self.ip.abort();
+                self.applied(Applied::Abort);
+                last.state = self.ip.state();
+                self.status.finished.store(false, Ordering::Release);
+            }
+            RunState::Idle if !self.aborting => {}
+            _ => return false,
+        }
+        self.program = plan.program;
+        self.started = self.autostart || self.start_for == plan.program;
+        self.status.program.store(plan.program, Ordering::Release);
+        true
     }
 
     fn run(mut self) -> RtReport {
@@ -617,8 +665,9 @@ impl Loop {
     fn run_loop(&mut self, hist: &mut [Histogram; 3]) -> (u64, Setpoint) {
         let [lateness, compute, compute_with_push] = hist;
         let mut overruns = 0u64;
-        let mut pending: Option<Box<PlannedBlock>> = None;
-        let mut end_requested = false;
+        let mut pending: Option<Plan> = None;
+        // `end` of this program was given.
+        let mut end_requested: Option<u32> = None;
         // Segments completed when the interpolator last refused `pending` for room.
         let mut refused_at: Option<u64> = None;
         // The setpoint published while nothing moves: where the machine is.
@@ -649,43 +698,51 @@ impl Loop {
             }
             // After a refusal for room, retry only once a segment was completed.
             let room_maybe = refused_at.is_none_or(|n| self.ip.stats().segments_done > n);
-            if let Some(b) = pending.take_if(|_| room_maybe) {
-                if self.ip.state() == RunState::Done {
-                    // A new program after a finished one: leave Done, wait for `start`.
-                    self.ip.abort();
-                    self.applied(Applied::Abort);
-                    self.started = self.autostart;
-                    last.state = self.ip.state();
-                    self.status.finished.store(false, Ordering::Release);
+            let ready = match pending.take() {
+                Some(p) if room_maybe && self.ready_for(&p, &mut last) => Some(p),
+                other => {
+                    pending = other;
+                    None
                 }
+            };
+            if let Some(p) = ready {
                 let t0 = now_ns();
-                let r = self.ip.commit(&b);
+                let r = self.ip.commit(&p.block);
                 push_ns = (now_ns() - t0).max(0) as u64;
                 match r {
                     Ok(()) => {
-                        self.applied(Applied::Commit(b.id()));
+                        self.applied(Applied::Commit(p.block.id()));
                         refused_at = None;
                         self.status.blocks_pushed.fetch_add(1, Ordering::AcqRel);
-                        self.recycle(b);
+                        self.recycle(p.block);
                     }
                     Err(PushError::Full { .. } | PushError::ProfileFull) => {
                         refused_at = Some(self.ip.stats().segments_done);
-                        pending = Some(b);
+                        pending = Some(p);
                     }
-                    // A new program sent while the last one still runs waits
-                    // for it to be done; an abort flushes it.
-                    Err(PushError::Aborting | PushError::Finished) => pending = Some(b),
+                    // Cannot happen for a plan of the running program (`end`
+                    // waits for its plans); kept rather than lost.
+                    Err(PushError::Aborting | PushError::Finished) => pending = Some(p),
                     Err(error) => {
                         refused_at = None;
                         self.status.blocks_refused.fetch_add(1, Ordering::AcqRel);
-                        let _ = self.failures.enqueue(PushFailure { id: b.id(), error });
-                        self.recycle(b);
+                        let _ = self.failures.enqueue(PushFailure {
+                            id: p.block.id(),
+                            error,
+                        });
+                        self.recycle(p.block);
                     }
                 }
-            } else if pending.is_none() && end_requested && self.blocks.peek().is_none() {
+            }
+            // `end`: once every plan of the program is committed.
+            let queued = |p: Option<&Plan>| p.is_some_and(|p| p.program == self.program);
+            if end_requested == Some(self.program)
+                && !queued(pending.as_ref())
+                && !queued(self.blocks.peek())
+            {
                 self.ip.finish();
                 self.applied(Applied::Finish);
-                end_requested = false;
+                end_requested = None;
                 self.status.finished.store(true, Ordering::Release);
             }
 
@@ -731,7 +788,7 @@ impl Loop {
             }
         }
         if let Some(p) = pending {
-            self.recycle(p);
+            self.recycle(p.block);
         }
         (overruns, last)
     }
@@ -802,6 +859,10 @@ mod tests {
                 .dequeue()
                 .unwrap_or_else(|| Box::new(PlannedBlock::new()));
             planner.plan(b, &mut plan).expect("plans");
+            let mut plan = Plan {
+                program: 1,
+                block: plan,
+            };
             while let Err(back) = rt.blocks.enqueue(plan) {
                 plan = back;
                 drain(&mut rt);
@@ -812,7 +873,7 @@ mod tests {
             Command::Override(1.5),
             Command::Hold,
             Command::Resume,
-            Command::End,
+            Command::End(1),
         ] {
             rt.commands.enqueue(c).expect("room for commands");
             std::thread::sleep(std::time::Duration::from_millis(300));

@@ -39,6 +39,10 @@ static NEXT: [AtomicU32; SLOTS] = [const { AtomicU32::new(0) }; SLOTS];
 static FALLBACKS: AtomicU64 = AtomicU64::new(0);
 /// Allocations the pool served.
 static SERVED: AtomicU64 = AtomicU64::new(0);
+/// Of the fallbacks: requests the pool had no free slot for.
+static EXHAUSTED: AtomicU64 = AtomicU64::new(0);
+/// Largest request that fell back (bytes), to size the slots by.
+static LARGEST_FALLBACK: AtomicUsize = AtomicUsize::new(0);
 
 thread_local! {
     static RT: Cell<bool> = const { Cell::new(false) };
@@ -57,6 +61,17 @@ pub fn fallbacks() -> u64 {
 /// Allocations the pool has served.
 pub fn served() -> u64 {
     SERVED.load(Ordering::Relaxed)
+}
+
+/// Of [`fallbacks`]: the requests that found the pool empty (the others
+/// were larger than a slot or more aligned).
+pub fn exhausted() -> u64 {
+    EXHAUSTED.load(Ordering::Relaxed)
+}
+
+/// The largest request that fell back, bytes (0: none).
+pub fn largest_fallback() -> usize {
+    LARGEST_FALLBACK.load(Ordering::Relaxed)
 }
 
 fn base() -> usize {
@@ -117,15 +132,16 @@ fn on_rt_thread() -> bool {
 unsafe impl<A: GlobalAlloc> GlobalAlloc for RtPool<A> {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
         if on_rt_thread() {
-            if layout.size() <= SLOT_BYTES
-                && layout.align() <= SLOT_ALIGN
-                && let Some(i) = take()
-            {
-                SERVED.fetch_add(1, Ordering::Relaxed);
-                // SAFETY: `i < SLOTS`, so the slot lies inside the pool.
-                return unsafe { (POOL.0.get() as *mut u8).add(i * SLOT_BYTES) };
+            if layout.size() <= SLOT_BYTES && layout.align() <= SLOT_ALIGN {
+                if let Some(i) = take() {
+                    SERVED.fetch_add(1, Ordering::Relaxed);
+                    // SAFETY: `i < SLOTS`, so the slot lies inside the pool.
+                    return unsafe { (POOL.0.get() as *mut u8).add(i * SLOT_BYTES) };
+                }
+                EXHAUSTED.fetch_add(1, Ordering::Relaxed);
             }
             FALLBACKS.fetch_add(1, Ordering::Relaxed);
+            LARGEST_FALLBACK.fetch_max(layout.size(), Ordering::Relaxed);
         }
         // SAFETY: the caller's contract is passed on.
         unsafe { self.0.alloc(layout) }

@@ -2,25 +2,29 @@
 //! back-pressure (at most [`WINDOW`] requests unanswered; the server answers a
 //! block only once it is queued), shows progress, and waits for the end.
 //!
-//! `start` is sent (on a second connection) as soon as the server stops answering for [`STALL`] (its
+//! It first claims a program (`begin`): the server names it and where it
+//! starts, and a G-code program is converted from there (G91, a first move
+//! to where the machine is or to the origin). `start` is sent (on a second
+//! connection) as soon as the server stops answering for [`STALL`] (its
 //! queue is full: the program is longer than the look-ahead) or after the
 //! whole program was accepted, whichever comes first; so a program that fits
-//! runs exactly as `simulate` would. Ctrl-C sends `hold`, then `abort`.
+//! runs exactly as `simulate` would. It then follows *its* program and exits
+//! non-zero unless that program reached `done`. Ctrl-C sends `hold`, then
+//! `abort`.
 
 use std::collections::VecDeque;
 use std::io::{IsTerminal, Write};
 use std::net::SocketAddr;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use anyhow::{Context, Result, anyhow, bail};
-use serde::Deserialize;
+use crate::control::{Phase, StatusReply};
+use crate::protocol::Reply;
+use anyhow::{Context, Error, Result, anyhow, bail};
 use tokio::io::{AsyncBufReadExt, AsyncRead, AsyncWrite, AsyncWriteExt, BufReader};
 
 use crate::serve::DEFAULT_PORT;
 
-/// Speed of rapid moves (G0) when a G-code program is converted, mm/s.
-const RAPID_SPEED_MM_S: f64 = 100.0;
 /// Requests in flight at most.
 pub const WINDOW: usize = 8;
 /// No reply for this long while requests are in flight means back-pressure.
@@ -54,69 +58,48 @@ pub struct SendArgs {
     pub quiet: bool,
 }
 
-/// The status fields `send` looks at.
-#[derive(Debug, Deserialize)]
-struct Status {
-    state: String,
-    s: f64,
-    block_id: u32,
-}
-
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Expect {
     Block,
 }
 
-/// Reads the program's request lines: G-code (`.ngc`, `.nc`) and JSON
-/// programs (`.json`, `{"start": …, "blocks": […]}`) are converted here to the
-/// JSON block form, as `interpd simulate` reads them; anything else is taken
-/// as JSON blocks, one per line.
-pub fn program_lines(path: &PathBuf) -> Result<Vec<String>> {
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .unwrap_or_default();
-    if matches!(ext, "ngc" | "nc" | "json") {
-        let program = crate::simulate::load_program(path, RAPID_SPEED_MM_S)?;
-        return Ok(program
-            .blocks
-            .iter()
-            .map(crate::protocol::block_json)
-            .collect());
-    }
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    Ok(text
-        .lines()
-        .map(str::trim)
-        .filter(|l| !l.is_empty() && !l.starts_with('#'))
-        .map(str::to_owned)
+/// The program's request lines: the file as the program loader reads it
+/// ([`crate::program::load`], as `interpd simulate` does), G-code converted
+/// from `start` (where the program will start) with rapids at `rapid_speed`
+/// (the machine's path-speed limit).
+pub fn program_lines(path: &Path, start: [f64; 3], rapid_speed: f64) -> Result<Vec<String>> {
+    let opts = crate::program::LoadOptions {
+        start: Some(start),
+        rapid_speed,
+    };
+    let program = crate::program::load(path, &opts)?;
+    Ok(program
+        .blocks
+        .iter()
+        .map(crate::protocol::block_json)
         .collect())
 }
 
 /// Runs `send`.
 pub fn main(args: &SendArgs) -> Result<()> {
-    let lines = program_lines(&args.program)?;
-    if lines.is_empty() {
-        bail!("{} has no blocks", args.program.display());
-    }
     let rt = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()?;
+    let load = |start: [f64; 3], rapid: f64| program_lines(&args.program, start, rapid);
     let (code, status) = rt.block_on(async {
         match &args.socket {
             Some(p) => {
                 let s = tokio::net::UnixStream::connect(p)
                     .await
                     .with_context(|| format!("connecting to {}", p.display()))?;
-                stream(s, &lines, args).await
+                stream(s, &load, args).await
             }
             None => {
                 let s = tokio::net::TcpStream::connect(args.addr)
                     .await
                     .with_context(|| format!("connecting to {}", args.addr))?;
                 s.set_nodelay(true).ok();
-                stream(s, &lines, args).await
+                stream(s, &load, args).await
             }
         }
     })?;
@@ -129,6 +112,13 @@ pub fn main(args: &SendArgs) -> Result<()> {
         Outcome::Done => Ok(()),
         Outcome::Refused(e) => bail!("the server refused the program: {e}"),
         Outcome::Interrupted => bail!("interrupted: held and aborted"),
+        Outcome::Ended { program, phase } => bail!(
+            "program {program} did not reach done: it was {}",
+            crate::control::phase_name(phase)
+        ),
+        Outcome::Overtaken { program, now } => {
+            bail!("program {program} was left behind: program {now} began before it was seen done")
+        }
     }
 }
 
@@ -147,8 +137,9 @@ async fn start_aside(args: &SendArgs) -> Result<()> {
                 .next_line()
                 .await?
                 .ok_or_else(|| anyhow!("the server closed the start connection"))?;
-            if !r.starts_with("ok") {
-                bail!("start refused: {r}");
+            if let Reply::Err { problem, .. } = Reply::parse(&r).map_err(Error::msg)? {
+                // Not fatal: the program's own end decides how `send` exits.
+                eprintln!("interpd send: {problem}");
             }
         }
         Ok(())
@@ -176,14 +167,29 @@ async fn start_aside(args: &SendArgs) -> Result<()> {
 }
 
 /// How a `send` ended.
-#[derive(Debug)]
+#[derive(Debug, PartialEq)]
 pub enum Outcome {
-    /// All accepted (and finished, unless `--no-wait`).
+    /// All accepted and its program reached `done` (with `--no-wait`: all
+    /// accepted and started).
     Done,
     /// A line was refused (the program was aborted).
     Refused(String),
     /// Ctrl-C.
     Interrupted,
+    /// The program ended otherwise than `done` (aborted, faulted).
+    Ended {
+        /// Its number.
+        program: u32,
+        /// How it ended.
+        phase: Phase,
+    },
+    /// A later program began before this one was seen to end.
+    Overtaken {
+        /// This program.
+        program: u32,
+        /// The current one.
+        now: u32,
+    },
 }
 
 struct Progress {
@@ -218,26 +224,49 @@ fn bar(done: usize, total: usize) -> String {
     format!("[{}{}]", "#".repeat(f), ".".repeat(W - f))
 }
 
-/// Streams `lines`, then `end` and `start`, then waits for the end. Returns
-/// how it ended and the final status line (JSON).
+/// Claims a program (`begin`), streams the lines `load` makes for its start
+/// point and the machine's rapid speed, then `end` and `start`, then follows
+/// that program to its end. Returns how it ended and the final status line (JSON).
 pub async fn stream<S: AsyncRead + AsyncWrite + Unpin>(
     io: S,
-    lines: &[String],
+    load: &dyn Fn([f64; 3], f64) -> Result<Vec<String>>,
     args: &SendArgs,
 ) -> Result<(Outcome, String)> {
     let (rd, mut wr) = tokio::io::split(io);
     let mut rd = BufReader::new(rd).lines();
-    let next_reply = async |rd: &mut tokio::io::Lines<BufReader<_>>| -> Result<String> {
-        rd.next_line()
-            .await?
-            .ok_or_else(|| anyhow!("the server closed the connection"))
+    let gone = "the server closed the connection (it stopped or crashed)";
+    let next_reply = async |rd: &mut tokio::io::Lines<BufReader<_>>| -> Result<Reply> {
+        let line = rd
+            .next_line()
+            .await
+            .context(gone)?
+            .ok_or_else(|| anyhow!(gone))?;
+        Reply::parse(&line).map_err(Error::msg)
+    };
+    let send = async |wr: &mut tokio::io::WriteHalf<S>, line: &str| -> Result<()> {
+        wr.write_all(format!("{line}\n").as_bytes())
+            .await
+            .context(gone)
     };
     if let Some(t) = &args.token {
-        wr.write_all(format!("auth {t}\n").as_bytes()).await?;
-        let r = next_reply(&mut rd).await?;
-        if !r.starts_with("ok") {
-            bail!("authentication failed: {r}");
+        send(&mut wr, &format!("auth {t}")).await?;
+        if let Reply::Err { problem, .. } = next_reply(&mut rd).await? {
+            bail!("authentication failed: {problem}");
         }
+    }
+    send(&mut wr, "begin").await?;
+    let (program, at) = match next_reply(&mut rd).await? {
+        Reply::Begin { program, at } => (program, at),
+        Reply::Err { problem, .. } => bail!("the server refused a new program: {problem}"),
+        other => bail!("unexpected reply to begin: {other}"),
+    };
+    send(&mut wr, "status").await?;
+    let Reply::Status(st) = next_reply(&mut rd).await? else {
+        bail!("no status from the server");
+    };
+    let lines = load(at, st.max_path_speed)?;
+    if lines.is_empty() {
+        bail!("{} has no blocks", args.program.display());
     }
     let mut sigint = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::interrupt())
         .context("installing the Ctrl-C handler")?;
@@ -254,8 +283,9 @@ pub async fn stream<S: AsyncRead + AsyncWrite + Unpin>(
     let mut interrupted = false;
     while acked < total && refused.is_none() {
         while sent < total && expect.len() < WINDOW {
-            wr.write_all(lines[sent].as_bytes()).await?;
-            wr.write_all(b"\n").await?;
+            send(&mut wr, &lines[sent])
+                .await
+                .with_context(|| format!("sending block {} of {total}", sent + 1))?;
             sent += 1;
             expect.push_back(Expect::Block);
         }
@@ -271,17 +301,17 @@ pub async fn stream<S: AsyncRead + AsyncWrite + Unpin>(
                         started = true;
                     }
                 }
-                Ok(line) => {
-                    let line = line?;
+                Ok(reply) => {
+                    let reply = reply?;
                     match expect.pop_front() {
                         Some(Expect::Block) => {
-                            if line.starts_with("ok") {
+                            if reply.is_ok() {
                                 acked += 1;
                             } else {
-                                refused = Some(format!("block {} of {total}: {line}", acked + 1));
+                                refused = Some(format!("block {} of {total}: {reply}", acked + 1));
                             }
                         }
-                        None => bail!("unexpected reply {line:?}"),
+                        None => bail!("unexpected reply {reply}"),
                     }
                     progress.show(&format!("{} {acked}/{total} blocks queued", bar(acked, total)), false);
                 }
@@ -294,59 +324,89 @@ pub async fn stream<S: AsyncRead + AsyncWrite + Unpin>(
                          rd: &mut tokio::io::Lines<BufReader<tokio::io::ReadHalf<S>>>,
                          expect: &mut VecDeque<Expect>,
                          req: &str|
-           -> Result<String> {
-        wr.write_all(req.as_bytes()).await?;
-        wr.write_all(b"\n").await?;
+           -> Result<Reply> {
+        send(wr, req).await?;
         while expect.pop_front().is_some() {
             next_reply(rd).await?;
         }
         next_reply(rd).await
     };
+    let status = async |wr: &mut tokio::io::WriteHalf<S>,
+                        rd: &mut tokio::io::Lines<BufReader<tokio::io::ReadHalf<S>>>,
+                        expect: &mut VecDeque<Expect>|
+           -> Result<StatusReply> {
+        match request(wr, rd, expect, "status").await? {
+            Reply::Status(s) => Ok(*s),
+            other => bail!("unexpected reply to status: {other}"),
+        }
+    };
+    let json = |s: &StatusReply| serde_json::to_string(s).unwrap_or_default();
     if interrupted || refused.is_some() {
         progress.done();
         if interrupted {
             eprintln!("interpd send: interrupted: hold, then abort");
             request(&mut wr, &mut rd, &mut expect, "hold").await?;
         }
-        let r = request(&mut wr, &mut rd, &mut expect, "abort").await?;
-        if !r.starts_with("ok") {
-            eprintln!("interpd send: abort: {r}");
+        if let Reply::Err { problem, .. } = request(&mut wr, &mut rd, &mut expect, "abort").await? {
+            eprintln!("interpd send: abort: {problem}");
         }
-        let st = request(&mut wr, &mut rd, &mut expect, "status").await?;
-        let st = st.strip_prefix("status ").unwrap_or(&st).to_owned();
+        let st = status(&mut wr, &mut rd, &mut expect).await?;
         return Ok((
             match refused {
                 Some(e) => Outcome::Refused(e),
                 None => Outcome::Interrupted,
             },
-            st,
+            json(&st),
         ));
     }
-    request(&mut wr, &mut rd, &mut expect, "end").await?;
-    if !started {
-        request(&mut wr, &mut rd, &mut expect, "start").await?;
+    if let Reply::Err { problem, .. } = request(&mut wr, &mut rd, &mut expect, "end").await? {
+        bail!("end refused: {problem}");
     }
-    let mut moved = false;
+    if !started
+        && let Reply::Err { problem, .. } = request(&mut wr, &mut rd, &mut expect, "start").await?
+    {
+        eprintln!("interpd send: {problem}");
+    }
     loop {
-        let st = request(&mut wr, &mut rd, &mut expect, "status").await?;
-        let json = st.strip_prefix("status ").unwrap_or(&st).to_owned();
-        let s: Status =
-            serde_json::from_str(&json).with_context(|| format!("reading status {json:?}"))?;
+        let st = status(&mut wr, &mut rd, &mut expect).await?;
+        if st.program != program {
+            progress.done();
+            return Ok((
+                Outcome::Overtaken {
+                    program,
+                    now: st.program,
+                },
+                json(&st),
+            ));
+        }
+        let msg = if st.machine_program == program {
+            format!(
+                "program {program}: {} at {:.3} mm, block {}",
+                st.state, st.s, st.block_id
+            )
+        } else {
+            format!(
+                "program {program}: waiting for the machine (it runs program {})",
+                st.machine_program
+            )
+        };
         progress.show(
-            &format!(
-                "{} {total}/{total} blocks queued, {} at {:.3} mm, block {}",
-                bar(total, total),
-                s.state,
-                s.s,
-                s.block_id
-            ),
+            &format!("{} {total}/{total} blocks queued, {msg}", bar(total, total)),
             false,
         );
-        moved |= matches!(s.state.as_str(), "running" | "holding" | "stopping");
-        let ended = matches!(s.state.as_str(), "done" | "fault") || (moved && s.state == "idle");
-        if args.no_wait || ended {
+        let ended = match st.program_phase {
+            Phase::Done => Some(Outcome::Done),
+            Phase::Aborted | Phase::Fault | Phase::None => Some(Outcome::Ended {
+                program,
+                phase: st.program_phase,
+            }),
+            // Accepted and started (committed, or waiting for the program before it).
+            Phase::Open | Phase::Ended if args.no_wait => Some(Outcome::Done),
+            Phase::Open | Phase::Ended => None,
+        };
+        if let Some(outcome) = ended {
             progress.done();
-            return Ok((Outcome::Done, json));
+            return Ok((outcome, json(&st)));
         }
         tokio::select! {
             _ = tokio::time::sleep(POLL) => {}
@@ -355,8 +415,8 @@ pub async fn stream<S: AsyncRead + AsyncWrite + Unpin>(
                 eprintln!("interpd send: interrupted: hold, then abort");
                 request(&mut wr, &mut rd, &mut expect, "hold").await?;
                 request(&mut wr, &mut rd, &mut expect, "abort").await?;
-                let st = request(&mut wr, &mut rd, &mut expect, "status").await?;
-                return Ok((Outcome::Interrupted, st.strip_prefix("status ").unwrap_or(&st).to_owned()));
+                let st = status(&mut wr, &mut rd, &mut expect).await?;
+                return Ok((Outcome::Interrupted, json(&st)));
             }
         }
     }

@@ -149,6 +149,10 @@ pub struct ServeSummary {
     pub rt_pool_served: u64,
     /// RT-thread allocations the pool could not serve (went to the system allocator; 0 expected).
     pub rt_pool_fallbacks: u64,
+    /// Of those, the requests that found the pool empty (the rest were larger than a slot).
+    pub rt_pool_exhausted: u64,
+    /// The largest RT-thread request that fell back, bytes (0: none).
+    pub rt_pool_largest_fallback: usize,
     /// Scheduling refused (normal scheduling was used).
     pub scheduling_warnings: Vec<String>,
     /// The MCAP trace written, if any.
@@ -198,6 +202,27 @@ fn default_socket() -> PathBuf {
     // SAFETY: getuid cannot fail.
     let uid = unsafe { libc::getuid() };
     PathBuf::from(format!("/tmp/interpd-{uid}.sock"))
+}
+
+/// Makes `path` free for our socket: nothing there, or a stale socket (its
+/// server died) which is removed. Anything else is refused: a file that is
+/// not a socket, or a socket a live server answers on.
+fn claim_socket_path(path: &std::path::Path) -> Result<()> {
+    use std::os::unix::fs::FileTypeExt;
+    let shown = path.display();
+    match std::fs::symlink_metadata(path) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
+        Err(e) => Err(e).with_context(|| format!("--socket {shown}")),
+        Ok(m) if !m.file_type().is_socket() => {
+            bail!("--socket {shown}: the path exists and is not a socket (refusing to replace it)")
+        }
+        Ok(_) => {
+            if std::os::unix::net::UnixStream::connect(path).is_ok() {
+                bail!("--socket {shown}: another server answers on {shown}");
+            }
+            std::fs::remove_file(path).with_context(|| format!("removing the stale socket {shown}"))
+        }
+    }
 }
 
 /// The recorder thread: drains the RT thread's record queue until the RT
@@ -307,17 +332,20 @@ pub fn start(
             tail: None,
             next_id: 1,
             index: 0,
-            ended: false,
+            program: 0,
         }),
+        programs: Mutex::new(crate::control::Programs::new()),
         commands: Mutex::new(rt.commands),
         failures: Mutex::new(rt.failures),
         status: Arc::clone(&rt.status),
         period: Duration::from_micros(u64::from(args.rt.period_us)),
         max_feed_override: cfg.max_feed_override,
+        max_path_speed: cfg.max_path_speed,
         token: args.token.clone(),
         abort_epoch: AtomicU64::new(0),
         blocks_accepted: AtomicU64::new(0),
         errors: AtomicU64::new(0),
+        connections: AtomicU64::new(0),
         last_refusal: Mutex::new(None),
         recorder: Mutex::new(trace_tx.clone()),
     });
@@ -337,7 +365,7 @@ pub fn start(
     let socket = (!args.no_socket).then(|| args.socket.clone().unwrap_or_else(default_socket));
     let unix = match &socket {
         Some(path) => {
-            let _ = std::fs::remove_file(path);
+            claim_socket_path(path)?;
             let l = runtime
                 .block_on(async { tokio::net::UnixListener::bind(path) })
                 .with_context(|| format!("listening on {}", path.display()))?;
@@ -364,9 +392,10 @@ pub fn start(
                     let ctl = Arc::clone(&ctl);
                     async move {
                         loop {
-                            if let Ok((s, _)) = tcp.accept().await {
+                            if let Ok((s, peer)) = tcp.accept().await {
                                 let _ = s.set_nodelay(true);
-                                tokio::spawn(serve_connection(Arc::clone(&ctl), s));
+                                let name = format!("tcp {peer}");
+                                tokio::spawn(serve_connection(Arc::clone(&ctl), s, name));
                             }
                         }
                     }
@@ -377,7 +406,8 @@ pub fn start(
                         match unix {
                             Some(l) => loop {
                                 if let Ok((s, _)) = l.accept().await {
-                                    tokio::spawn(serve_connection(Arc::clone(&ctl), s));
+                                    let name = "unix".to_owned();
+                                    tokio::spawn(serve_connection(Arc::clone(&ctl), s, name));
                                 }
                             },
                             None => std::future::pending::<()>().await,
@@ -438,6 +468,8 @@ pub fn start(
                 publish_failures: status.publish_failures.load(Ordering::Acquire),
                 rt_pool_served: crate::rt_alloc::served(),
                 rt_pool_fallbacks: crate::rt_alloc::fallbacks(),
+                rt_pool_exhausted: crate::rt_alloc::exhausted(),
+                rt_pool_largest_fallback: crate::rt_alloc::largest_fallback(),
                 scheduling_warnings: report.scheduling_warnings,
                 trace: record_path,
                 trace_messages,
@@ -577,6 +609,12 @@ pub fn print_summary(s: &ServeSummary) {
         s.rt_pool_served,
         s.rt_pool_fallbacks
     );
+    if s.rt_pool_fallbacks > 0 {
+        println!(
+            "  warning: {} RT-thread allocations reached the system allocator ({} with the pool empty, largest {} bytes)",
+            s.rt_pool_fallbacks, s.rt_pool_exhausted, s.rt_pool_largest_fallback
+        );
+    }
     if let Some(t) = &s.trace {
         println!(
             "  trace {}: {} messages, {} records dropped (queue full)",

@@ -12,12 +12,11 @@
 
 use std::fs::File;
 use std::io::BufWriter;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use interp_core::InterpConfig;
 use traces::analysis::{Analyzer, Summary};
-use traces::blocks::Program;
 use traces::sim::{self, SimItem, SimSettings};
 use traces::writer::{TraceCompression, TraceWriter};
 
@@ -56,106 +55,6 @@ pub struct SimulateArgs {
     /// Chunk compression of the trace: zstd (default), lz4 or none.
     #[arg(long, value_name = "KIND", default_value = "zstd")]
     pub compression: TraceCompression,
-}
-
-/// Reads a program file: `.ngc`/`.nc` as G-code (`gcode::parse`), anything
-/// else as the JSON block form. G0 moves run at `rapid_speed`, mm/s.
-pub fn load_program(path: &Path, rapid_speed: f64) -> Result<Program> {
-    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    if ext.eq_ignore_ascii_case("ngc") || ext.eq_ignore_ascii_case("nc") {
-        let g = gcode::parse(&text).with_context(|| format!("parsing {}", path.display()))?;
-        return program_from_gcode(&g, rapid_speed)
-            .with_context(|| format!("converting {}", path.display()));
-    }
-    serde_json::from_str(&text)
-        .with_context(|| format!("parsing {} as a JSON program", path.display()))
-}
-
-/// A parsed G-code program in the JSON block form (so that traces record it,
-/// and replay re-runs it, without the G-code text). Moves of zero length are
-/// dropped and blocks without a path skipped, as `gcode::Program::to_core_blocks` does.
-pub fn program_from_gcode(g: &gcode::Program, rapid_speed: f64) -> Result<Program> {
-    use gcode::{BlockKind, Feed};
-    use traces::blocks::{InputBlock, PathSpec};
-    let per_minute = |f: Feed, line: u32| match f {
-        Feed::PerMinute(v) => Ok(v),
-        Feed::InverseTime(_) => {
-            bail!("line {line}: G93 inverse-time feed is not supported by simulate yet")
-        }
-    };
-    let mut start: Option<[f64; 3]> = None;
-    let mut blocks = Vec::new();
-    let mut blending = traces::blocks::BlendingSpec::ExactPath;
-    for b in &g.blocks {
-        if let BlockKind::PathControl(mode) = &b.kind {
-            blending = gcode::core_blending(*mode).into();
-            continue;
-        }
-        let (from, block) = match &b.kind {
-            BlockKind::Rapid(m) => (
-                m.start,
-                InputBlock {
-                    source_line: Some(b.line),
-                    feed: rapid_speed * 60.0,
-                    mrr: None,
-                    blending,
-                    path: PathSpec::Line { end: m.end },
-                },
-            ),
-            BlockKind::Linear(m) => (
-                m.start,
-                InputBlock {
-                    source_line: Some(b.line),
-                    feed: per_minute(m.feed, b.line)?,
-                    mrr: None,
-                    blending,
-                    path: PathSpec::Line { end: m.end },
-                },
-            ),
-            BlockKind::Arc(m) => (
-                m.start,
-                InputBlock {
-                    source_line: Some(b.line),
-                    feed: per_minute(m.feed, b.line)?,
-                    mrr: None,
-                    blending,
-                    path: PathSpec::Arc {
-                        end: m.end,
-                        centre: m.centre,
-                        axis: m.plane.normal(),
-                        clockwise: m.clockwise,
-                        turns: m.extra_turns,
-                    },
-                },
-            ),
-            BlockKind::Nurbs(m) => (
-                m.points.first().copied().unwrap_or_default(),
-                InputBlock {
-                    source_line: Some(m.first_line),
-                    feed: per_minute(m.feed, b.line)?,
-                    mrr: None,
-                    blending,
-                    path: PathSpec::Nurbs {
-                        degree: m.degree,
-                        points: m.points.clone(),
-                        weights: Some(m.weights.clone()),
-                        knots: m.knots.clone(),
-                    },
-                },
-            ),
-            _ => continue,
-        };
-        if let PathSpec::Line { end } = &block.path
-            && *end == from
-        {
-            continue; // zero length: moves nothing
-        }
-        start.get_or_insert(from);
-        blocks.push(block);
-    }
-    Ok(Program { start, blocks })
 }
 
 /// The resolved configuration.
@@ -260,7 +159,13 @@ pub fn writer_name() -> String {
 /// Runs the simulation; writes the trace to `args.out` if given.
 pub fn run(args: &SimulateArgs) -> Result<Summary> {
     let r = resolve(args)?;
-    let program = load_program(&args.program, r.interp.max_path_speed)?;
+    let program = crate::program::load(
+        &args.program,
+        &crate::program::LoadOptions {
+            start: None,
+            rapid_speed: r.interp.max_path_speed,
+        },
+    )?;
     let source = args.program.display().to_string();
     let config = sim::config_for(&program, r.interp, &r.settings, &writer_name(), &source);
     let expanded = program

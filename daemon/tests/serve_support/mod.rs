@@ -1,5 +1,5 @@
-//! Shared helpers of the `serve_*` end-to-end tests: build and locate the
-//! `interpd` binary, start `interpd serve` on a private iceoryx2 service and a
+//! Shared helpers of the `serve_*` end-to-end tests: locate the `interpd`
+//! binary cargo built for them, start `interpd serve` on a private iceoryx2 service and a
 //! free port, talk the line protocol, read `interpd watch` CSV files.
 #![allow(dead_code)] // each test file uses a subset
 
@@ -7,32 +7,14 @@ use std::io::{BufRead, BufReader, Write};
 use std::net::TcpStream;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
-use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
 /// How long a test waits for any one thing before failing.
 pub const WAIT: Duration = Duration::from_secs(20);
 
-/// The `interpd` binary, built once per test process with the test profile
-/// (the same artifacts `cargo test` already built for the daemon's own tests).
+/// The `interpd` binary cargo built for these tests (the test profile).
 pub fn interpd() -> &'static Path {
-    static BIN: OnceLock<PathBuf> = OnceLock::new();
-    BIN.get_or_init(|| {
-        let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
-        let st = Command::new(cargo)
-            .current_dir(&root)
-            .args(["build", "-q", "-p", "interpd", "--profile", "test"])
-            .status()
-            .expect("running cargo build -p interpd");
-        assert!(st.success(), "cargo build -p interpd failed");
-        // The test profile's output directory is `debug`.
-        let exe = std::env::current_exe().expect("test exe");
-        let dir = exe.parent().and_then(Path::parent).expect("target/debug");
-        let bin = dir.join("interpd");
-        assert!(bin.exists(), "{} missing", bin.display());
-        bin
-    })
+    Path::new(env!("CARGO_BIN_EXE_interpd"))
 }
 
 /// A unique name for this test's iceoryx2 service.
@@ -122,18 +104,30 @@ pub fn signal(pid: u32, sig: i32) {
     unsafe { libc_kill(pid as i32, sig) };
 }
 
+/// A stream a connection runs on (TCP or a Unix socket).
+pub trait Stream: std::io::Read + Write {}
+impl<T: std::io::Read + Write> Stream for T {}
+
 /// One line-protocol connection.
 pub struct Conn {
-    pub w: TcpStream,
-    pub r: BufReader<TcpStream>,
+    pub w: Box<dyn Stream>,
+    pub r: BufReader<Box<dyn Stream>>,
 }
 
 impl Conn {
     pub fn new(s: TcpStream) -> Conn {
         s.set_read_timeout(Some(WAIT)).expect("timeout");
         Conn {
-            r: BufReader::new(s.try_clone().expect("clone")),
-            w: s,
+            r: BufReader::new(Box::new(s.try_clone().expect("clone"))),
+            w: Box::new(s),
+        }
+    }
+
+    pub fn new_unix(s: std::os::unix::net::UnixStream) -> Conn {
+        s.set_read_timeout(Some(WAIT)).expect("timeout");
+        Conn {
+            r: BufReader::new(Box::new(s.try_clone().expect("clone"))),
+            w: Box::new(s),
         }
     }
 
@@ -276,4 +270,30 @@ pub fn dist_to_segment(p: [f64; 3], a: [f64; 3], b: [f64; 3]) -> f64 {
         .map(|i| (a[i] + t * ab[i] - p[i]).powi(2))
         .sum::<f64>()
         .sqrt()
+}
+
+/// Runs `interpd send --json` of `program` to `port` (with `extra` flags) and
+/// returns its exit status, its final status (JSON, if it printed one) and
+/// its standard error.
+pub fn send(
+    port: u16,
+    program: &Path,
+    extra: &[&str],
+) -> (std::process::ExitStatus, Option<serde_json::Value>, String) {
+    let child = Command::new(interpd())
+        .args(["send", "--json", "--quiet", "--addr"])
+        .arg(format!("127.0.0.1:{port}"))
+        .args(extra)
+        .arg(program)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("interpd send");
+    let out = wait_child(child, "interpd send");
+    let status = serde_json::from_slice(&out.stdout).ok();
+    (
+        out.status,
+        status,
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
 }

@@ -148,7 +148,7 @@ fn bad_lines_get_an_error_naming_the_problem_and_the_connection_stays_up() {
     assert!(r.starts_with("err 1 unknown request \"jump\""), "{r}");
     let r = c.ask("{\"feed\": 100, \"kind\": ");
     assert!(r.starts_with("err 2 invalid JSON block"), "{r}");
-    let long = "#".repeat(300 * 1024);
+    let long = "#".repeat(1200 * 1024);
     let r = c.ask(&long);
     assert!(
         r.starts_with("err 3 line of") && r.contains("exceeds the limit"),
