@@ -10,9 +10,11 @@ use interp_core::samples::butterfly;
 use interp_core::{InterpConfig, RunState};
 use serde::Serialize;
 
-use crate::demo::{DemoArgs, Subscriber, Summary, Violations, butterfly_request};
+use crate::check::{Checker, Violations};
+use crate::demo::{DemoArgs, Summary, butterfly_request};
+use crate::histogram::Percentiles;
 use crate::publish::SetpointSubscriber;
-use crate::serve::{Percentiles, ServeArgs};
+use crate::serve::ServeArgs;
 
 /// The subscriber gives up when no sample arrives for this long.
 const SAMPLE_TIMEOUT: Duration = Duration::from_secs(10);
@@ -164,10 +166,10 @@ pub fn run(args: &DemoArgs, direct: &Summary) -> Result<ServiceRun> {
     let subscriber = std::thread::Builder::new()
         .name("demo-subscriber".into())
         .spawn(
-            move || -> Result<(Subscriber, u64, u64, u64, bool, [f64; 3])> {
+            move || -> Result<(Checker, u64, u64, u64, bool, [f64; 3])> {
                 let mut sub = SetpointSubscriber::new("interpd_demo_subscriber", &svc_name)?;
                 let _ = sub_tx.send(());
-                let mut check = Subscriber::new(f64::from(st.period_us) * 1e-6, st.limits, start);
+                let mut check = Checker::new(f64::from(st.period_us) * 1e-6, st.limits, start);
                 let (mut ticks, mut done, mut last_rx) = (0u64, false, Instant::now());
                 let mut last = start;
                 while !done {

@@ -92,6 +92,36 @@ impl Histogram {
     }
 }
 
+/// Percentiles of a histogram of durations, µs: one table for every loop's
+/// timing (`serve`, `demo`, `jitter`).
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct Percentiles {
+    /// Samples.
+    pub samples: u64,
+    /// Median.
+    pub p50: f64,
+    /// 99th percentile.
+    pub p99: f64,
+    /// 99.9th percentile.
+    pub p999: f64,
+    /// Maximum.
+    pub max: f64,
+}
+
+impl Percentiles {
+    /// Of a histogram in ns (`None` when empty).
+    pub fn of(h: &Histogram) -> Option<Self> {
+        let us = |ns: u64| ns as f64 / 1e3;
+        Some(Percentiles {
+            samples: h.count(),
+            p50: us(h.quantile(0.5)?),
+            p99: us(h.quantile(0.99)?),
+            p999: us(h.quantile(0.999)?),
+            max: us(h.max()?),
+        })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -18,8 +18,9 @@ use serde::Serialize;
 
 use crate::clock::{now_ns, wait_until_ns};
 use crate::histogram::Histogram;
+use crate::histogram::Percentiles;
 use crate::rt::{RtArgs, RtOptions};
-use crate::serve::{Percentiles, ServeArgs};
+use crate::serve::ServeArgs;
 
 /// Programmed feed of the jitter program, mm/min.
 const FEED_MM_MIN: f64 = 6000.0;

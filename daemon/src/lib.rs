@@ -6,6 +6,7 @@
 //! recorder thread. The `interpd` binary (`main.rs`) is a thin command line
 //! over it; the end-to-end tests drive it too.
 
+pub mod check;
 pub mod clock;
 pub mod control;
 pub mod demo;

@@ -173,7 +173,36 @@ fn read_program(path: &Path) -> Result<ClProgram> {
     if prog.paths.is_empty() {
         bail!("{}: no G1 path found", path.display());
     }
+    for (what, f) in [("feed", prog.feed), ("plunge feed", prog.plunge_feed)] {
+        if let Some(f) = f
+            && !(f.is_finite() && f > 0.0)
+        {
+            bail!(
+                "{}: the {what} F{f} is not a positive number of mm/min",
+                path.display()
+            );
+        }
+    }
     Ok(prog)
+}
+
+/// Refuses a tolerance `flag` below what f64 resolves at the size of `paths`.
+fn check_tolerance<'a>(
+    flag: &str,
+    tol: f64,
+    paths: impl IntoIterator<Item = &'a P3>,
+) -> Result<()> {
+    let extent = paths.into_iter().fold(0.0f64, |m, p| {
+        m.max(p.x.abs()).max(p.y.abs()).max(p.z.abs())
+    });
+    let min = planner::min_tolerance(extent);
+    if !(tol >= min) {
+        bail!(
+            "{flag} {tol} mm is below what f64 resolves at this path's size \
+             (coordinates up to {extent} mm): at least {min:e} mm"
+        );
+    }
+    Ok(())
 }
 
 impl ClProgram {
@@ -243,6 +272,7 @@ pub fn gouge_main(a: &GougeArgs) -> Result<()> {
     let mesh = TriMesh::from_stl_path(&a.stl, WeldOptions::default())
         .with_context(|| format!("reading {}", a.stl.display()))?;
     let prog = read_program(&a.path)?;
+    check_tolerance("--tol", a.tol, prog.paths.iter().flatten())?;
     let cc = CcSurface::from_mesh(&mesh, config.sample_spacing)?;
     let pcfg = PredictConfig {
         grid_step: a.grid_step,
@@ -369,6 +399,7 @@ pub fn fit_main(a: &FitArgs) -> Result<()> {
     }
     .validated()?;
     let prog = read_program(&a.path)?;
+    check_tolerance("--tol", a.tol, prog.paths.iter().flatten())?;
     let check = match (&a.stl, &a.tool) {
         (Some(stl), Some(tool)) => {
             let cutter: Cutter = tool.parse()?;

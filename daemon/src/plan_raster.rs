@@ -13,7 +13,7 @@ use std::io::{BufWriter, IsTerminal, Write};
 use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use planner::cutter::Cutter;
 use planner::mesh::{TriMesh, WeldOptions};
 use planner::raster::{RasterConfig, RasterPath, plan_raster_with_progress};
@@ -86,6 +86,18 @@ struct Summary {
 
 /// Runs `interpd plan raster`.
 pub fn main(args: &RasterArgs) -> Result<()> {
+    for (flag, v) in [("--feed", args.feed), ("--plunge-feed", args.plunge_feed)] {
+        if !(v.is_finite() && v > 0.0) {
+            bail!("{flag} must be a positive number of mm/min, got {v}");
+        }
+    }
+    if !(args.clearance.is_finite() && args.clearance >= 0.0) {
+        bail!(
+            "--clearance must be a finite number >= 0 (rapids cross at the part's top plus it, \
+             never below the top), got {}",
+            args.clearance
+        );
+    }
     let t0 = Instant::now();
     let mesh = TriMesh::from_stl_path(
         &args.stl,
@@ -95,6 +107,18 @@ pub fn main(args: &RasterArgs) -> Result<()> {
     )
     .with_context(|| format!("reading mesh {}", args.stl.display()))?;
     let read_s = t0.elapsed().as_secs_f64();
+    let (lo, hi) = mesh.bounds();
+    let extent = [lo.x, lo.y, lo.z, hi.x, hi.y, hi.z]
+        .iter()
+        .fold(0.0f64, |m, c| m.max(c.abs()));
+    let min_tol = planner::min_tolerance(extent);
+    if !(args.chord_tolerance >= min_tol) {
+        bail!(
+            "--chord-tolerance {} mm is below what f64 resolves at this part's size \
+             (coordinates up to {extent} mm): at least {min_tol:e} mm",
+            args.chord_tolerance
+        );
+    }
     let config = RasterConfig {
         stepover: args.stepover,
         angle_deg: args.angle,

@@ -91,17 +91,9 @@ pub fn run_state(v: u32) -> RunState {
     }
 }
 
-/// Lower-case name of a state, as the protocol and summaries print it.
-pub fn state_name(s: RunState) -> &'static str {
-    match s {
-        RunState::Idle => "idle",
-        RunState::Running => "running",
-        RunState::Holding => "holding",
-        RunState::Stopping => "stopping",
-        RunState::Done => "done",
-        RunState::Fault => "fault",
-    }
-}
+/// Lower-case name of a state, as the protocol and summaries print it
+/// (the one table, `traces::analysis::state_name`).
+pub use traces::analysis::state_name;
 
 /// Removes the shared-memory resources of nodes whose process died (a crash,
 /// SIGKILL), so that a restarted service can create its ports. Returns how
@@ -214,11 +206,17 @@ pub struct SetpointSubscriber {
     subscriber: Subscriber<ipc::Service, SetpointMsg, ()>,
     _service: SetpointService,
     node: Node<ipc::Service>,
-    last_seq: Option<u64>,
-    /// Samples missing between received ones.
+    last: Option<SetpointMsg>,
+    /// Samples missing between received ones (of one publisher).
     pub gaps: u64,
     /// Samples received.
     pub received: u64,
+    /// Times the sequence started again from a lower number: a new
+    /// publisher (the service restarted), not a gap.
+    pub restarts: u64,
+    /// Largest distance between the last point before a restart and the
+    /// first after it, mm.
+    pub restart_jump_mm: f64,
 }
 
 impl SetpointSubscriber {
@@ -235,14 +233,18 @@ impl SetpointSubscriber {
             subscriber,
             _service: svc,
             node,
-            last_seq: None,
+            last: None,
             gaps: 0,
             received: 0,
+            restarts: 0,
+            restart_jump_mm: 0.0,
         })
     }
 
-    /// The next sample if one is there; gaps in `seq` are counted. The first
-    /// sample received sets the baseline (a late subscriber misses the start).
+    /// The next sample if one is there; gaps in `seq` are counted, and a
+    /// sequence that starts again lower as a restart of the publisher (with
+    /// the jump of position across it). The first sample received sets the
+    /// baseline (a late subscriber misses the start).
     pub fn try_next(&mut self) -> Result<Option<SetpointMsg>> {
         let Some(sample) = self
             .subscriber
@@ -252,12 +254,20 @@ impl SetpointSubscriber {
             return Ok(None);
         };
         let msg = *sample;
-        if let Some(last) = self.last_seq
-            && msg.seq != last + 1
-        {
-            self.gaps += msg.seq.saturating_sub(last + 1).max(1);
+        if let Some(last) = self.last {
+            if msg.seq <= last.seq {
+                // A publisher counts from 1: a lower number is a new one.
+                self.restarts += 1;
+                let d = (0..3)
+                    .map(|i| (msg.axes[i] - last.axes[i]).powi(2))
+                    .sum::<f64>()
+                    .sqrt();
+                self.restart_jump_mm = self.restart_jump_mm.max(d);
+            } else {
+                self.gaps += msg.seq - last.seq - 1;
+            }
         }
-        self.last_seq = Some(msg.seq);
+        self.last = Some(msg);
         self.received += 1;
         Ok(Some(msg))
     }

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use traces::Trace;
-use traces::replay::{ReplayError, replay};
+use traces::replay::{ReplayError, replay, replay_truncated};
 
 /// Options of `interpd replay`.
 #[derive(Clone, Debug, clap::Args)]
@@ -14,20 +14,35 @@ pub struct ReplayArgs {
     pub trace: PathBuf,
 }
 
-/// Replays; fails naming the first differing sequence number and field.
+/// Replays; fails naming the first differing sequence number and field. A
+/// trace cut short (its recorder died with the service) is replayed up to
+/// its last complete chunk, with a note saying so.
 pub fn main(args: &ReplayArgs) -> Result<()> {
     let path = args.trace.display();
-    let trace = Trace::open(&args.trace).with_context(|| format!("reading {path}"))?;
-    match replay(&trace) {
+    let (trace, damage) =
+        Trace::open_recovering(&args.trace).with_context(|| format!("reading {path}"))?;
+    let result = match &damage {
+        Some(note) => {
+            eprintln!("note: {path} is {note}");
+            replay_truncated(&trace)
+        }
+        None => replay(&trace),
+    };
+    match result {
         Ok(r) => {
             println!(
-                "replay of {path}: {} setpoints bit-identical ({} input blocks){}",
+                "replay of {path}: {} setpoints bit-identical ({} input blocks){}{}",
                 r.compared,
                 r.blocks,
                 if r.missing_in_trace > 0 {
                     format!("; {} setpoints missing from the trace", r.missing_in_trace)
                 } else {
                     String::new()
+                },
+                if damage.is_some() {
+                    "; the trace is truncated: compared up to its last complete chunk"
+                } else {
+                    ""
                 }
             );
             Ok(())

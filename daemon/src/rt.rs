@@ -307,7 +307,7 @@ pub struct RtReport {
 /// allocator is installed (the daemon's unit tests).
 #[cfg(test)]
 fn count_allocations<R>(f: impl FnOnce() -> R) -> (R, Option<u64>) {
-    let (r, n) = traces::alloc_count::count(f);
+    let (r, n) = alloc_count::count(f);
     (r, Some(n))
 }
 
@@ -634,6 +634,11 @@ impl Loop {
         }
         self.program = plan.program;
         self.started = self.autostart || self.start_for == plan.program;
+        // The state first: a reader that sees the new program (Acquire)
+        // must not see the last one's `done` as its own.
+        self.status
+            .state
+            .store(self.ip.state() as u32, Ordering::Release);
         self.status.program.store(plan.program, Ordering::Release);
         true
     }
@@ -644,6 +649,9 @@ impl Loop {
         // iceoryx2 allocates a small object per loan: from the fixed pool on this thread.
         crate::rt_alloc::enter_rt();
         let ((overruns, last), loop_allocations) = count_allocations(|| self.run_loop(&mut hist));
+        // The loop is over: dropping the publisher and node (iceoryx2 builds
+        // paths and lists to release its shared memory) is not RT work.
+        crate::rt_alloc::leave_rt();
         let [lateness, compute, compute_with_push] = hist;
         self.status.running.store(false, Ordering::Release);
         self.status
@@ -793,9 +801,10 @@ impl Loop {
         (overruns, last)
     }
 
+    /// The state is stored last: a reader that sees it (Acquire) sees the
+    /// position, feed and counters of the same tick.
     fn publish_status(&self, sp: &Setpoint, seq: u64) {
         let s = &self.status;
-        s.state.store(sp.state as u32, Ordering::Release);
         s.ticks.store(sp.seq, Ordering::Release);
         s.block_id.store(sp.block_id, Ordering::Release);
         for i in 0..3 {
@@ -811,6 +820,7 @@ impl Loop {
         s.publish_failures
             .store(self.publisher.failures(), Ordering::Relaxed);
         s.published.store(seq, Ordering::Release);
+        s.state.store(sp.state as u32, Ordering::Release);
     }
 }
 

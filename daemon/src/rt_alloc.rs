@@ -53,6 +53,12 @@ pub fn enter_rt() {
     RT.with(|r| r.set(true));
 }
 
+/// Ends [`enter_rt`] on this thread: what it allocates from now on (the
+/// teardown of its ports after the loop) is not the loop's.
+pub fn leave_rt() {
+    RT.with(|r| r.set(false));
+}
+
 /// Requests on RT threads that the pool could not serve (went to the system allocator).
 pub fn fallbacks() -> u64 {
     FALLBACKS.load(Ordering::Relaxed)

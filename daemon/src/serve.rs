@@ -15,7 +15,7 @@ use interp_core::{InterpConfig, Setpoint};
 use serde::Serialize;
 
 use crate::control::{Control, Stream, serve_connection};
-use crate::histogram::Histogram;
+use crate::histogram::Percentiles;
 use crate::publish::{DEFAULT_SERVICE, remove_dead_nodes, state_name};
 use crate::rt::{Applied, RtArgs, RtRecord, RtReport};
 
@@ -88,35 +88,6 @@ impl ServeArgs {
             record: None,
             json: false,
         }
-    }
-}
-
-/// Percentiles of a histogram, µs.
-#[derive(Clone, Copy, Debug, Serialize)]
-pub struct Percentiles {
-    /// Samples.
-    pub samples: u64,
-    /// Median.
-    pub p50: f64,
-    /// 99th percentile.
-    pub p99: f64,
-    /// 99.9th percentile.
-    pub p999: f64,
-    /// Maximum.
-    pub max: f64,
-}
-
-impl Percentiles {
-    /// Of a histogram in ns (`None` when empty).
-    pub fn of(h: &Histogram) -> Option<Self> {
-        let us = |ns: u64| ns as f64 / 1e3;
-        Some(Percentiles {
-            samples: h.count(),
-            p50: us(h.quantile(0.5)?),
-            p99: us(h.quantile(0.99)?),
-            p999: us(h.quantile(0.999)?),
-            max: us(h.max()?),
-        })
     }
 }
 

@@ -37,8 +37,15 @@ pub enum TraceCommand {
     },
 }
 
+/// Opens a trace; one cut short (its recorder died with the service) is
+/// taken up to its last complete chunk, with a note saying so.
 fn open(path: &PathBuf) -> Result<Trace> {
-    Trace::open(path).with_context(|| format!("reading {}", path.display()))
+    let (trace, damage) =
+        Trace::open_recovering(path).with_context(|| format!("reading {}", path.display()))?;
+    if let Some(note) = damage {
+        eprintln!("note: {} is {note}", path.display());
+    }
+    Ok(trace)
 }
 
 /// Runs `interpd trace …`.

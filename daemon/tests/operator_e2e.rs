@@ -322,3 +322,56 @@ fn a_nurbs_of_the_most_control_points_at_full_precision_fits_one_line() {
     let end = s["position"][0].as_f64().unwrap();
     assert!((end - points[n - 1][0]).abs() < 1e-9, "{s}");
 }
+
+/// The RT thread reaches the system allocator not once in a session of
+/// several programs from several connections (streamed, held, resumed,
+/// aborted, refused as busy): `serve` counts what its RT pool could not
+/// serve and prints it.
+#[test]
+fn the_rt_thread_makes_no_system_allocation_in_a_session_of_several_programs() {
+    let dir = temp_dir("rt-alloc");
+    let srv = Server::start(&service_name("rt-alloc"), &["--no-socket", "--json"]);
+    let square = write(&dir, "square.ngc", "G1 X10 F3000\nG1 Y10\nG1 X0\nG1 Y0\n");
+    let arcs = write(
+        &dir,
+        "arcs.ngc",
+        "G1 X5 F3000\nG2 X15 Y0 I5 J0\nG3 X5 Y0 I-5 J0\n",
+    );
+    for prog in [&square, &arcs, &square] {
+        let (st, _, err) = send(srv.port, prog, &[]);
+        assert!(st.success(), "{err}");
+    }
+    // Two connections: one streams, the other is refused, holds, resumes and aborts.
+    let mut a = srv.connect();
+    let mut b = srv.connect();
+    let x = a.status()["position"][0].as_f64().unwrap();
+    assert!(
+        a.ask(&line_to([x + 40.0, 0.0, 0.0], 1800.0, 1))
+            .starts_with("ok")
+    );
+    assert!(b.ask(&line_to([0.0, 3.0, 0.0], 1800.0, 1)).contains("busy"));
+    assert_eq!(b.ask("start"), "ok start");
+    b.wait_for("motion", |s| s["s"].as_f64().unwrap() > 1.0);
+    assert_eq!(b.ask("hold"), "ok hold");
+    b.wait_for("held", |s| s["state"] == "holding");
+    assert_eq!(b.ask("resume"), "ok resume");
+    assert_eq!(b.ask("override 1.5"), "ok override 1.5");
+    assert_eq!(b.ask("abort"), "ok abort");
+    // And one more program after the abort, from yet another connection.
+    let (st, _, err) = send(srv.port, &square, &[]);
+    assert!(st.success(), "{err}");
+    let (st, text) = srv.stop();
+    assert!(st.success(), "{text}");
+    let summary: serde_json::Value = serde_json::from_str(
+        text.lines()
+            .rev()
+            .find(|l| l.starts_with('{'))
+            .expect("JSON summary"),
+    )
+    .expect("summary JSON");
+    assert!(
+        summary["rt_pool_served"].as_u64().unwrap() > 1000,
+        "{summary}"
+    );
+    assert_eq!(summary["rt_pool_fallbacks"], 0, "{summary}");
+}

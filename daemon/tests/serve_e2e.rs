@@ -476,3 +476,99 @@ fn send_streams_a_program_longer_than_the_look_ahead_to_its_end() {
     );
     drop(srv);
 }
+
+/// `interpd watch` tells a restart of the publisher (its sequence starts
+/// again, the position jumps) from a gap, and gives up on a dead publisher
+/// after `--liveness` seconds instead of waiting forever.
+#[test]
+fn watch_reports_a_publisher_restart_and_a_dead_publisher() {
+    let service = service_name("restart");
+    let srv = Server::start(&service, &["--no-socket"]);
+    let child = std::process::Command::new(interpd())
+        .args(["watch", "--json", "--liveness", "1", "--service", &service])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("interpd watch");
+    std::thread::sleep(Duration::from_millis(500));
+    signal(srv.child.id(), 9);
+    drop(srv);
+    // Restarted elsewhere: its first point is 5 mm from the last one.
+    let srv = Server::start(&service, &["--no-socket", "--position", "3", "4", "0"]);
+    std::thread::sleep(Duration::from_millis(300));
+    signal(srv.child.id(), 9);
+    drop(srv);
+    let out = wait_child(child, "interpd watch of a dying publisher");
+    assert!(!out.status.success(), "watch exited 0");
+    let err = String::from_utf8_lossy(&out.stderr);
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).expect("summary");
+    assert_eq!(summary["restarts"], 1, "{summary}");
+    assert_eq!(summary["restart_jump_mm"], 5.0, "{summary}");
+    assert_eq!(summary["gaps"], 0, "a restart is not a gap: {summary}");
+    assert!(summary["silent_s"].as_f64().unwrap() >= 1.0, "{summary}");
+    assert!(err.contains("the publisher restarted 1 time(s)"), "{err}");
+    assert!(err.contains("went silent"), "{err}");
+    // No publisher at all: not "0 samples, fine".
+    let out = std::process::Command::new(interpd())
+        .args(["watch", "--liveness", "0.3", "--service"])
+        .arg(service_name("nobody"))
+        .output()
+        .expect("interpd watch");
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("no sample in"), "{err}");
+}
+
+/// A recording cut off by a crash (`kill -9` of `serve`) is summarised and
+/// replayed bit for bit up to its last complete chunk.
+#[test]
+fn a_recording_cut_off_by_a_crash_replays_up_to_its_last_complete_chunk() {
+    let dir = temp_dir("crash-record");
+    let trace = dir.join("run.mcap");
+    let srv = Server::start(
+        &service_name("crash-record"),
+        &["--no-socket", "--record", trace.to_str().unwrap()],
+    );
+    let mut c = srv.connect();
+    // Four seconds of motion; the service dies after about two.
+    assert!(
+        c.ask(&line_to([80.0, 0.0, 0.0], 1200.0, 1))
+            .starts_with("ok")
+    );
+    assert_eq!(c.ask("start"), "ok start");
+    c.wait_for("two seconds of motion", |s| s["s"].as_f64().unwrap() > 35.0);
+    signal(srv.child.id(), 9);
+    drop(srv);
+    let out = std::process::Command::new(interpd())
+        .arg("replay")
+        .arg(&trace)
+        .output()
+        .expect("interpd replay");
+    let said = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(out.status.success(), "{said}");
+    assert!(said.contains("truncated"), "{said}");
+    let compared: u64 = said
+        .split("setpoints bit-identical")
+        .next()
+        .and_then(|h| h.split_whitespace().last())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no count in {said}"));
+    // At least one complete chunk (about 1,000 ticks) of the moving ticks.
+    assert!(compared >= 500, "{said}");
+    let out = std::process::Command::new(interpd())
+        .args(["trace", "summary", "--json"])
+        .arg(&trace)
+        .output()
+        .expect("interpd trace summary");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let sum: serde_json::Value = serde_json::from_slice(&out.stdout).expect("summary JSON");
+    assert_eq!(sum["setpoints"].as_u64(), Some(compared), "{sum}");
+}

@@ -79,3 +79,41 @@ fn the_python_subscriber_reads_every_setpoint() {
     assert!(r["last_seq"].as_u64().unwrap() <= s["published"].as_u64().unwrap());
     drop(srv);
 }
+
+/// The Python subscriber, like `interpd watch`, tells a restarted publisher
+/// (its sequence starts again, the position jumps) from a gap, and a dead
+/// one (no sample for `--timeout` seconds) from a quiet one.
+#[test]
+fn the_python_subscriber_reports_a_restart_and_a_dead_publisher() {
+    let Some(py) = python() else {
+        eprintln!(
+            "note: skipped: no Python with the iceoryx2 package (set INTERPD_PYTHON; .ci/run does)"
+        );
+        return;
+    };
+    let script =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/python_subscriber/subscriber.py");
+    let service = service_name("python-restart");
+    let srv = Server::start(&service, &["--no-socket"]);
+    let sub = Command::new(&py)
+        .arg(&script)
+        .args(["--service", &service, "--json", "--timeout", "1"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("python subscriber");
+    std::thread::sleep(Duration::from_millis(800));
+    signal(srv.child.id(), 9);
+    drop(srv);
+    let srv = Server::start(&service, &["--no-socket", "--position", "3", "4", "0"]);
+    std::thread::sleep(Duration::from_millis(300));
+    signal(srv.child.id(), 9);
+    drop(srv);
+    let out = wait_child(sub, "the Python subscriber of a dying publisher");
+    assert!(!out.status.success(), "exited 0");
+    let r: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON summary");
+    assert_eq!(r["restarts"], 1, "{r}");
+    assert_eq!(r["restart_jump_mm"], 5.0, "{r}");
+    assert_eq!(r["gaps"], 0, "{r}");
+    assert!(r["silent_s"].as_f64().unwrap() >= 1.0, "{r}");
+}

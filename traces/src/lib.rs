@@ -12,8 +12,6 @@
 //! and plots them ([`plot`]). Programs come in the JSON block form
 //! ([`blocks`]). `docs/traces.md` describes the format.
 
-#[cfg(feature = "testing")]
-pub mod alloc_count;
 pub mod analysis;
 pub mod blocks;
 pub mod messages;

@@ -1,11 +1,14 @@
 //! A global allocator that counts the allocations of the threads that ask
-//! for it, for tests that assert a hot path does not allocate (the recorder's
-//! producer side here, the demo's interpolator loop in `interpd`).
+//! for it, for tests that assert a hot path does not allocate: the
+//! interpolator's tick (`interp-core`), the trace recorder's producer side
+//! (`traces`), the demo loop and the RT thread (`interpd`). One home for it;
+//! a dev-dependency only, so that no library carries a test feature.
 //!
-//! Only with the `testing` feature. A test binary installs it with
-//! `#[global_allocator] static A: traces::alloc_count::Counting = traces::alloc_count::Counting;`
-//! and wraps the code under test in [`count`]. Allocations on other threads,
-//! and on this thread outside [`count`], are not counted.
+//! A test binary installs it with
+//! `#[global_allocator] static A: alloc_count::Counting = alloc_count::Counting;`
+//! (or with another allocator in front of it) and wraps the code under test
+//! in [`count`], or brackets it with [`start`] and [`stop`]. Allocations on
+//! other threads, and on this thread outside those, are not counted.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -24,17 +27,27 @@ fn note() {
     });
 }
 
+/// Starts counting this thread's allocations (from zero).
+pub fn start() {
+    COUNT.with(|c| c.set(0));
+    ON.with(|on| on.set(true));
+}
+
+/// Stops counting on this thread; returns the allocations since [`start`].
+pub fn stop() -> u64 {
+    ON.with(|on| on.set(false));
+    COUNT.with(Cell::get)
+}
+
 /// Runs `f` on this thread and returns its result and the allocations
 /// (alloc, alloc_zeroed, realloc) it made on this thread.
 pub fn count<R>(f: impl FnOnce() -> R) -> (R, u64) {
-    COUNT.with(|c| c.set(0));
-    ON.with(|on| on.set(true));
+    start();
     let r = f();
-    ON.with(|on| on.set(false));
-    (r, COUNT.with(Cell::get))
+    (r, stop())
 }
 
-/// The system allocator, counting inside [`count`].
+/// The system allocator, counting inside [`count`] (or [`start`]..[`stop`]).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Counting;
 
