@@ -10,7 +10,7 @@
 
 use interp_core::Block;
 use interp_core::nurbs::MAX_CTRL;
-use traces::{InputBlock, PathSpec, Program};
+use traces::{InputBlock, PathSpec, Pipeline};
 
 /// Longest request line, bytes (newline excluded). Longer lines are refused
 /// with an error and skipped up to their newline. It fits the largest block
@@ -153,7 +153,7 @@ pub enum Reply {
     /// `ok auth`.
     Auth,
     /// `status {json}`.
-    Status(Box<crate::control::StatusReply>),
+    Status(Box<crate::service::control::StatusReply>),
     /// `err LINE PROBLEM`: request LINE of the connection was refused.
     Err {
         /// The request's line number on its connection, from 1.
@@ -247,15 +247,14 @@ impl Reply {
     }
 }
 
-/// Expands one JSON block (the `traces` JSON block form) that starts at
-/// `start` into interpolator blocks with ids from `first_id` (a NURBS is split
-/// into pieces of at most [`PIECE_CTRL`] control points, exactly as
-/// `interpd simulate` and `interpd replay` do). Also returns the segment info
-/// recorded with the block.
+/// Expands one JSON block (the `traces` JSON block form) as the next block
+/// of the program `pipeline` carries (a NURBS is split into pieces of at
+/// most [`PIECE_CTRL`] control points, exactly as `interpd simulate` and
+/// `interpd replay` do). Also returns the segment info recorded with the
+/// block.
 pub fn expand(
     block: &InputBlock,
-    start: [f64; 3],
-    first_id: u32,
+    pipeline: &mut Pipeline,
 ) -> Result<(Vec<Block>, Vec<traces::messages::SegmentInfo>), String> {
     if let PathSpec::Nurbs { points, .. } = &block.path
         && points.len() > MAX_BLOCK_CTRL
@@ -265,15 +264,17 @@ pub fn expand(
             points.len()
         ));
     }
-    let program = Program {
-        start: Some(start),
-        blocks: vec![block.clone()],
-    };
-    let mut e = program
-        .expand(PIECE_CTRL, first_id)
-        .map_err(|e| e.kind.to_string())?;
-    let b = e.blocks.pop().ok_or("the block expanded to nothing")?;
+    let b = pipeline.push(block).map_err(|e| e.kind.to_string())?;
     Ok((b.segments, b.info))
+}
+
+/// [`expand`] of a block that starts a pipeline at `start` with ids from `first_id`.
+pub fn expand_from(
+    block: &InputBlock,
+    start: [f64; 3],
+    first_id: u32,
+) -> Result<(Vec<Block>, Vec<traces::messages::SegmentInfo>), String> {
+    expand(block, &mut Pipeline::new(start, first_id, PIECE_CTRL))
 }
 
 /// The JSON line of a block.
@@ -397,15 +398,15 @@ mod tests {
     #[test]
     fn blocks_expand_and_check_their_geometry() {
         let b = block(r#"{"feed": 600, "kind": "line", "end": [10, 0, 0]}"#);
-        let (bs, info) = expand(&b, [0.0; 3], 3).unwrap();
+        let (bs, info) = expand_from(&b, [0.0; 3], 3).unwrap();
         assert_eq!(bs.len(), 1);
         assert_eq!((bs[0].id, info[0].block_id), (3, 3));
         assert_eq!(bs[0].feed, 10.0);
         assert!((bs[0].path.length() - 10.0).abs() < 1e-12);
         // Zero length, bad feed.
-        assert!(expand(&b, [10.0, 0.0, 0.0], 1).is_err());
+        assert!(expand_from(&b, [10.0, 0.0, 0.0], 1).is_err());
         let bad = block(r#"{"feed": -1, "kind": "line", "end": [1, 0, 0]}"#);
-        assert!(expand(&bad, [0.0; 3], 1).unwrap_err().contains("feed"));
+        assert!(expand_from(&bad, [0.0; 3], 1).unwrap_err().contains("feed"));
     }
 
     #[test]
@@ -420,7 +421,7 @@ mod tests {
             &BUTTERFLY_KNOTS,
         );
         let b = block(&line);
-        let (pieces, _) = expand(&b, START, 1).unwrap();
+        let (pieces, _) = expand_from(&b, START, 1).unwrap();
         assert!(pieces.len() >= 2);
         for (k, w) in pieces.windows(2).enumerate() {
             let gap = (w[0].path.end_point() - w[1].path.start_point()).norm();
@@ -431,6 +432,6 @@ mod tests {
         let want = Vec3::from(BUTTERFLY_POINTS[50]);
         assert!((end - want).norm() < 1e-9);
         // Starting elsewhere is refused.
-        assert!(expand(&b, [0.0; 3], 1).is_err());
+        assert!(expand_from(&b, [0.0; 3], 1).is_err());
     }
 }

@@ -12,7 +12,7 @@ Exit status 0 when no sample was missed, the publisher neither restarted nor
 went silent (and with --until-done, the program reached `done`); 1
 otherwise, 2 on a usage error.
 The payload layout is documented in docs/daemon.md and mirrors
-`daemon/src/publish.rs` (`SetpointMsg`, `#[repr(C)]`).
+`daemon/src/service/publish.rs` (`SetpointMsg`, `#[repr(C)]`).
 """
 
 import argparse
@@ -51,7 +51,7 @@ class SetpointMsg(ctypes.Structure):
         return "interpd::SetpointMsg"
 
 
-# Must match the publisher's service settings (daemon/src/publish.rs).
+# Must match the publisher's service settings (daemon/src/service/publish.rs).
 SUBSCRIBER_BUFFER = 1024
 MAX_SUBSCRIBERS = 8
 

@@ -22,7 +22,7 @@ pub mod replay;
 pub mod sim;
 pub mod writer;
 
-pub use blocks::{InputBlock, PathSpec, Program};
+pub use blocks::{InputBlock, PathSpec, Pipeline, Program};
 pub use messages::{BlockMsg, Channel, ConfigMsg, EventKind, EventMsg, LoopTimingMsg, SetpointMsg};
 pub use reader::{ReadError, Trace};
 pub use recorder::{Record, RecordTx, Recorder};

@@ -22,8 +22,8 @@ use serde::{Deserialize, Serialize};
 use tokio::io::{AsyncBufRead, AsyncBufReadExt, AsyncRead, AsyncWrite, AsyncWriteExt, BufReader};
 
 use crate::protocol::{MAX_LINE_BYTES, Reply, Request, parse};
-use crate::publish::state_name;
-use crate::rt::{Command, Plan, PushFailure, RtStatus};
+use crate::service::publish::state_name;
+use crate::service::rt::{Command, Plan, PushFailure, RtStatus};
 
 /// How long `abort` waits for the machine to come to rest before replying.
 pub const ABORT_WAIT: Duration = Duration::from_secs(30);
@@ -148,6 +148,9 @@ pub struct Stream {
     pub index: u32,
     /// The program the fields above belong to.
     pub program: u32,
+    /// The program's pipeline (input blocks to segments), from `tail` with
+    /// ids from `next_id`; made again when those moved (abort, a refusal).
+    pub pipeline: Option<traces::Pipeline>,
 }
 
 impl core::fmt::Debug for Control {
@@ -339,6 +342,7 @@ impl Control {
         s.program = program;
         s.next_id = 1;
         s.index = 0;
+        s.pipeline = None;
     }
 
     /// Where the next block of the current program starts.
@@ -542,7 +546,13 @@ impl Control {
         self.follow(&mut s, program);
         let start = self.next_start(&s);
         let id = s.next_id;
-        let (pieces, info) = crate::protocol::expand(b, start, id)?;
+        // Every block of the program passes through its one pipeline.
+        let mut pipeline = match s.pipeline.take() {
+            Some(p) if p.tail() == start && p.next_id() == id => p,
+            _ => traces::Pipeline::new(start, id, crate::protocol::PIECE_CTRL),
+        };
+        let (pieces, info) = crate::protocol::expand(b, &mut pipeline)?;
+        s.pipeline = Some(pipeline);
         let n = pieces.len();
         let end = pieces.last().map(|p| {
             let e = interp_core::Curve::end_point(&p.path);

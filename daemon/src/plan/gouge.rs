@@ -15,7 +15,7 @@ use planner::gouge::{self, CcSurface, GougeConfig};
 use planner::mesh::{P3, TriMesh, WeldOptions};
 use planner::predict::{self, PredictConfig};
 
-use crate::plan_writer::{Moves, PathWriter};
+use crate::plan::writer::{Moves, PathWriter};
 
 /// Clearance above the first point of a path for the approach rapid, mm.
 const APPROACH_CLEARANCE: f64 = 5.0;

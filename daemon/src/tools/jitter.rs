@@ -16,11 +16,11 @@ use interp_core::InterpConfig;
 use interp_core::samples::butterfly;
 use serde::Serialize;
 
-use crate::clock::{now_ns, wait_until_ns};
-use crate::histogram::Histogram;
-use crate::histogram::Percentiles;
-use crate::rt::{RtArgs, RtOptions};
-use crate::serve::ServeArgs;
+use crate::service::clock::{now_ns, wait_until_ns};
+use crate::service::histogram::Histogram;
+use crate::service::histogram::Percentiles;
+use crate::service::rt::{RtArgs, RtOptions};
+use crate::service::serve::ServeArgs;
 
 /// Programmed feed of the jitter program, mm/min.
 const FEED_MM_MIN: f64 = 6000.0;
@@ -111,7 +111,7 @@ fn spawn_bare_loop(
     std::thread::Builder::new()
         .name("interpd-bare".into())
         .spawn(move || {
-            let warnings = crate::rt::apply_scheduling(&opts);
+            let warnings = crate::service::rt::apply_scheduling(&opts);
             let (mut late, mut comp) = (Histogram::new(), Histogram::new());
             let mut overruns = 0u64;
             let mut next = first - opts.period_ns;
@@ -158,7 +158,7 @@ fn alongside_first_deadline(epoch: i64, period: i64, now: i64) -> i64 {
 fn program(loops: usize) -> Vec<String> {
     let back = serde_json::json!({"feed": FEED_MM_MIN, "kind": "line", "end": butterfly::START})
         .to_string();
-    let fly = crate::demo::butterfly_request(FEED_MM_MIN);
+    let fly = crate::tools::demo::butterfly_request(FEED_MM_MIN);
     (0..loops)
         .flat_map(|_| [fly.clone(), back.clone()])
         .collect()
@@ -194,10 +194,10 @@ pub fn main(args: &JitterArgs) -> Result<()> {
     let mut sargs = ServeArgs::in_process(&service);
     sargs.rt = args.rt.clone();
     sargs.position = Some(butterfly::START.to_vec());
-    let svc = crate::serve::start(&sargs, InterpConfig::default(), false, None)?;
+    let svc = crate::service::serve::start(&sargs, InterpConfig::default(), false, None)?;
     let addr = svc.addr;
     let lines = program((args.seconds * LOOPS_PER_SECOND).ceil() as usize + 1);
-    let send_args = crate::send::SendArgs {
+    let send_args = crate::client::send::SendArgs {
         program: "jitter".into(),
         addr,
         socket: None,
@@ -214,7 +214,7 @@ pub fn main(args: &JitterArgs) -> Result<()> {
                 let s = tokio::net::TcpStream::connect(addr).await?;
                 // Aborted at shutdown: the outcome does not matter here.
                 let load = |_: [f64; 3], _: f64| Ok(lines.clone());
-                let _ = crate::send::stream(s, &load, &send_args).await;
+                let _ = crate::client::send::stream(s, &load, &send_args).await;
                 Ok(())
             })
     });

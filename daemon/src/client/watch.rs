@@ -14,7 +14,7 @@ use anyhow::{Context, Result, bail};
 use interp_core::RunState;
 use serde::Serialize;
 
-use crate::publish::{
+use crate::service::publish::{
     DEFAULT_SERVICE, SETPOINT_TYPE_NAME, SetpointSubscriber, run_state, state_name,
 };
 

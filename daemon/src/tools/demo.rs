@@ -33,9 +33,9 @@ use interp_core::{Block, Curve, InterpConfig, Interpolator, RunState, Setpoint, 
 use serde::Serialize;
 
 use crate::check::{Checker, Limits, Measured, Violations};
-use crate::clock::{minimise_timer_slack, now_ns, sleep_until_ns};
-use crate::histogram::{Histogram, Percentiles};
-use crate::publish::state_name;
+use crate::service::clock::{minimise_timer_slack, now_ns, sleep_until_ns};
+use crate::service::histogram::{Histogram, Percentiles};
+use crate::service::publish::state_name;
 
 /// Id of the first block.
 const FIRST_BLOCK_ID: u32 = 1;
@@ -108,16 +108,16 @@ pub fn main(args: &DemoArgs) -> Result<()> {
     if !args.no_plots {
         let cfg = config(args);
         let blocks = butterfly_blocks(args.feed)?;
-        let inp = crate::demo_plots::PlotInput {
+        let inp = crate::tools::demo_plots::PlotInput {
             cfg: &cfg,
             blocks: &blocks,
             start: summary.program.start,
             setpoints: &setpoints,
         };
-        summary.plots = crate::demo_plots::write(&inp, &args.out)?;
+        summary.plots = crate::tools::demo_plots::write(&inp, &args.out)?;
     }
     if !args.no_service {
-        summary.service = Some(crate::demo_service::run(args, &summary)?);
+        summary.service = Some(crate::tools::demo_service::run(args, &summary)?);
     }
     if args.json {
         println!(
@@ -369,7 +369,7 @@ fn butterfly_blocks(feed_mm_min: f64) -> Result<Vec<Block>> {
     else {
         bail!("the butterfly request is not a block");
     };
-    crate::protocol::expand(&b, butterfly::START, FIRST_BLOCK_ID)
+    crate::protocol::expand_from(&b, butterfly::START, FIRST_BLOCK_ID)
         .map(|(blocks, _)| blocks)
         .map_err(|e| anyhow!("splitting the butterfly NURBS into blocks: {e}"))
 }
@@ -486,7 +486,7 @@ pub struct Summary {
     /// The plots written (PNG), empty with `--no-plots`.
     pub plots: Vec<PathBuf>,
     /// The second run, through the service (`None` with `--no-service`).
-    pub service: Option<crate::demo_service::ServiceRun>,
+    pub service: Option<crate::tools::demo_service::ServiceRun>,
 }
 
 /// The interpolator configuration of the direct run.
@@ -964,8 +964,8 @@ mod tests {
     /// The binary's RT pool in front of the counting allocator: tests count
     /// what reaches the system allocator.
     #[global_allocator]
-    static ALLOCATOR: crate::rt_alloc::RtPool<counting::Counting> =
-        crate::rt_alloc::RtPool(counting::Counting);
+    static ALLOCATOR: crate::service::rt_alloc::RtPool<counting::Counting> =
+        crate::service::rt_alloc::RtPool(counting::Counting);
 
     #[test]
     fn the_loop_does_not_allocate() {

@@ -242,7 +242,7 @@ mod tests {
 #[cfg(test)]
 mod butterfly_tests {
     use super::*;
-    use crate::demo;
+    use crate::tools::demo;
 
     /// The plotted series are the ones the demo's checks measured.
     #[test]

@@ -200,17 +200,3 @@ pub fn run(args: &SimulateArgs) -> Result<Summary> {
     }
     Ok(analyzer.summary())
 }
-
-/// `interpd simulate`.
-pub fn main(args: &SimulateArgs) -> Result<()> {
-    let summary = run(args)?;
-    if args.json {
-        println!("{}", serde_json::to_string(&summary)?);
-    } else {
-        print!("{summary}");
-        if let Some(p) = &args.out {
-            println!("  trace         {}", p.display());
-        }
-    }
-    Ok(())
-}

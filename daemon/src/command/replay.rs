@@ -17,7 +17,7 @@ pub struct ReplayArgs {
 /// Replays; fails naming the first differing sequence number and field. A
 /// trace cut short (its recorder died with the service) is replayed up to
 /// its last complete chunk, with a note saying so.
-pub fn main(args: &ReplayArgs) -> Result<()> {
+pub fn run(args: &ReplayArgs) -> Result<()> {
     let path = args.trace.display();
     let (trace, damage) =
         Trace::open_recovering(&args.trace).with_context(|| format!("reading {path}"))?;

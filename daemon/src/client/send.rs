@@ -18,12 +18,12 @@ use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use crate::control::{Phase, StatusReply};
 use crate::protocol::Reply;
+use crate::service::control::{Phase, StatusReply};
 use anyhow::{Context, Error, Result, anyhow, bail};
 use tokio::io::{AsyncBufReadExt, AsyncRead, AsyncWrite, AsyncWriteExt, BufReader};
 
-use crate::serve::DEFAULT_PORT;
+use crate::service::serve::DEFAULT_PORT;
 
 /// Requests in flight at most.
 pub const WINDOW: usize = 8;
@@ -78,48 +78,6 @@ pub fn program_lines(path: &Path, start: [f64; 3], rapid_speed: f64) -> Result<V
         .iter()
         .map(crate::protocol::block_json)
         .collect())
-}
-
-/// Runs `send`.
-pub fn main(args: &SendArgs) -> Result<()> {
-    let rt = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()?;
-    let load = |start: [f64; 3], rapid: f64| program_lines(&args.program, start, rapid);
-    let (code, status) = rt.block_on(async {
-        match &args.socket {
-            Some(p) => {
-                let s = tokio::net::UnixStream::connect(p)
-                    .await
-                    .with_context(|| format!("connecting to {}", p.display()))?;
-                stream(s, &load, args).await
-            }
-            None => {
-                let s = tokio::net::TcpStream::connect(args.addr)
-                    .await
-                    .with_context(|| format!("connecting to {}", args.addr))?;
-                s.set_nodelay(true).ok();
-                stream(s, &load, args).await
-            }
-        }
-    })?;
-    if args.json {
-        println!("{status}");
-    } else {
-        println!("final status: {status}");
-    }
-    match code {
-        Outcome::Done => Ok(()),
-        Outcome::Refused(e) => bail!("the server refused the program: {e}"),
-        Outcome::Interrupted => bail!("interrupted: held and aborted"),
-        Outcome::Ended { program, phase } => bail!(
-            "program {program} did not reach done: it was {}",
-            crate::control::phase_name(phase)
-        ),
-        Outcome::Overtaken { program, now } => {
-            bail!("program {program} was left behind: program {now} began before it was seen done")
-        }
-    }
 }
 
 /// Sends `start` on a connection of its own (authenticated like the stream).

@@ -14,10 +14,10 @@ use heapless::spsc::Consumer;
 use interp_core::{InterpConfig, Setpoint};
 use serde::Serialize;
 
-use crate::control::{Control, Stream, serve_connection};
-use crate::histogram::Percentiles;
-use crate::publish::{DEFAULT_SERVICE, remove_dead_nodes, state_name};
-use crate::rt::{Applied, RtArgs, RtRecord, RtReport};
+use crate::service::control::{Control, Stream, serve_connection};
+use crate::service::histogram::Percentiles;
+use crate::service::publish::{DEFAULT_SERVICE, remove_dead_nodes, state_name};
+use crate::service::rt::{Applied, RtArgs, RtRecord, RtReport};
 
 /// What the recorder thread calls for every tick the RT thread handed it.
 pub type TickSink = Box<dyn FnMut(&RtRecord) + Send>;
@@ -144,7 +144,7 @@ pub struct Service {
     shutdown: Option<tokio::sync::oneshot::Sender<()>>,
     thread: Option<JoinHandle<Result<ServeSummary>>>,
     /// The RT thread's live status.
-    pub status: Arc<crate::rt::RtStatus>,
+    pub status: Arc<crate::service::rt::RtStatus>,
 }
 
 impl Service {
@@ -287,7 +287,7 @@ pub fn start(
         (Some(tx), None) => Some(trace_sink(tx.clone(), cfg.period)),
         (_, f) => f,
     };
-    let rt = crate::rt::spawn(cfg, position, opts)?;
+    let rt = crate::service::rt::spawn(cfg, position, opts)?;
     let rt_status = Arc::clone(&rt.status);
     let control = Arc::new(Control {
         stream: tokio::sync::Mutex::new(Stream {
@@ -304,8 +304,9 @@ pub fn start(
             next_id: 1,
             index: 0,
             program: 0,
+            pipeline: None,
         }),
-        programs: Mutex::new(crate::control::Programs::new()),
+        programs: Mutex::new(crate::service::control::Programs::new()),
         commands: Mutex::new(rt.commands),
         failures: Mutex::new(rt.failures),
         status: Arc::clone(&rt.status),
@@ -437,10 +438,10 @@ pub fn start(
                 recorder_drops: status.recorder_drops.load(Ordering::Acquire),
                 recorded,
                 publish_failures: status.publish_failures.load(Ordering::Acquire),
-                rt_pool_served: crate::rt_alloc::served(),
-                rt_pool_fallbacks: crate::rt_alloc::fallbacks(),
-                rt_pool_exhausted: crate::rt_alloc::exhausted(),
-                rt_pool_largest_fallback: crate::rt_alloc::largest_fallback(),
+                rt_pool_served: crate::service::rt_alloc::served(),
+                rt_pool_fallbacks: crate::service::rt_alloc::fallbacks(),
+                rt_pool_exhausted: crate::service::rt_alloc::exhausted(),
+                rt_pool_largest_fallback: crate::service::rt_alloc::largest_fallback(),
                 scheduling_warnings: report.scheduling_warnings,
                 trace: record_path,
                 trace_messages,
@@ -524,77 +525,5 @@ async fn signal(enabled: bool) {
             }
         }
         _ => std::future::pending().await,
-    }
-}
-
-/// `interpd serve`.
-pub fn main(args: &ServeArgs) -> Result<()> {
-    if let Some(p) = &args.position
-        && p.iter().any(|c| !c.is_finite())
-    {
-        bail!("--position must be finite");
-    }
-    let svc = start(args, InterpConfig::default(), true, None)?;
-    println!("interpd: listening on tcp {}", svc.addr);
-    if let Some(p) = &svc.socket {
-        println!("interpd: listening on unix {}", p.display());
-    }
-    println!(
-        "interpd: publishing setpoints on iceoryx2 service {:?} every {} us",
-        args.service, args.rt.period_us
-    );
-    use std::io::Write;
-    std::io::stdout().flush().ok();
-    let summary = svc.join()?;
-    if args.json {
-        println!("{}", serde_json::to_string(&summary)?);
-    } else {
-        print_summary(&summary);
-    }
-    Ok(())
-}
-
-/// The summary as text.
-pub fn print_summary(s: &ServeSummary) {
-    println!(
-        "interpd: stopped: {} samples published, {} ticks, final state {}, at {:?}",
-        s.published, s.ticks, s.final_state, s.final_position
-    );
-    let show = |name: &str, p: &Option<Percentiles>| {
-        if let Some(p) = p {
-            println!(
-                "  {name:<28} p50 {:8.1} µs  p99 {:8.1} µs  p99.9 {:8.1} µs  max {:8.1} µs  ({} samples)",
-                p.p50, p.p99, p.p999, p.max, p.samples
-            );
-        }
-    };
-    show("wake lateness", &s.lateness_us);
-    show("tick+publish", &s.tick_publish_us);
-    show("commit+tick+publish", &s.tick_publish_with_push_us);
-    println!(
-        "  overruns {}, recorder drops {}, recorded {}, publish failures {}, RT pool {} served / {} fallbacks",
-        s.overruns,
-        s.recorder_drops,
-        s.recorded,
-        s.publish_failures,
-        s.rt_pool_served,
-        s.rt_pool_fallbacks
-    );
-    if s.rt_pool_fallbacks > 0 {
-        println!(
-            "  warning: {} RT-thread allocations reached the system allocator ({} with the pool empty, largest {} bytes)",
-            s.rt_pool_fallbacks, s.rt_pool_exhausted, s.rt_pool_largest_fallback
-        );
-    }
-    if let Some(t) = &s.trace {
-        println!(
-            "  trace {}: {} messages, {} records dropped (queue full)",
-            t.display(),
-            s.trace_messages,
-            s.trace_overflows
-        );
-    }
-    for w in &s.scheduling_warnings {
-        println!("  warning: {w}");
     }
 }

@@ -11,10 +11,10 @@ use interp_core::{InterpConfig, RunState};
 use serde::Serialize;
 
 use crate::check::{Checker, Violations};
-use crate::demo::{DemoArgs, Summary, butterfly_request};
-use crate::histogram::Percentiles;
-use crate::publish::SetpointSubscriber;
-use crate::serve::ServeArgs;
+use crate::service::histogram::Percentiles;
+use crate::service::publish::SetpointSubscriber;
+use crate::service::serve::ServeArgs;
+use crate::tools::demo::{DemoArgs, Summary, butterfly_request};
 
 /// The subscriber gives up when no sample arrives for this long.
 const SAMPLE_TIMEOUT: Duration = Duration::from_secs(10);
@@ -157,7 +157,7 @@ pub fn run(args: &DemoArgs, direct: &Summary) -> Result<ServiceRun> {
     sargs.position = Some(butterfly::START.to_vec());
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating the output directory {}", args.out.display()))?;
-    sargs.record = Some(args.out.join(crate::demo::RECORDING_FILE));
+    sargs.record = Some(args.out.join(crate::tools::demo::RECORDING_FILE));
     // Subscribe before the service publishes, so no sample is missed.
     let (sub_tx, sub_rx) = std::sync::mpsc::channel();
     let st = direct.settings.clone();
@@ -200,10 +200,10 @@ pub fn run(args: &DemoArgs, direct: &Summary) -> Result<ServiceRun> {
     sub_rx
         .recv_timeout(SAMPLE_TIMEOUT)
         .map_err(|_| anyhow!("the demo subscriber did not start"))?;
-    let svc = crate::serve::start(&sargs, cfg, false, None)?;
+    let svc = crate::service::serve::start(&sargs, cfg, false, None)?;
     let addr = svc.addr;
     let line = butterfly_request(args.feed);
-    let send_args = crate::send::SendArgs {
+    let send_args = crate::client::send::SendArgs {
         program: "butterfly".into(),
         addr,
         socket: None,
@@ -220,14 +220,14 @@ pub fn run(args: &DemoArgs, direct: &Summary) -> Result<ServiceRun> {
                 .await
                 .with_context(|| format!("connecting to the service at {addr}"))?;
             let load = |_: [f64; 3], _: f64| Ok(vec![line.clone()]);
-            crate::send::stream(s, &load, &send_args).await
+            crate::client::send::stream(s, &load, &send_args).await
         });
     let sub = subscriber
         .join()
         .map_err(|_| anyhow!("the demo subscriber panicked"))?;
     let summary = svc.shutdown()?;
     let (outcome, _status) = streamed?;
-    if !matches!(outcome, crate::send::Outcome::Done) {
+    if !matches!(outcome, crate::client::send::Outcome::Done) {
         return Err(anyhow!("streaming the butterfly failed: {outcome:?}"));
     }
     let (check, received, gaps, ticks, reached_done, final_point) = sub?;

@@ -33,9 +33,9 @@ use heapless::spsc::{Consumer, Producer, Queue};
 use interp_core::interp::PushError;
 use interp_core::{InterpConfig, Interpolator, PlannedBlock, RunState, Setpoint};
 
-use crate::clock::{minimise_timer_slack, now_ns, wait_until_ns};
-use crate::histogram::Histogram;
-use crate::publish::SetpointPublisher;
+use crate::service::clock::{minimise_timer_slack, now_ns, wait_until_ns};
+use crate::service::histogram::Histogram;
+use crate::service::publish::SetpointPublisher;
 
 /// Planned blocks queued between the control plane and the RT thread (one slot is kept free).
 pub const BLOCK_SLOTS: usize = 16;
@@ -185,7 +185,7 @@ pub struct RtStatus {
 impl RtStatus {
     /// Last published state.
     pub fn run_state(&self) -> RunState {
-        crate::publish::run_state(self.state.load(Ordering::Acquire))
+        crate::service::publish::run_state(self.state.load(Ordering::Acquire))
     }
     /// Last X Y Z.
     pub fn position(&self) -> [f64; 3] {
@@ -647,11 +647,11 @@ impl Loop {
         // Allocated before the loop; the loop itself must not allocate (counted in tests).
         let mut hist = [Histogram::new(), Histogram::new(), Histogram::new()];
         // iceoryx2 allocates a small object per loan: from the fixed pool on this thread.
-        crate::rt_alloc::enter_rt();
+        crate::service::rt_alloc::enter_rt();
         let ((overruns, last), loop_allocations) = count_allocations(|| self.run_loop(&mut hist));
         // The loop is over: dropping the publisher and node (iceoryx2 builds
         // paths and lists to release its shared memory) is not RT work.
-        crate::rt_alloc::leave_rt();
+        crate::service::rt_alloc::leave_rt();
         let [lateness, compute, compute_with_push] = hist;
         self.status.running.store(false, Ordering::Release);
         self.status
@@ -917,7 +917,7 @@ mod tests {
         // Nothing reached the system allocator; iceoryx2's one small object
         // per published sample came from the RT pool.
         assert_eq!(report.loop_allocations, Some(0));
-        assert!(crate::rt_alloc::served() >= report.published);
+        assert!(crate::service::rt_alloc::served() >= report.published);
     }
 
     #[test]

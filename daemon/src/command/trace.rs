@@ -49,7 +49,7 @@ fn open(path: &PathBuf) -> Result<Trace> {
 }
 
 /// Runs `interpd trace …`.
-pub fn main(args: &TraceArgs) -> Result<()> {
+pub fn run(args: &TraceArgs) -> Result<()> {
     match &args.command {
         TraceCommand::Summary { trace, json } => {
             let t = open(trace)?;
