@@ -21,24 +21,46 @@ const POLYLINE: [[f64; 3]; 4] = [
 ];
 
 /// Runs `interpd replay` on `trace`, asserts it is bit-identical and returns
-/// how many setpoints it compared.
-fn replay_bit_identical(trace: &std::path::Path) -> u64 {
+/// how many setpoints it compared and everything it printed.
+fn replay_said(trace: &std::path::Path) -> (u64, String) {
     let out = std::process::Command::new(interpd())
         .arg("replay")
         .arg(trace)
         .output()
         .expect("interpd replay");
-    let said = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "replay failed: {said} {}",
+    let said = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
         String::from_utf8_lossy(&out.stderr)
     );
-    assert!(said.contains("bit-identical"), "{said}");
-    said.split_whitespace()
-        .nth(3)
+    assert!(out.status.success(), "replay failed: {said}");
+    let compared = said
+        .split(" setpoints bit-identical")
+        .next()
+        .and_then(|h| h.split_whitespace().last())
         .and_then(|n| n.parse().ok())
-        .unwrap_or_else(|| panic!("no count in {said:?}"))
+        .unwrap_or_else(|| panic!("no count in {said:?}"));
+    (compared, said)
+}
+
+/// [`replay_said`]'s count.
+fn replay_bit_identical(trace: &std::path::Path) -> u64 {
+    replay_said(trace).0
+}
+
+/// `interpd trace summary --json` of `trace`.
+fn trace_summary(trace: &std::path::Path) -> serde_json::Value {
+    let out = std::process::Command::new(interpd())
+        .args(["trace", "summary", "--json"])
+        .arg(trace)
+        .output()
+        .expect("interpd trace summary");
+    assert!(
+        out.status.success(),
+        "trace summary: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("summary JSON")
 }
 
 #[test]
@@ -290,17 +312,7 @@ fn hold_resume_and_abort_stop_on_the_path_and_a_new_program_starts_there() {
 
     // `interpd trace summary` analyses the whole session: the segments of
     // the later programs come from following the schedule.
-    let out = std::process::Command::new(interpd())
-        .args(["trace", "summary", "--json"])
-        .arg(&trace)
-        .output()
-        .expect("interpd trace summary");
-    assert!(
-        out.status.success(),
-        "trace summary: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let sum: serde_json::Value = serde_json::from_slice(&out.stdout).expect("summary JSON");
+    let sum = trace_summary(&trace);
     assert_eq!(sum["setpoints"].as_u64(), Some(compared), "{sum}");
     assert_eq!(sum["missing_setpoints"], 0, "{sum}");
     assert_eq!(sum["input_blocks"], 4, "{sum}");
@@ -491,13 +503,7 @@ fn watch_reports_a_publisher_restart_and_a_dead_publisher() {
         .spawn()
         .expect("interpd watch");
     std::thread::sleep(Duration::from_millis(500));
-    signal(srv.child.id(), 9);
-    drop(srv);
-    // Restarted elsewhere: its first point is 5 mm from the last one.
-    let srv = Server::start(&service, &["--no-socket", "--position", "3", "4", "0"]);
-    std::thread::sleep(Duration::from_millis(300));
-    signal(srv.child.id(), 9);
-    drop(srv);
+    crash_and_restart_elsewhere(srv);
     let out = wait_child(child, "interpd watch of a dying publisher");
     assert!(!out.status.success(), "watch exited 0");
     let err = String::from_utf8_lossy(&out.stderr);
@@ -539,36 +545,10 @@ fn a_recording_cut_off_by_a_crash_replays_up_to_its_last_complete_chunk() {
     c.wait_for("two seconds of motion", |s| s["s"].as_f64().unwrap() > 35.0);
     signal(srv.child.id(), 9);
     drop(srv);
-    let out = std::process::Command::new(interpd())
-        .arg("replay")
-        .arg(&trace)
-        .output()
-        .expect("interpd replay");
-    let said = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    assert!(out.status.success(), "{said}");
+    let (compared, said) = replay_said(&trace);
     assert!(said.contains("truncated"), "{said}");
-    let compared: u64 = said
-        .split("setpoints bit-identical")
-        .next()
-        .and_then(|h| h.split_whitespace().last())
-        .and_then(|n| n.parse().ok())
-        .unwrap_or_else(|| panic!("no count in {said}"));
     // At least one complete chunk (about 1,000 ticks) of the moving ticks.
     assert!(compared >= 500, "{said}");
-    let out = std::process::Command::new(interpd())
-        .args(["trace", "summary", "--json"])
-        .arg(&trace)
-        .output()
-        .expect("interpd trace summary");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let sum: serde_json::Value = serde_json::from_slice(&out.stdout).expect("summary JSON");
+    let sum = trace_summary(&trace);
     assert_eq!(sum["setpoints"].as_u64(), Some(compared), "{sum}");
 }

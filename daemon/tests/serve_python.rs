@@ -103,12 +103,7 @@ fn the_python_subscriber_reports_a_restart_and_a_dead_publisher() {
         .spawn()
         .expect("python subscriber");
     std::thread::sleep(Duration::from_millis(800));
-    signal(srv.child.id(), 9);
-    drop(srv);
-    let srv = Server::start(&service, &["--no-socket", "--position", "3", "4", "0"]);
-    std::thread::sleep(Duration::from_millis(300));
-    signal(srv.child.id(), 9);
-    drop(srv);
+    crash_and_restart_elsewhere(srv);
     let out = wait_child(sub, "the Python subscriber of a dying publisher");
     assert!(!out.status.success(), "exited 0");
     let r: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON summary");

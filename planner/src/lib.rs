@@ -10,6 +10,8 @@
 pub mod cutter;
 pub mod fit;
 pub mod gouge;
+#[cfg(feature = "gcode")]
+pub mod io;
 pub mod mesh;
 pub mod predict;
 pub mod raster;

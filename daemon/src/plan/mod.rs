@@ -5,4 +5,3 @@
 pub mod gouge;
 pub mod raster;
 pub mod setup;
-pub mod writer;

@@ -19,7 +19,7 @@ use planner::mesh::{TriMesh, WeldOptions};
 use planner::raster::{RasterConfig, RasterPath, plan_raster_with_progress};
 use serde::Serialize;
 
-use crate::plan::writer::{Moves, PathWriter};
+use planner::io::{Moves, PathWriter};
 
 /// Options of `interpd plan raster`.
 #[derive(Clone, Debug, clap::Args)]

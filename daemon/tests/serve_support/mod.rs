@@ -297,3 +297,16 @@ pub fn send(
         String::from_utf8_lossy(&out.stderr).into_owned(),
     )
 }
+
+/// Kills `srv` (SIGKILL), starts it again on the same service 5 mm away (at
+/// 3 4 0: its first point is 5 mm from the origin), lets it publish a
+/// moment and kills it too: a subscriber sees a restart, then silence.
+pub fn crash_and_restart_elsewhere(srv: Server) {
+    let service = srv.service.clone();
+    signal(srv.child.id(), 9);
+    drop(srv);
+    let srv = Server::start(&service, &["--no-socket", "--position", "3", "4", "0"]);
+    std::thread::sleep(Duration::from_millis(300));
+    signal(srv.child.id(), 9);
+    drop(srv);
+}
