@@ -49,6 +49,11 @@ const BINDING_SLACK: f64 = 1.0;
 /// The bound of a cell uses the binding classes of this many exactly
 /// evaluated cells nearest it.
 const NEAREST_SOURCES: usize = 6;
+/// The A,B search stops splitting turns of `R1` narrower than the cell
+/// spacing over this: the MD points are only known to a cell, and the key's
+/// loss is then at most about `2·spacing/16·(Φ + Θ)`, an eighth of the
+/// equivalence tolerance of one cell.
+const TURN_DIVISOR: f64 = 16.0;
 /// Relative tolerance when ruling a cell out against the best key.
 const RULE_OUT_REL_TOL: f64 = 1e-9;
 
@@ -223,7 +228,14 @@ impl Problem<'_> {
     fn solve(&self, p: &V3, w: &mut Work) -> Solved {
         match self.kind {
             MachineType::CA => fan_search(p, &w.md, self.ranges, self.tol, &mut w.fan),
-            MachineType::AB => rect_search(p, &w.md, self.ranges, self.tol, &mut w.rect),
+            MachineType::AB => rect_search(
+                p,
+                &w.md,
+                self.ranges,
+                self.tol,
+                self.sphere.spacing() / TURN_DIVISOR,
+                &mut w.rect,
+            ),
         }
     }
 

@@ -24,7 +24,10 @@
 //!   best by more than the tolerance are dropped, the others halved.
 //!
 //! The answer is within [`RECT_REL_TOL`] (relative) of the least key over
-//! `ψ`, and the least bound of the dropped intervals is returned with it.
+//! `ψ`, or intervals of `ψ` narrower than the caller's `turn_resolution`
+//! are not split further (turning `R1` by less moves no MD point by more);
+//! either way the least bound of the dropped intervals is returned with it,
+//! so the answer says how far from the least it can be.
 
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
@@ -49,32 +52,50 @@ const MAX_INTERVALS: usize = 20_000;
 /// Initial intervals are at most this wide (radians).
 const MAX_INITIAL_WIDTH: f64 = PI / 32.0;
 
-/// A vector in the tangent plane as `r·(cos c, sin c)`.
+/// A vector `(x, y)` of the tangent plane, its length `r = |(x, y)|`.
+/// `⟨(x, y), (cos ψ, sin ψ)⟩ = r·cos(ψ − c)` with `c` its angle: the turn
+/// enters only through the unit vector of `ψ`, computed once per turn.
 #[derive(Debug, Clone, Copy)]
 struct Polar {
+    x: f64,
+    y: f64,
     r: f64,
-    c: f64,
+}
+
+/// The unit vector `(cos ψ, sin ψ)`.
+fn unit(psi: f64) -> (f64, f64) {
+    let (s, c) = psi.sin_cos();
+    (c, s)
 }
 
 impl Polar {
     fn new(x: f64, y: f64) -> Self {
         Self {
+            x,
+            y,
             r: x.hypot(y),
-            c: y.atan2(x),
         }
     }
 
-    /// `r·cos(ψ − c)`.
-    fn at(&self, psi: f64) -> f64 {
-        self.r * (psi - self.c).cos()
+    /// `r·cos(ψ − c)` for `u = (cos ψ, sin ψ)`.
+    fn at(&self, u: (f64, f64)) -> f64 {
+        self.x * u.0 + self.y * u.1
     }
 
-    /// Min and max of `r·cos(ψ − c)` over `ψ ∈ [a, b]`, `b − a ≤ π`.
-    fn range(&self, a: f64, b: f64) -> (f64, f64) {
-        let (fa, fb) = (self.at(a), self.at(b));
-        let contains = |t: f64| (t - a).rem_euclid(2.0 * PI) <= b - a;
-        let hi = if contains(self.c) { self.r } else { fa.max(fb) };
-        let lo = if contains(self.c + PI) {
+    /// Min and max of `r·cos(ψ − c)` over `ψ ∈ [a, b]`, `b − a ≤ π`, given
+    /// `ua`, `ub` the unit vectors of `a` and `b`: the ends, or `±r` when
+    /// the vector (or its opposite) lies between them.
+    fn range(&self, ua: (f64, f64), ub: (f64, f64)) -> (f64, f64) {
+        let (fa, fb) = (self.at(ua), self.at(ub));
+        // (x, y) between a and b: at or left of a, at or right of b.
+        let left_of_a = ua.0 * self.y - ua.1 * self.x;
+        let right_of_b = self.x * ub.1 - self.y * ub.0;
+        let hi = if left_of_a >= 0.0 && right_of_b >= 0.0 {
+            self.r
+        } else {
+            fa.max(fb)
+        };
+        let lo = if left_of_a <= 0.0 && right_of_b <= 0.0 {
             -self.r
         } else {
             fa.min(fb)
@@ -138,7 +159,7 @@ impl Ord for Interval {
 
 /// The four needed ranges at one `ψ`: α⁺, |α⁻|, β⁺, |β⁻| (radians).
 fn ranges_at(s: &Geometry, psi: f64) -> [f64; 4] {
-    let perp = psi - FRAC_PI_2;
+    let (u, perp) = (unit(psi), unit(psi - FRAC_PI_2));
     let (mut ap, mut am) = (0.0f64, 0.0f64);
     for g in &s.near {
         let t = g.at(perp);
@@ -156,7 +177,7 @@ fn ranges_at(s: &Geometry, psi: f64) -> [f64; 4] {
     }
     let (mut bp, mut bm) = (0.0f64, 0.0f64);
     for y in &s.ortho {
-        let t = y.at(psi);
+        let t = y.at(u);
         bp = bp.max(t);
         bm = bm.max(-t);
     }
@@ -165,7 +186,8 @@ fn ranges_at(s: &Geometry, psi: f64) -> [f64; 4] {
 
 /// Lower bounds over `ψ ∈ [a, b]`: the key, and (φᴸ, φˢ, θᴸ, θˢ) sorted.
 fn bounds_over(s: &Geometry, a: f64, b: f64) -> (Key, [f64; 4]) {
-    let (pa, pb) = (a - FRAC_PI_2, b - FRAC_PI_2);
+    let (pa, pb) = (unit(a - FRAC_PI_2), unit(b - FRAC_PI_2));
+    let (ua, ub) = (unit(a), unit(b));
     let (mut ap, mut am) = (0.0f64, 0.0f64);
     for g in &s.near {
         let (lo, hi) = g.range(pa, pb);
@@ -189,7 +211,7 @@ fn bounds_over(s: &Geometry, a: f64, b: f64) -> (Key, [f64; 4]) {
     }
     let (mut bp, mut bm) = (0.0f64, 0.0f64);
     for y in &s.ortho {
-        let (lo, hi) = y.range(a, b);
+        let (lo, hi) = y.range(ua, ub);
         bp = bp.max(lo);
         bm = bm.max(-hi);
     }
@@ -204,13 +226,15 @@ fn bounds_over(s: &Geometry, a: f64, b: f64) -> (Key, [f64; 4]) {
 
 /// The A,B search for tool axis `p` over the MD points `md`: the placement of
 /// least key over every turn `ψ` of `R1` about `p` and the least one that
-/// fits `machine` (`tol` radians of slack), each within [`RECT_REL_TOL`],
+/// fits `machine` (`tol` radians of slack), each within [`RECT_REL_TOL`] or
+/// found to `turn_resolution` radians of turn (0: to the tolerance only),
 /// with certified lower bounds.
 pub fn rect_search(
     p: &V3,
     md: &[V3],
     machine: &AxisRanges,
     tol: f64,
+    turn_resolution: f64,
     scratch: &mut RectScratch,
 ) -> Solved {
     let (e1, e2) = basis(p);
@@ -332,7 +356,10 @@ pub fn rect_search(
         let useful_mar = can_beat(iv.lower, b, RECT_REL_TOL);
         let useful_fit =
             iv.may_fit && fit.is_none_or(|f| can_beat(iv.lower, f.key(), RECT_REL_TOL));
-        if (!useful_mar && !useful_fit) || examined > MAX_INTERVALS || iv.b - iv.a < 1e-12 {
+        if (!useful_mar && !useful_fit)
+            || examined > MAX_INTERVALS
+            || iv.b - iv.a < turn_resolution.max(1e-12)
+        {
             best_lower = key_min(best_lower, iv.lower);
             if iv.may_fit {
                 fit_lower = Some(fit_lower.map_or(iv.lower, |f| key_min(f, iv.lower)));
@@ -434,7 +461,14 @@ mod tests {
             md.push(on_circle * b.cos() + r1 * b.sin());
         }
         let machine = ranges([40.0, 30.0, 20.0, 20.0]);
-        let s = rect_search(&V3::z(), &md, &machine, 1e-9, &mut RectScratch::default());
+        let s = rect_search(
+            &V3::z(),
+            &md,
+            &machine,
+            1e-9,
+            0.0,
+            &mut RectScratch::default(),
+        );
         let fit = s.fit.expect("fits");
         assert_eq!(s.best, fit);
         let got = fit.required.degrees();
@@ -463,7 +497,7 @@ mod tests {
                 .map(|_| dir(3.0 + far * next() * next(), 360.0 * next()))
                 .collect();
             let machine = ranges([50.0, 30.0, 40.0, 20.0]);
-            let solved = rect_search(&V3::z(), &md, &machine, 1e-9, &mut scratch);
+            let solved = rect_search(&V3::z(), &md, &machine, 1e-9, 0.0, &mut scratch);
             // Brute force over 20,000 turns: never better than the answer,
             // and the certified bound is below all of them.
             let mut brute = (f64::INFINITY, f64::INFINITY);
@@ -515,7 +549,7 @@ mod tests {
     #[test]
     fn no_md_points_need_no_motion() {
         let m = ranges([0.0, 0.0, 0.0, 0.0]);
-        let s = rect_search(&V3::z(), &[], &m, 0.0, &mut RectScratch::default());
+        let s = rect_search(&V3::z(), &[], &m, 0.0, 0.0, &mut RectScratch::default());
         assert_eq!((s.best.area, s.fit.is_some()), (0.0, true));
     }
 }
