@@ -7,7 +7,9 @@
 //! ```
 //!
 //! `ROT` is `x90`, `y-45`, `z30` (axis and degrees) or `r<seed>` (a random
-//! rotation from that seed); without any, the part as given and y90.
+//! rotation from that seed); without any, the part as given and y90. A
+//! `ROT` of `compare` also runs the exhaustive search (every cell evaluated)
+//! on each rotation and checks that it gives the same answer.
 
 use std::time::Instant;
 
@@ -54,7 +56,12 @@ fn main() {
         cells: args[3].parse().expect("cells"),
         ..SetupConfig::default()
     };
-    let mut rots: Vec<String> = args[4..].to_vec();
+    let compare = args[4..].iter().any(|a| a == "compare");
+    let mut rots: Vec<String> = args[4..]
+        .iter()
+        .filter(|a| *a != "compare")
+        .cloned()
+        .collect();
     if rots.is_empty() {
         rots = vec!["z0".into(), "y90".into()];
     }
@@ -67,11 +74,13 @@ fn main() {
         let part = TriMesh::from_triangles(&soup, WeldOptions::default()).expect("rotated");
         let t0 = Instant::now();
         let plan = plan_setup(&part, &machine, &ranges, &config, &|_, _, _| {}).expect("plan");
+        let secs = t0.elapsed().as_secs_f64();
         let o = plan.setup.as_ref().unwrap_or(&plan.mar);
         let back = r.inverse() * o.placement.tool_axis;
         let d = o.placement.required.degrees();
+        let (equivalent, spread) = o.equivalent.unwrap_or((0, 0.0));
         println!(
-            "{spec:>6}: feasible {} unreachable {} axis(part frame) ({:+.3},{:+.3},{:+.3}) req {:.2}/{:.2} {:.2}/{:.2} area {:.1} deg² ({:.2} s)",
+            "{spec:>6}: feasible {} unreachable {} axis(part frame) ({:+.3},{:+.3},{:+.3}) req {:.2}/{:.2} {:.2}/{:.2} area {:.1} deg² (bound {:.1}), {} equivalent within {:.1}°, {} of {} cells evaluated ({:.2} s)",
             plan.feasible,
             plan.unreachable_patches.len(),
             back.x,
@@ -82,7 +91,26 @@ fn main() {
             d[2],
             d[3],
             o.placement.area.to_degrees().to_degrees(),
-            t0.elapsed().as_secs_f64()
+            o.lower_bound.0.to_degrees().to_degrees(),
+            equivalent,
+            spread.to_degrees(),
+            plan.evaluated,
+            plan.cells,
+            secs
         );
+        if compare {
+            let exhaustive = SetupConfig {
+                probe_cells: 0,
+                ..config
+            };
+            let t0 = Instant::now();
+            let e = plan_setup(&part, &machine, &ranges, &exhaustive, &|_, _, _| {}).expect("plan");
+            let eo = e.setup.as_ref().unwrap_or(&e.mar);
+            let same = (eo.cell, eo.placement.key()) == (o.cell, o.placement.key());
+            println!(
+                "        exhaustive: same answer {same} ({:.2} s with the map)",
+                t0.elapsed().as_secs_f64()
+            );
+        }
     }
 }
