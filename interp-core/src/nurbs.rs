@@ -809,8 +809,22 @@ impl Nurbs {
     /// Gauss–Kronrod 7/15 quadrature of |C'| per knot span, bisecting until the two
     /// rules differ by at most `tol` (absolute, mm, shared out in proportion to the
     /// parameter length). Bisection stops at depth 16 or when the rules agree to
-    /// rounding, so a tolerance of 0 is accepted. No allocation.
+    /// what the arithmetic resolves (see [`Nurbs::arc_length_counted`]), so a
+    /// tolerance of 0 is accepted. No allocation.
     pub fn arc_length(&self, ua: f64, ub: f64, tol: f64) -> f64 {
+        self.arc_length_counted(ua, ub, tol).0
+    }
+
+    /// [`Nurbs::arc_length`] and the number of Gauss–Kronrod rules it applied (15
+    /// evaluations of |C'| each): the work, for tests and benchmarks that guard its
+    /// growth.
+    ///
+    /// The two rules cannot agree better than rounding lets them: to a few ulps of
+    /// the result, and to what one ulp of the parameter moves the nodes
+    /// (`ulp(u)·|C'|` per node, which is what grows on long program curves whose
+    /// parameters run to thousands). Bisecting below that floor only multiplies
+    /// the work (up to 2^16 rules a span) without changing the result.
+    pub fn arc_length_counted(&self, ua: f64, ub: f64, tol: f64) -> (f64, usize) {
         let (ua, ub) = (self.clamp_u(ua), self.clamp_u(ub));
         let (lo, hi, sign) = if ub < ua {
             (ub, ua, -1.0)
@@ -818,12 +832,13 @@ impl Nurbs {
             (ua, ub, 1.0)
         };
         if lo >= hi {
-            return 0.0;
+            return (0.0, 0);
         }
         let tol = if tol > 0.0 { tol } else { 0.0 };
         let total = hi - lo;
         let n = self.control_count();
         let mut sum = 0.0;
+        let mut rules = 0;
         for span in self.span_of(lo)..n {
             let (ka, kb) = (self.knots[span], self.knots[span + 1]);
             if ka >= hi {
@@ -834,25 +849,34 @@ impl Nurbs {
             }
             let (a, b) = (lo.max(ka), hi.min(kb));
             if a < b {
-                sum += self.arc_length_span(span, a, b, tol * ((b - a) / total));
+                let (l, r) = self.arc_length_span(span, a, b, tol * ((b - a) / total));
+                sum += l;
+                rules += r;
             }
         }
-        sign * sum
+        (sign * sum, rules)
     }
 
-    /// Adaptive quadrature of |C'| over [a, b] inside one span, with an explicit stack.
-    fn arc_length_span(&self, span: usize, a: f64, b: f64, tol: f64) -> f64 {
+    /// Adaptive quadrature of |C'| over [a, b] inside one span, with an explicit stack;
+    /// returns the integral and the number of rules applied.
+    fn arc_length_span(&self, span: usize, a: f64, b: f64, tol: f64) -> (f64, usize) {
         // Depth-first: at most one pending right half per level plus the current one.
         let mut stack = [(0.0f64, 0.0f64, 0.0f64, 0usize); ARC_MAX_DEPTH + 2];
         stack[0] = (a, b, tol, 0);
         let mut top = 1;
         let mut sum = 0.0;
+        let mut rules = 0;
         while top > 0 {
             top -= 1;
             let (a, b, tol, depth) = stack[top];
             let (k, g) = self.gauss_kronrod(span, a, b);
+            rules += 1;
             let diff = libm::fabs(k - g);
-            if diff <= tol || diff <= ARC_REL_FLOOR * libm::fabs(k) || depth >= ARC_MAX_DEPTH {
+            // Rounding floor: a few ulps of the result, and one ulp of u times the
+            // mean speed (the nodes c ± h·x are only placed to ulp(u)).
+            let floor = ARC_REL_FLOOR * libm::fabs(k)
+                + f64::EPSILON * libm::fabs(a).max(libm::fabs(b)) * libm::fabs(k) / (b - a);
+            if diff <= tol || diff <= floor || depth >= ARC_MAX_DEPTH {
                 sum += k;
             } else {
                 let m = 0.5 * (a + b);
@@ -861,7 +885,7 @@ impl Nurbs {
                 top += 2;
             }
         }
-        sum
+        (sum, rules)
     }
 
     /// (Kronrod 15-point, Gauss 7-point) estimates of ∫|C'| over [a, b] in `span`.
@@ -2096,5 +2120,64 @@ mod tests {
         });
         assert_eq!(res, Err(SplitError::Sink("full")));
         assert_eq!(calls, 2);
+    }
+
+    /// A long program curve (10,000 control points, parameters 0..9,997 as G6.2
+    /// programs number their knots): measuring it and finding parameters by arc
+    /// length must cost the same per segment at its end as at its start. Before
+    /// the rounding floors, the end cost several times more (2^16 rules a span in
+    /// the worst case): planning grew superlinearly with the curve.
+    #[test]
+    fn long_curves_cost_the_same_per_segment_at_both_ends() {
+        let (p, count) = (3, 10_000);
+        let pts: Vec<[f64; 3]> = (0..count)
+            .map(|i| {
+                let t = i as f64;
+                [0.5 * t, 5.0 * libm::sin(0.3 * t), 0.1 * libm::cos(0.7 * t)]
+            })
+            .collect();
+        let w: Vec<f64> = (0..count)
+            .map(|i| 1.0 + 0.3 * libm::sin(i as f64))
+            .collect();
+        let mut k = std::vec![0.0; p + 1];
+        k.extend((1..count - p).map(|i| i as f64));
+        k.extend(std::vec![(count - p) as f64; p + 1]);
+        let mut segs = Vec::new();
+        split_program_curve::<()>(p, &pts, &w, &k, 20, |s| {
+            segs.push(s);
+            Ok(())
+        })
+        .unwrap();
+        // Work of measuring a segment whole and of stepping along it by 0.03 mm
+        // (a law sample spacing) from a few places, as the planner does.
+        let work = |s: &Nurbs| {
+            let path = crate::path::Path::Nurbs(*s);
+            let (_, mut rules) = s.arc_length_counted(s.u_start(), s.u_end(), 1e-12);
+            for j in 0..8 {
+                let u = s.u_start() + (s.u_end() - s.u_start()) * (j as f64 / 8.0);
+                rules += path.param_at_arc_length_counted(u, 0.03).1;
+            }
+            rules
+        };
+        let n = segs.len();
+        let first: usize = segs[..20].iter().map(work).sum();
+        let last: usize = segs[n - 20..].iter().map(work).sum();
+        assert!(
+            (last as f64) <= 1.25 * first as f64,
+            "rules for the last 20 segments {last}, for the first 20 {first}"
+        );
+        // And the length is still resolved: the last segment against its copy
+        // moved to parameters near 0 (same geometry, exact knot shift).
+        let s = segs[n - 1];
+        let shift = s.u_start();
+        let moved: Vec<f64> = s.knots().iter().map(|x| x - shift).collect();
+        let pts: Vec<[f64; 3]> = (0..s.control_count()).map(|i| s.control_point(i)).collect();
+        let ws: Vec<f64> = (0..s.control_count()).map(|i| s.weight(i)).collect();
+        let t = Nurbs::new(p, &pts, &ws, &moved).unwrap();
+        let (a, b) = (
+            s.arc_length(s.u_start(), s.u_end(), 1e-12),
+            t.arc_length(t.u_start(), t.u_end(), 1e-12),
+        );
+        assert!(libm::fabs(a - b) <= 1e-10 * b, "{a} vs {b}");
     }
 }
