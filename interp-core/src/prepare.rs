@@ -348,13 +348,12 @@ fn sample_laws(seg: &Segment, cfg: &InterpConfig, profile: &mut PlannedBlock) {
     let k0 = libm::ceil(seg.s0 / hs) as i64;
     let k1 = libm::floor(seg.s1() / hs) as i64;
     let (mut u_prev, mut x_prev) = (path.u_start(), seg.s0);
-    let u_end = path.u_end();
     // Per law, the last two samples: (k, u, value).
     let mut w1: [Option<(i64, f64, f64)>; 2] = [None; 2];
     let mut w2: [Option<(i64, f64, f64)>; 2] = [None; 2];
     for k in k0..=k1 {
         let x = k as f64 * hs;
-        let u = invert_arc_length(path, u_prev, x - x_prev, u_end);
+        let u = path.param_at_arc_length(u_prev, x - x_prev);
         let g = k.div_euclid(m);
         // One evaluation for both laws at the sample.
         let d = path.eval(u, 3);
@@ -417,32 +416,6 @@ fn sample_laws(seg: &Segment, cfg: &InterpConfig, profile: &mut PlannedBlock) {
 
 /// Golden-section steps refining a sampled law minimum (bracket shrinks by 0.618 each).
 const GOLDEN_ITERS: usize = 40;
-
-/// The parameter `u ≥ u0` at arc length `ds` past `u0` (Newton with a bracket).
-fn invert_arc_length(path: &Path, u0: f64, ds: f64, u_end: f64) -> f64 {
-    if ds <= 0.0 {
-        return u0;
-    }
-    let (mut lo, mut hi) = (u0, u_end);
-    let mut u = (u0 + ds / path.eval(u0, 1).d1.norm()).clamp(lo, hi);
-    for _ in 0..60 {
-        let f = path.arc_length(u0, u) - ds;
-        if libm::fabs(f) <= 1e-13 * (1.0 + ds) {
-            break;
-        }
-        if f > 0.0 {
-            hi = u;
-        } else {
-            lo = u;
-        }
-        let mut next = u - f / path.eval(u, 1).d1.norm();
-        if !(next > lo && next < hi) {
-            next = 0.5 * (lo + hi);
-        }
-        u = next;
-    }
-    u
-}
 
 /// Cut a NURBS at interior knots of full multiplicity where the tangent
 /// turns by more than `tol` (a corner inside one block). Lines and arcs are
