@@ -1136,6 +1136,57 @@ impl Nurbs {
         dir(reach(a)).dot(&dir(reach(b))) < 0.0
     }
 
+    /// The parameter `u ≥ u0` at arc length `ds` past `u0` (at most the range's
+    /// end), to what the arithmetic resolves, and the quadrature rules spent:
+    /// Newton on [`Nurbs::arc_length`] (tolerance `tol`) inside a shrinking
+    /// bracket, bisecting where a Newton step leaves it. Where C' vanishes at or
+    /// near `u0` (`|C'|² ≤ |C''|·ds`, a stationary point: `ds/|C'|` is infinite
+    /// or far off) the first guess is the positive root of
+    /// `|C''|·e²/2 + |C'|·e = ds` instead, so the inversion costs there what it
+    /// costs elsewhere.
+    pub fn param_at_arc_length_counted(&self, u0: f64, ds: f64, tol: f64) -> (f64, usize) {
+        let u0 = self.clamp_u(u0);
+        if !(ds > 0.0) {
+            return (u0, 0);
+        }
+        let (mut lo, mut hi) = (u0, self.u_end());
+        let d = self.eval(u0, 2);
+        let (sp, bend) = (d.d1.norm(), d.d2.norm());
+        let guess = if sp * sp > bend * ds {
+            ds / sp
+        } else if bend > 0.0 {
+            2.0 * ds / (sp + libm::sqrt(sp * sp + 2.0 * bend * ds))
+        } else {
+            hi - u0
+        };
+        let mut u = (u0 + guess).clamp(lo, hi);
+        let mut rules = 0;
+        for _ in 0..60 {
+            let (l, r) = self.arc_length_counted(u0, u, tol);
+            rules += r;
+            let f = l - ds;
+            let speed = self.eval(u, 1).d1.norm();
+            // Nothing resolves the arc length better than one ulp of u moves the
+            // point (above 1e-13 mm where parameters run to the thousands).
+            let floor = 1e-13 * (1.0 + ds) + 4.0 * f64::EPSILON * libm::fabs(u) * speed;
+            if libm::fabs(f) <= floor {
+                break;
+            }
+            if f > 0.0 {
+                hi = u;
+            } else {
+                lo = u;
+            }
+            // At a zero of C' the step is not finite: bisect.
+            let mut next = u - f / speed;
+            if !(next > lo && next < hi) {
+                next = 0.5 * (lo + hi);
+            }
+            u = next;
+        }
+        (u, rules)
+    }
+
     /// Arc length over [ua, ub] (clamped to the range; negative if ub < ua) by adaptive
     /// Gauss–Kronrod 7/15 quadrature of |C'| per knot span, bisecting until the two
     /// rules differ by at most `tol` (absolute, mm, shared out in proportion to the
@@ -2601,5 +2652,55 @@ mod tests {
         assert!(back.is_stationary(1.0, Side::Before));
         let b = back.curvature(1.0, Side::Before);
         assert!((b - lim).abs() <= 1e-6 * lim, "{b} vs {lim}");
+    }
+
+    #[test]
+    fn arc_length_inverts_from_a_stationary_point_at_the_usual_cost() {
+        // LinuxCNC's trident: the first control point repeats the start, C'(0) = 0.
+        let p = [
+            [10.0, 0.0, 0.0],
+            [10.0, 0.0, 0.0],
+            [20.0, 20.0, 0.0],
+            [12.0, 8.0, 0.0],
+            [10.0, 20.0, 0.0],
+            [8.0, 8.0, 0.0],
+            [0.0, 20.0, 0.0],
+            [10.0, 0.0, 0.0],
+        ];
+        let k = [0.0, 0.0, 0.0, 0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 5.0, 5.0, 5.0];
+        let c = Nurbs::non_rational(3, &p, &k).unwrap();
+        assert!(c.is_stationary(0.0, Side::After));
+        for ds in [1e-9, 1e-6, 1e-3, 0.1, 5.0] {
+            let (u, rules) = c.param_at_arc_length_counted(0.0, ds, 1e-12);
+            let back = c.arc_length(0.0, u, 1e-13);
+            assert!(
+                libm::fabs(back - ds) <= 1e-12 * (1.0 + ds),
+                "ds {ds}: {back}"
+            );
+            // A first guess from C'' lands close: a few Newton steps (bisecting
+            // from the range's end would take dozens).
+            let (_, one) = c.arc_length_counted(0.0, u, 1e-12);
+            assert!(
+                rules <= 6 * one.max(1),
+                "ds {ds}: {rules} rules, one length {one}"
+            );
+        }
+        // From an interior cusp (C' = 0 at u = 0.5 of a Bézier), past it.
+        let q = [
+            [0.0; 3],
+            [10.0, 10.0, 1.0],
+            [0.0, 10.0, 0.0],
+            [10.0, 0.0, 1.0],
+        ];
+        let c = Nurbs::non_rational(3, &q, &BEZ3).unwrap();
+        assert!(c.is_stationary(0.5, Side::After));
+        for ds in [1e-6, 0.5] {
+            let (u, _) = c.param_at_arc_length_counted(0.5, ds, 1e-12);
+            let back = c.arc_length(0.5, u, 1e-13);
+            assert!(
+                libm::fabs(back - ds) <= 1e-12 * (1.0 + ds),
+                "ds {ds}: {back}"
+            );
+        }
     }
 }

@@ -299,15 +299,18 @@ impl Path {
 
     /// [`Path::param_at_arc_length`] and the quadrature rules it spent (see
     /// [`Nurbs::arc_length_counted`]; 0 for lines and arcs): the work, for
-    /// tests that guard its growth.
+    /// tests that guard its growth. A NURBS inverts itself
+    /// ([`Nurbs::param_at_arc_length_counted`], which also starts well where
+    /// C' vanishes).
     pub fn param_at_arc_length_counted(&self, u0: f64, ds: f64) -> (f64, usize) {
+        if let Path::Nurbs(n) = self {
+            return n.param_at_arc_length_counted(u0, ds, ARC_LENGTH_TOL);
+        }
         if ds <= 0.0 {
             return (u0, 0);
         }
-        let length = |ua: f64, ub: f64| match self {
-            Path::Nurbs(n) => n.arc_length_counted(ua, ub, ARC_LENGTH_TOL),
-            _ => (self.arc_length(ua, ub), 0),
-        };
+        // Lines and arcs: their lengths are closed forms.
+        let length = |ua: f64, ub: f64| (self.arc_length(ua, ub), 0);
         let mut rules = 0;
         let (mut lo, mut hi) = (u0, self.u_end());
         let mut u = (u0 + ds / self.eval(u0, 1).d1.norm()).clamp(lo, hi);
