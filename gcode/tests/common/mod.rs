@@ -43,7 +43,12 @@ pub fn run(blocks: &[Block]) -> Vec<Setpoint> {
             ip.finish();
         }
         let sp = ip.tick();
-        let b = blocks.iter().find(|b| b.id == sp.block_id).unwrap();
+        // A long curve is several blocks with one id (its line): the one whose
+        // parameters hold u.
+        let b = blocks
+            .iter()
+            .find(|b| b.id == sp.block_id && b.path.u_start() <= sp.u && sp.u <= b.path.u_end())
+            .unwrap();
         let off = (b.path.eval(sp.u, 0).p - v3(&sp.axes)).norm();
         assert!(
             sp.axes.iter().all(|a| a.is_finite()) && off <= 1e-9,
