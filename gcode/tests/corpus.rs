@@ -1,4 +1,7 @@
-//! Every program of the LinuxCNC NURBS corpus parses (when the corpus is present).
+//! Every program of the LinuxCNC NURBS corpus parses, and runs through the
+//! interpolator to its end (when the corpus is present).
+
+mod common;
 
 use std::path::Path;
 
@@ -47,4 +50,61 @@ fn every_corpus_file_parses_and_converts() {
     }
     println!("{files} files parsed, {refused} refused by the conversion");
     assert_eq!(files, 55, "g5 has 15 programs, g6 40");
+}
+
+/// Every program of the corpus runs through the interpolator (default
+/// configuration) to its end, every setpoint on its path. Slow in a debug
+/// build: `cargo test -p gcode --release --test corpus -- --ignored --nocapture`.
+#[test]
+#[ignore = "needs /work/shared/corpus; run with --release -- --ignored"]
+fn every_corpus_program_simulates_to_its_end() {
+    let root = Path::new(CORPUS);
+    if !root.exists() {
+        println!("corpus {CORPUS} absent; skipped");
+        return;
+    }
+    let mut files = 0;
+    let mut failed = Vec::new();
+    for sub in ["g5", "g6"] {
+        let mut entries: Vec<_> = std::fs::read_dir(root.join(sub))
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .collect();
+        entries.sort();
+        for path in entries {
+            files += 1;
+            let text = std::fs::read_to_string(&path).unwrap();
+            let blocks = match gcode::parse(&text)
+                .map_err(|e| e.to_string())
+                .and_then(|p| {
+                    p.to_core_blocks(&gcode::CoreOptions::default())
+                        .map_err(|e| e.to_string())
+                }) {
+                Ok(b) => b,
+                Err(e) => {
+                    println!("{}: refused: {e}", path.display());
+                    failed.push(path);
+                    continue;
+                }
+            };
+            match std::panic::catch_unwind(|| common::run(&blocks)) {
+                Ok(sps) => println!(
+                    "{}: {} blocks, {} setpoints ({:.1} s)",
+                    path.display(),
+                    blocks.len(),
+                    sps.len(),
+                    sps.len() as f64 * interp_core::InterpConfig::default().period
+                ),
+                Err(_) => {
+                    println!("{}: did not run to its end", path.display());
+                    failed.push(path);
+                }
+            }
+        }
+    }
+    println!(
+        "{} of {files} programs simulate to their end",
+        files - failed.len()
+    );
+    assert!(failed.is_empty(), "{failed:?}");
 }
