@@ -203,7 +203,11 @@ fn truncated_and_corrupted_traces_report_what_they_recovered() {
             Ok(t) => assert_eq!(t.setpoints, full.setpoints, "flip at {}", n * k / flips),
         }
     }
-    assert!(2 * damaged > flips, "only {damaged} of {} flips detected", flips - 1);
+    assert!(
+        2 * damaged > flips,
+        "only {damaged} of {} flips detected",
+        flips - 1
+    );
     // Not an MCAP at all, and empty.
     assert!(matches!(
         Trace::from_bytes(b"hello, world, not an mcap file"),
