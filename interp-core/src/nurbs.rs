@@ -1149,7 +1149,7 @@ impl Nurbs {
         if !(ds > 0.0) {
             return (u0, 0);
         }
-        let (mut lo, mut hi) = (u0, self.u_end());
+        let hi = self.u_end();
         let d = self.eval(u0, 2);
         let (sp, bend) = (d.d1.norm(), d.d2.norm());
         let guess = if sp * sp > bend * ds {
@@ -1159,32 +1159,14 @@ impl Nurbs {
         } else {
             hi - u0
         };
-        let mut u = (u0 + guess).clamp(lo, hi);
-        let mut rules = 0;
-        for _ in 0..60 {
-            let (l, r) = self.arc_length_counted(u0, u, tol);
-            rules += r;
-            let f = l - ds;
-            let speed = self.eval(u, 1).d1.norm();
-            // Nothing resolves the arc length better than one ulp of u moves the
-            // point (above 1e-13 mm where parameters run to the thousands).
-            let floor = 1e-13 * (1.0 + ds) + 4.0 * f64::EPSILON * libm::fabs(u) * speed;
-            if libm::fabs(f) <= floor {
-                break;
-            }
-            if f > 0.0 {
-                hi = u;
-            } else {
-                lo = u;
-            }
-            // At a zero of C' the step is not finite: bisect.
-            let mut next = u - f / speed;
-            if !(next > lo && next < hi) {
-                next = 0.5 * (lo + hi);
-            }
-            u = next;
-        }
-        (u, rules)
+        crate::geom::invert_arc_length(
+            u0,
+            ds,
+            hi,
+            u0 + guess,
+            |a, b| self.arc_length_counted(a, b, tol),
+            |u| self.eval(u, 1).d1.norm(),
+        )
     }
 
     /// Arc length over [ua, ub] (clamped to the range; negative if ub < ua) by adaptive

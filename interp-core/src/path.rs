@@ -310,34 +310,14 @@ impl Path {
             return (u0, 0);
         }
         // Lines and arcs: their lengths are closed forms.
-        let length = |ua: f64, ub: f64| (self.arc_length(ua, ub), 0);
-        let mut rules = 0;
-        let (mut lo, mut hi) = (u0, self.u_end());
-        let mut u = (u0 + ds / self.eval(u0, 1).d1.norm()).clamp(lo, hi);
-        for _ in 0..60 {
-            let (l, r) = length(u0, u);
-            rules += r;
-            let f = l - ds;
-            let speed = self.eval(u, 1).d1.norm();
-            // Nothing resolves the arc length better than one ulp of u moves the
-            // point: on long program curves (parameters in the thousands) that is
-            // above 1e-13 mm, and asking for more spent all 60 iterations.
-            let floor = 1e-13 * (1.0 + ds) + 4.0 * f64::EPSILON * libm::fabs(u) * speed;
-            if libm::fabs(f) <= floor {
-                break;
-            }
-            if f > 0.0 {
-                hi = u;
-            } else {
-                lo = u;
-            }
-            let mut next = u - f / speed;
-            if !(next > lo && next < hi) {
-                next = 0.5 * (lo + hi);
-            }
-            u = next;
-        }
-        (u, rules)
+        crate::geom::invert_arc_length(
+            u0,
+            ds,
+            self.u_end(),
+            u0 + ds / self.eval(u0, 1).d1.norm(),
+            |ua, ub| (self.arc_length(ua, ub), 0),
+            |u| self.eval(u, 1).d1.norm(),
+        )
     }
 
     /// Split at interior parameter `u` into two paths that are exactly the same geometry.

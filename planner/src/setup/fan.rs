@@ -293,15 +293,7 @@ fn wide_fans(
 mod tests {
     use super::*;
     use crate::setup::machine::{RotaryAxis, RotaryKey};
-
-    fn ranges(deg: [f64; 4]) -> AxisRanges {
-        AxisRanges::from_degrees(deg[0], deg[1], deg[2], deg[3]).unwrap()
-    }
-
-    fn dir(tilt_deg: f64, azimuth_deg: f64) -> V3 {
-        let (t, a) = (tilt_deg.to_radians(), azimuth_deg.to_radians());
-        V3::new(t.sin() * a.cos(), t.sin() * a.sin(), t.cos())
-    }
+    use crate::setup::test_support::{dir, ranges};
 
     /// Every MD point is reached by the kinematics of a caB machine set up
     /// as `fit` says, within the ranges it needs: C about the tool axis,

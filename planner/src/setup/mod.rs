@@ -33,6 +33,24 @@ pub mod search;
 pub mod sphere;
 pub mod visibility;
 
+/// Helpers the fan and rectangle searches' unit tests share.
+#[cfg(test)]
+mod test_support {
+    use super::AxisRanges;
+    use nalgebra::Vector3;
+
+    /// Axis ranges from degrees.
+    pub(crate) fn ranges(deg: [f64; 4]) -> AxisRanges {
+        AxisRanges::from_degrees(deg[0], deg[1], deg[2], deg[3]).unwrap()
+    }
+
+    /// The unit direction at `tilt_deg` from +Z, `azimuth_deg` from +X.
+    pub(crate) fn dir(tilt_deg: f64, azimuth_deg: f64) -> Vector3<f64> {
+        let (t, a) = (tilt_deg.to_radians(), azimuth_deg.to_radians());
+        Vector3::new(t.sin() * a.cos(), t.sin() * a.sin(), t.cos())
+    }
+}
+
 pub use machine::{AxisRanges, MachineConfig, MachineType, RotaryAxis};
 pub use search::Placement;
 pub use sphere::GeodesicSphere;

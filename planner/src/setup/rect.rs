@@ -432,15 +432,7 @@ fn planar_hull(pts: &mut Vec<(f64, f64, usize)>) -> Vec<usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn ranges(deg: [f64; 4]) -> AxisRanges {
-        AxisRanges::from_degrees(deg[0], deg[1], deg[2], deg[3]).unwrap()
-    }
-
-    fn dir(tilt_deg: f64, azimuth_deg: f64) -> V3 {
-        let (t, a) = (tilt_deg.to_radians(), azimuth_deg.to_radians());
-        V3::new(t.sin() * a.cos(), t.sin() * a.sin(), t.cos())
-    }
+    use crate::setup::test_support::{dir, ranges};
 
     #[test]
     fn rectangle_of_points_on_a_grid_is_found() {
