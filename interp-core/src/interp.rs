@@ -22,9 +22,10 @@
 use heapless::Deque;
 
 use crate::config::{ConfigError, InterpConfig, ParamUpdate};
+use crate::driver::Driver;
 use crate::geom::{Curve, Vec3};
 use crate::path::{Block, Path, SplitAtError};
-use crate::prepare::{BlockPlanner, PlannedBlock, Segment, split_at_tangent_breaks};
+use crate::prepare::{BlockPlanner, PlannedBlock, Segment};
 use crate::spline::{self, Piece};
 use crate::stop::Stop;
 
@@ -189,6 +190,8 @@ pub struct Stats {
     pub starved_ticks: u64,
     /// Plans refused because the machine had reached their freeze point.
     pub stale_plans: u64,
+    /// Plans offered to [`Executor::commit`] (accepted or not).
+    pub commits: u64,
 }
 
 /// Upper bound on the pieces one block is cut into at tangent breaks (a
@@ -318,6 +321,22 @@ impl<const Q: usize> Executor<Q> {
     pub fn tail(&self) -> (Vec3, f64) {
         (self.tail, self.tail_s)
     }
+    /// Path speed, mm/s.
+    pub fn speed(&self) -> f64 {
+        self.v
+    }
+    /// A feed hold or abort stop is running or done (the plan is left).
+    pub fn is_stopping(&self) -> bool {
+        self.stop.is_some()
+    }
+    /// The program's end was committed.
+    pub fn is_finished(&self) -> bool {
+        self.finished
+    }
+    /// An abort is braking.
+    pub fn is_aborting(&self) -> bool {
+        self.abort
+    }
     /// Where the machine is on the plan (arc length of the run), and whether
     /// it is at rest (not moving and not about to).
     pub fn plan_position(&self) -> (f64, bool) {
@@ -352,7 +371,9 @@ impl<const Q: usize> Executor<Q> {
             return;
         }
         self.finished = true;
-        if self.queue.is_empty() && self.state == RunState::Idle {
+        // Idle, or run to the end of the queue and resting there (a starved
+        // program whose end comes after its last move): done.
+        if self.queue.is_empty() && matches!(self.state, RunState::Idle | RunState::Running) {
             self.state = RunState::Done;
         }
     }
@@ -413,7 +434,8 @@ impl<const Q: usize> Executor<Q> {
         }
         let (v, a, s) = match self.current() {
             Some(p) => (self.v, p.accel(self.x), p.x0 + self.x),
-            None => (0.0, 0.0, self.tail_s),
+            // No plan: at rest where the machine stands (not where the queue ends).
+            None => (0.0, 0.0, self.s),
         };
         let (am, jm) = (self.cfg.planned_accel(), self.cfg.planned_jerk());
         self.stop = Some((Stop::new(v, a, am, jm), 0.0, s));
@@ -430,7 +452,7 @@ impl<const Q: usize> Executor<Q> {
                 let (am, jm) = (self.cfg.planned_accel(), self.cfg.planned_jerk());
                 p.x0 + self.x + Stop::new(self.v, p.accel(self.x), am, jm).distance()
             }
-            None => self.tail_s,
+            None => self.s,
         }
     }
 
@@ -439,6 +461,17 @@ impl<const Q: usize> Executor<Q> {
     /// changed piece the machine has reached, is refused with
     /// [`PushError::Stale`]. Linear in the plan's pieces, no allocation.
     pub fn commit(&mut self, plan: &PlannedBlock) -> Result<(), PushError> {
+        self.stats.commits += 1;
+        let r = self.commit_inner(plan);
+        if plan.finish {
+            // The end holds even if the speed update could not go in: the
+            // machine then rests where its plan ends, and the guard plans on.
+            self.finish();
+        }
+        r
+    }
+
+    fn commit_inner(&mut self, plan: &PlannedBlock) -> Result<(), PushError> {
         if self.abort {
             return Err(PushError::Aborting);
         }
@@ -750,8 +783,14 @@ impl<const Q: usize> Executor<Q> {
             let u_old = self.u;
             let (u_new, point) = match update {
                 ParamUpdate::FirstOrder => {
-                    let d = path.eval(u_old, 1);
-                    let u = (u_old + delta / d.d1.norm()).min(u_end);
+                    let speed = path.eval(u_old, 1).d1.norm();
+                    // Eq. 10 is undefined where C' = 0: take the second-order step there.
+                    let step = if speed > 0.0 {
+                        delta / speed
+                    } else {
+                        taylor2(path, u_old, delta)
+                    };
+                    let u = (u_old + step).min(u_end);
                     (u, path.eval(u, 0).p)
                 }
                 ParamUpdate::SecondOrder => {
@@ -822,23 +861,17 @@ impl<const Q: usize> Executor<Q> {
     }
 }
 
-/// The planner and the executor in one value, for single-threaded use
-/// (`simulate`, tests, benches): `push` plans and commits at once, `resume`
-/// and `set_feed_override` re-plan on the spot. Real-time callers use
-/// [`BlockPlanner`] and [`Executor`] on two threads instead.
+/// The planning side and the executor in one value, for single-threaded use
+/// (`simulate`, tests, benches): `push` plans and commits at once, and
+/// between ticks whatever the [`Driver`] finds due is planned and committed.
+/// Real-time callers run the [`Executor`] on one thread and a [`Driver`] on
+/// another instead.
 ///
 /// About 1.6 MiB: box it.
 #[derive(Debug)]
 pub struct Interpolator<const Q: usize = DEFAULT_QUEUE> {
     exec: Executor<Q>,
-    planner: BlockPlanner,
-    plan: PlannedBlock,
-    ovr: f64,
-    /// `finish` was called while a long block was still being planned.
-    finish_requested: bool,
-    /// The last error of planning done on the caller's behalf (the parts of
-    /// a long block, the end of the program, a resumed hold, an override).
-    last_error: Option<PushError>,
+    driver: Driver,
 }
 
 impl<const Q: usize> Interpolator<Q> {
@@ -848,11 +881,7 @@ impl<const Q: usize> Interpolator<Q> {
         let p = Vec3::new(position[0], position[1], position[2]);
         Ok(Interpolator {
             exec,
-            planner: BlockPlanner::new(cfg, p, 0.0)?,
-            plan: PlannedBlock::new(),
-            ovr: 1.0,
-            finish_requested: false,
-            last_error: None,
+            driver: Driver::new(cfg, p, 0.0)?,
         })
     }
 
@@ -886,13 +915,13 @@ impl<const Q: usize> Interpolator<Q> {
     }
     /// The feed override in force (1 = 100 %).
     pub fn feed_override(&self) -> f64 {
-        self.ovr
+        self.driver.feed_override()
     }
     /// The last error of planning done on the caller's behalf (`finish`,
     /// `resume`, `set_feed_override`, the later parts of a long block);
     /// `None` when all went through.
     pub fn last_error(&self) -> Option<PushError> {
-        self.last_error
+        self.driver.last_error()
     }
     /// The executor (real-time half).
     pub fn executor(&self) -> &Executor<Q> {
@@ -900,34 +929,18 @@ impl<const Q: usize> Interpolator<Q> {
     }
     /// The planner (non-real-time half).
     pub fn planner(&self) -> &BlockPlanner {
-        &self.planner
+        self.driver.planner()
     }
     /// The planner's look-ahead window, to set its diagnostics
     /// ([`crate::plan::Window::trace`]).
     pub fn window_mut(&mut self) -> &mut crate::plan::Window {
-        self.planner.window_mut()
+        self.driver.window_mut()
     }
 
     /// Marks the end of the program: reaching the end of the queue then means `Done`.
     pub fn finish(&mut self) {
-        if self.finish_requested {
-            // Once per program: after an abort flushed it, a new one starts with `push`.
-            return;
-        }
-        self.finish_requested = true;
-        self.complete_finish();
-    }
-
-    /// The end of the program once its last parts are planned.
-    fn complete_finish(&mut self) {
-        self.pump();
-        if !self.planner.has_pending() && !self.exec.finished {
-            self.sync_machine();
-            if self.planner.finish(&mut self.plan).is_ok() {
-                let _ = self.exec.commit(&self.plan);
-            }
-            self.exec.finish();
-        }
+        self.driver.finish();
+        self.driver.drive(&mut self.exec);
     }
 
     /// Feed hold (see [`Executor::feed_hold`]).
@@ -938,7 +951,7 @@ impl<const Q: usize> Interpolator<Q> {
     /// Leave a feed hold: once at rest, the speed is planned again from there.
     pub fn resume(&mut self) {
         self.exec.resume();
-        self.replan_if_resumed();
+        self.driver.drive(&mut self.exec);
     }
 
     /// Abort (see [`Executor::abort`]); the planner follows once the machine is idle.
@@ -946,22 +959,12 @@ impl<const Q: usize> Interpolator<Q> {
         self.exec.abort();
     }
 
-    /// Set the feed override (1 = 100 %, up to `max_feed_override`). It
-    /// scales the programmed feed and the MRR law, never the machine's
-    /// limits; the speed is planned again from the next piece on.
+    /// Set the feed override (see [`Driver::set_feed_override`]); the speed
+    /// is planned again from the next piece on.
     pub fn set_feed_override(&mut self, value: f64) -> Result<(), OverrideError> {
-        if !(value >= 0.0 && value <= self.exec.config().max_feed_override) {
-            return Err(OverrideError::OutOfRange);
-        }
-        self.ovr = value;
-        if self.exec.queued_segments() == 0 || self.exec.stop.is_some() {
-            // Idle, holding or stopping: the next plan takes it.
-            self.planner.set_feed_override(value);
-            return Ok(());
-        }
-        self.sync_machine();
-        if self.planner.replan(value, &mut self.plan).is_ok() {
-            let _ = self.exec.commit(&self.plan);
+        let st = self.exec.status();
+        if let Some(plan) = self.driver.set_feed_override(&st, value)? {
+            let _ = self.exec.commit(plan);
         }
         Ok(())
     }
@@ -972,124 +975,51 @@ impl<const Q: usize> Interpolator<Q> {
         self.exec.hold_stop_position()
     }
 
-    fn sync_machine(&mut self) {
-        let (s, rest) = self.exec.plan_position();
-        self.planner.set_machine(s, rest);
-    }
-
     /// Queue a block: plan it (non-real-time work) and commit it. All or
     /// nothing: on error nothing was queued. A block longer than the
     /// look-ahead's part is accepted whole; its later parts are planned as
     /// the machine moves on (in `push`, `finish` and `tick`).
     pub fn push(&mut self, block: &Block) -> Result<(), PushError> {
-        if self.exec.finished {
-            return Err(PushError::Finished);
+        if !self.exec.status().finished {
+            // The parts of a long block before the next one.
+            self.driver.drive_parts(&mut self.exec);
         }
-        if self.finish_requested {
-            if self.planner.has_pending() {
-                return Err(PushError::Finished);
-            }
-            // Finished, then aborted: a new program may follow.
-            self.finish_requested = false;
-        }
-        if self.exec.abort {
-            return Err(PushError::Aborting);
-        }
-        if self.exec.state == RunState::Idle && self.exec.queue.is_empty() {
-            // After an abort the planner starts again where the machine stands.
-            let (p, s) = self.exec.position();
-            if self.planner.tail_s() != s || self.planner.tail() != p {
-                self.planner.resync(p, s);
-            }
-        }
-        self.pump();
-        if self.planner.has_pending() {
-            return Err(PushError::Pending);
-        }
-        // Room for its segments and a full update, checked before planning.
-        let mut paths = [block.path; MAX_PIECES];
-        let needed = split_at_tangent_breaks(&block.path, &mut paths, self.exec.cfg.tangent_tolerance)?;
-        if needed > self.exec.free_segments() {
-            return Err(PushError::Full {
-                needed,
-                free: self.exec.free_segments(),
-            });
-        }
-        self.sync_machine();
-        self.planner.plan(block, &mut self.plan)?;
-        self.exec.commit(&self.plan)
+        let st = self.exec.status();
+        let plan = self.driver.push(&st, block)?;
+        self.exec.commit(plan)
     }
 
-    /// Commit the next parts of a long block while there is room.
-    fn pump(&mut self) {
-        while self.planner.has_pending() && self.exec.free_segments() >= MAX_PIECES {
-            self.sync_machine();
-            let r = self
-                .planner
-                .plan_pending(&mut self.plan)
-                .and_then(|()| self.exec.commit(&self.plan));
-            match r {
-                Ok(()) => {}
-                // Not yet: the look-ahead reaches far enough for now.
-                Err(e) => {
-                    self.last_error = Some(e);
-                    break;
-                }
-            }
-        }
-    }
-
-    fn replan_if_resumed(&mut self) {
-        if self.exec.needs_plan() {
-            self.sync_machine();
-            if self.planner.replan(self.ovr, &mut self.plan).is_ok() {
-                let _ = self.exec.commit(&self.plan);
-            }
-        }
-    }
-
-    /// Queue a block planned by another [`BlockPlanner`] (see [`Executor::commit`]).
+    /// Queue a plan made by another planner (see [`Executor::commit`]).
     pub fn commit(&mut self, plan: &PlannedBlock) -> Result<(), PushError> {
         self.exec.commit(plan)
     }
 
-    /// One period (see [`Executor::tick`]). Between ticks it plans the next
-    /// part of a long block, and the move from a resumed hold, when due
-    /// (non-real-time work: real-time callers drive [`Executor`] instead).
+    /// One period (see [`Executor::tick`]). Before it, whatever planning is
+    /// due is done and committed (non-real-time work: real-time callers drive
+    /// [`Executor`] instead).
     pub fn tick(&mut self) -> Setpoint {
-        if self.planner.has_pending() {
-            self.pump();
-            if !self.planner.has_pending() && self.finish_requested {
-                self.complete_finish();
-            }
-        }
-        self.replan_if_resumed();
-        self.guard();
+        self.driver.drive(&mut self.exec);
         self.exec.tick()
-    }
-
-    /// The machine is about to run short of plan while more is queued (the
-    /// queue starves of blocks, so no chunk mark is passed): plan to the end
-    /// of what is queued.
-    fn guard(&mut self) {
-        if self.planner.has_unplanned()
-            && self.exec.stop.is_none()
-            && self.exec.planned_ahead() < guard_distance(self.exec.config(), self.exec.v)
-        {
-            self.sync_machine();
-            if self.planner.plan_ahead(&mut self.plan).is_ok() {
-                let _ = self.exec.commit(&self.plan);
-            }
-        }
     }
 }
 
 /// Second-order Taylor step in arc length: `Δ/|C'| − Δ²·(C'·C'')/(2|C'|⁴)`.
+///
+/// Near a stationary point (`|C'|² ≤ |C''|·Δ`, where that series does not
+/// converge; at the point itself it divides by zero) the step is the positive
+/// root of `|C''|·e²/2 + |C'|·e = Δ` instead: `√(2Δ/|C''|)` at the point.
 #[inline]
 fn taylor2(path: &Path, u: f64, delta: f64) -> f64 {
     let d = path.eval(u, 2);
     let sp2 = d.d1.norm_squared();
     let sp = libm::sqrt(sp2);
+    let bend = d.d2.norm();
+    if sp2 <= bend * delta {
+        if !(sp > 0.0 || bend > 0.0) {
+            return 0.0; // nothing to go by: the chord search brackets from u
+        }
+        return 2.0 * delta / (sp + libm::sqrt(sp2 + 2.0 * bend * delta));
+    }
     delta / sp - delta * delta * d.d1.dot(&d.d2) / (2.0 * sp2 * sp2)
 }
 

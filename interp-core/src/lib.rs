@@ -13,6 +13,7 @@
 #![warn(clippy::std_instead_of_core, clippy::alloc_instead_of_core)]
 
 pub mod config;
+pub mod driver;
 pub mod feed;
 pub mod geom;
 pub mod interp;
@@ -27,8 +28,9 @@ pub mod spline;
 pub mod stop;
 
 pub use config::{InterpConfig, ParamUpdate};
+pub use driver::{Driver, ExecStatus};
 pub use geom::{Curve, Derivs, Vec3};
-pub use interp::{Interpolator, RunState, Setpoint};
+pub use interp::{Executor, Interpolator, RunState, Setpoint};
 pub use nurbs::{Nurbs, NurbsError};
 pub use path::{Arc, Blending, Block, Line, Path};
 pub use prepare::{BlockPlanner, PlannedBlock};

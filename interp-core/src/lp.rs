@@ -549,9 +549,7 @@ pub fn solve_traced<const N: usize, const M: usize>(
     let mut max_violation: f64 = 0.0;
     for j in 0..n {
         objective += p.c[j] * x[j];
-        max_violation = max_violation
-            .max(p.lo[j] - x[j])
-            .max(x[j] - p.hi[j]);
+        max_violation = max_violation.max(p.lo[j] - x[j]).max(x[j] - p.hi[j]);
     }
     for r in 0..m {
         let v = w.row_value(r);
@@ -870,7 +868,13 @@ mod tests {
             let n = 5 + (rnd() * 200.0) as usize;
             let delta = 0.5 + rnd() * 20.0;
             let u: Vec<f64> = (0..n)
-                .map(|_| if rnd() < 0.1 { rnd() * 5.0 } else { 10.0 + rnd() * 900.0 })
+                .map(|_| {
+                    if rnd() < 0.1 {
+                        rnd() * 5.0
+                    } else {
+                        10.0 + rnd() * 900.0
+                    }
+                })
                 .collect();
             let mut want = u.clone();
             want[0] = 0.0;
@@ -972,7 +976,12 @@ mod tests {
             }
         }
         for k in 0..n {
-            assert!((x[k] - g[k]).abs() <= 1e-4 * (1.0 + g[k]), "k={k}: {} vs {}", x[k], g[k]);
+            assert!(
+                (x[k] - g[k]).abs() <= 1e-4 * (1.0 + g[k]),
+                "k={k}: {} vs {}",
+                x[k],
+                g[k]
+            );
         }
     }
 

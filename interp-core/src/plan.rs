@@ -494,7 +494,13 @@ impl Window {
     /// bounds of its unknowns.
     pub fn lp_dump(&self) -> (usize, &[f64], &[f64], &[f64], &LpWork<REGION, MAX_ROWS>) {
         let n = self.last.variables;
-        (n, &self.scratch.c[..n], &self.scratch.lo[..n], &self.scratch.hi[..n], &self.scratch.lp)
+        (
+            n,
+            &self.scratch.c[..n],
+            &self.scratch.lo[..n],
+            &self.scratch.hi[..n],
+            &self.scratch.lp,
+        )
     }
     /// Residuals of the last linear program (diagnostics).
     pub fn lp_residuals(&self) -> (f64, f64, f64) {
@@ -808,7 +814,6 @@ impl Window {
         d.n_stops += 1;
         true
     }
-
 }
 
 /// Rows being written for one linear program.
@@ -821,7 +826,14 @@ impl RowSink<'_> {
     /// Fold a linear form over the coefficients of pieces `(i−1, i, i+1)`
     /// into a row on the unknowns (pieces `first..`): fixed pieces move into
     /// the bounds.
-    fn push(&mut self, d: &Data, i: usize, mut a: [f64; 3], lo: f64, hi: f64) -> Result<(), PlanError> {
+    fn push(
+        &mut self,
+        d: &Data,
+        i: usize,
+        mut a: [f64; 3],
+        lo: f64,
+        hi: f64,
+    ) -> Result<(), PlanError> {
         let mut c = 0.0;
         for (m, coef) in a.iter_mut().enumerate() {
             let q = i as isize + m as isize - 1;

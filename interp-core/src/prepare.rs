@@ -14,9 +14,10 @@
 //! [`PushError::Stale`].
 
 use crate::config::{ConfigError, InterpConfig};
-use crate::feed::{ArcLengthDerivs, feed_limit, junction_speed, machine_limit};
+use crate::feed::{ArcLengthDerivs, feed_limit, junction_speed, machine_limit, stationary_offset};
 use crate::geom::{Curve, Derivs, Vec3, golden_section_argmin};
 use crate::interp::{JOIN_TOLERANCE, MAX_PIECES, PushError, grid_multiple};
+use crate::nurbs::Side;
 use crate::path::{Blending, Block, Path};
 use crate::plan::{AxisSample, CHUNK, Freeze, PlanError, SLIVER, WINDOW, Window, index_of};
 use crate::spline::Piece;
@@ -76,6 +77,9 @@ pub struct PlannedBlock {
     pub(crate) pieces: [Piece; WINDOW],
     pub(crate) rests: [bool; WINDOW],
     pub(crate) n_pieces: usize,
+    /// The program ends with this plan: reaching the end of the queue then
+    /// means `Done` ([`crate::driver::Driver::finish`]).
+    pub(crate) finish: bool,
 }
 
 impl Default for PlannedBlock {
@@ -101,6 +105,7 @@ impl PlannedBlock {
             pieces: [Piece::default(); WINDOW],
             rests: [false; WINDOW],
             n_pieces: 0,
+            finish: false,
         }
     }
     /// Id of the planned block (0: a re-plan of the speed only).
@@ -179,6 +184,10 @@ impl BlockPlanner {
             planned_to: tail_s,
             finished: false,
         })
+    }
+    /// The configuration it plans for.
+    pub fn config(&self) -> &InterpConfig {
+        &self.cfg
     }
     /// Where the next block must start.
     pub fn tail(&self) -> Vec3 {
@@ -266,7 +275,7 @@ impl BlockPlanner {
     }
 
     /// `out` as a plan without segments.
-    fn speed_only(&self, out: &mut PlannedBlock) {
+    pub(crate) fn speed_only(&self, out: &mut PlannedBlock) {
         out.id = 0;
         out.tail = self.tail;
         out.s0 = self.tail_s;
@@ -300,20 +309,23 @@ impl BlockPlanner {
         // Refuse early (before any splitting) when not even one part fits yet.
         let reach = (length.min(chunk) + self.tail_s) / self.h;
         self.window.release_before(self.machine);
-        if !self.window.has_room(libm::floor(reach) as i64 + 1, 2, self.machine) {
+        if !self
+            .window
+            .has_room(libm::floor(reach) as i64 + 1, 2, self.machine)
+        {
             return Err(PushError::ProfileFull);
         }
         // (A part cut at a mark ends there only up to round-off: count it as reached.)
         let mark = (libm::floor(self.tail_s / chunk + 1e-6) + 1.0) * chunk;
         let (part, rest) = if self.tail_s + length > mark + self.h {
-            let u = invert_arc_length(
-                &block.path,
-                block.path.u_start(),
-                mark - self.tail_s,
-                block.path.u_end(),
-            );
+            let u = block
+                .path
+                .param_at_arc_length(block.path.u_start(), mark - self.tail_s);
             match block.path.split_at(u) {
-                Ok((a, b)) => (Block { path: a, ..*block }, Some(Block { path: b, ..*block })),
+                Ok((a, b)) => (
+                    Block { path: a, ..*block },
+                    Some(Block { path: b, ..*block }),
+                ),
                 Err(_) => (*block, None),
             }
         } else {
@@ -372,10 +384,13 @@ impl BlockPlanner {
         lift: Option<(f64, Stop)>,
         out: &mut PlannedBlock,
     ) -> Result<(), PushError> {
-        let from = self.window.solve(freeze, end, self.ovr, lift, self.machine).map_err(|e| match e {
-            PlanError::Full => PushError::ProfileFull,
-            PlanError::Solver(_) => PushError::Schedule,
-        })?;
+        let from = self
+            .window
+            .solve(freeze, end, self.ovr, lift, self.machine)
+            .map_err(|e| match e {
+                PlanError::Full => PushError::ProfileFull,
+                PlanError::Solver(_) => PushError::Schedule,
+            })?;
         let n = self.window.n_pieces();
         out.n_pieces = 0;
         out.from_x = if from < n {
@@ -395,7 +410,14 @@ impl BlockPlanner {
     fn plan_part(&mut self, block: &Block, out: &mut PlannedBlock) -> Result<(), PushError> {
         let cfg = self.cfg;
         let mut pieces = [block.path; MAX_PIECES];
-        let n_pieces = split_at_tangent_breaks(&block.path, &mut pieces, cfg.tangent_tolerance)?;
+        let mut singular = [false; MAX_PIECES + 1];
+        let n_pieces = split_at_tangent_breaks(
+            &block.path,
+            &mut pieces,
+            cfg.tangent_tolerance,
+            cfg.chord_tolerance,
+            &mut singular,
+        )?;
         let mut lengths = [0.0; MAX_PIECES];
         let mut total = 0.0;
         for (len, piece) in lengths.iter_mut().zip(&pieces[..n_pieces]) {
@@ -405,6 +427,18 @@ impl BlockPlanner {
             }
             total += *len;
         }
+        // Where a piece starts or ends at a stationary point (C' = 0), its laws
+        // are taken a tick's distance inside (feed::stationary_offset).
+        let mut windows = [(0.0, 0.0); MAX_PIECES];
+        for (k, w) in windows.iter_mut().enumerate().take(n_pieces) {
+            *w = law_window(
+                &pieces[k],
+                lengths[k],
+                (singular[k], singular[k + 1]),
+                block,
+                &cfg,
+            );
+        }
         let h = self.h;
         let g_last = index_of(self.tail_s + total, h) + 1;
         self.window.release_before(self.machine);
@@ -413,7 +447,6 @@ impl BlockPlanner {
         }
         // From here on nothing fails but the solve (which leaves the window
         // as it was on a fallback, and may only refuse for capacity).
-        let entry = block.path.eval(block.path.u_start(), 3);
         out.id = block.id;
         out.tail = self.tail;
         out.s0 = self.tail_s;
@@ -421,6 +454,7 @@ impl BlockPlanner {
         // The junction with what is queued before.
         out.stop_at_join = false;
         if let Some(left) = self.tail_derivs {
+            let entry = block.path.eval(windows[0].0, 3);
             let v = if self.tail_exact_stop {
                 0.0
             } else {
@@ -435,8 +469,8 @@ impl BlockPlanner {
         for (k, piece) in pieces[..n_pieces].iter().enumerate() {
             if k > 0 {
                 // A tangent break inside the block.
-                let left = pieces[k - 1].eval(pieces[k - 1].u_end(), 3);
-                let right = piece.eval(piece.u_start(), 3);
+                let left = pieces[k - 1].eval(windows[k - 1].1, 3);
+                let right = piece.eval(windows[k].0, 3);
                 let v = junction_speed(&left, &right, &cfg);
                 let stop = self.apply_junction(v, s);
                 if let Some(prev) = out.segments[k - 1].as_mut() {
@@ -450,7 +484,7 @@ impl BlockPlanner {
                 length: lengths[k],
                 stop_at_end: false,
             };
-            sample_laws(&seg, block, &cfg, &mut self.window, h);
+            sample_laws(&seg, windows[k], block, &cfg, &mut self.window, h);
             s += seg.length;
             out.segments[k] = Some(seg);
         }
@@ -469,7 +503,7 @@ impl BlockPlanner {
         out.s1 = s;
         self.tail = out.end;
         self.tail_s = s;
-        self.tail_derivs = Some(last.eval(last.u_end(), 3));
+        self.tail_derivs = Some(last.eval(windows[n_pieces - 1].1, 3));
         self.tail_exact_stop = block.blending == Blending::ExactStop;
         self.window.set_tail(s);
         // The speed is planned when the queue passes a chunk mark (to that
@@ -480,11 +514,7 @@ impl BlockPlanner {
         let chunk = CHUNK as f64 * self.h;
         let mark = libm::floor(s / chunk + 1e-9) * chunk;
         out.n_pieces = 0;
-        let end = if self.finished {
-            s
-        } else {
-            mark.min(s)
-        };
+        let end = if self.finished { s } else { mark.min(s) };
         let r = if end > self.planned_to + SLIVER * h {
             let freeze = self.freeze();
             self.solve_into(freeze, end, None, out).map(|()| {
@@ -536,7 +566,18 @@ impl BlockPlanner {
 /// Curves also leave per-axis derivative samples (four per interval, the
 /// refined minima, and the segment's ends) for the per-axis jerk rows; lines
 /// fold their axes' jerk limits into the interval's tangential jerk.
-fn sample_laws(seg: &Segment, block: &Block, cfg: &InterpConfig, w: &mut Window, h: f64) {
+///
+/// The laws are evaluated with the parameter clamped into `window` (see
+/// [`law_window`]).
+fn sample_laws(
+    seg: &Segment,
+    window: (f64, f64),
+    block: &Block,
+    cfg: &InterpConfig,
+    w: &mut Window,
+    h: f64,
+) {
+    let (u_lo, u_hi) = window;
     let m = cfg.law_samples_per_interval as i64 * grid_multiple(cfg);
     let hs = h / m as f64;
     let path = &seg.path;
@@ -601,8 +642,8 @@ fn sample_laws(seg: &Segment, block: &Block, cfg: &InterpConfig, w: &mut Window,
         }
     }
     if curve {
-        sample(w, seg.s0, &path.eval(path.u_start(), 3));
-        sample(w, seg.s1(), &path.eval(path.u_end(), 3));
+        sample(w, seg.s0, &path.eval(u_lo, 3));
+        sample(w, seg.s1(), &path.eval(u_hi, 3));
     }
     // Whether the last law sample kept a per-axis sample (then the stretch to
     // the next one is sampled at its middle too: the terms change fast there).
@@ -611,19 +652,19 @@ fn sample_laws(seg: &Segment, block: &Block, cfg: &InterpConfig, w: &mut Window,
     let k0 = libm::ceil(seg.s0 / hs) as i64;
     let k1 = libm::floor(seg.s1() / hs) as i64;
     let (mut u_prev, mut x_prev) = (path.u_start(), seg.s0);
-    let u_end = path.u_end();
     // Per law, the last two samples: (k, u, value).
     let mut w1: [Option<(i64, f64, f64)>; 2] = [None; 2];
     let mut w2: [Option<(i64, f64, f64)>; 2] = [None; 2];
     for k in k0..=k1 {
         let x = k as f64 * hs;
-        let u = invert_arc_length(path, u_prev, x - x_prev, u_end);
+        let u = path.param_at_arc_length(u_prev, x - x_prev);
         let g = k.div_euclid(m);
-        let d = path.eval(u, 3);
+        // One evaluation for both laws at the sample.
+        let d = path.eval(u.clamp(u_lo, u_hi), 3);
         if curve {
             let kept = sample(w, x, &d);
             if (kept || last_kept) && k > k0 {
-                let um = 0.5 * (u_prev + u);
+                let um = (0.5 * (u_prev + u)).clamp(u_lo, u_hi);
                 sample(w, x - 0.5 * hs, &path.eval(um, 3));
             }
             last_kept = kept;
@@ -640,8 +681,8 @@ fn sample_laws(seg: &Segment, block: &Block, cfg: &InterpConfig, w: &mut Window,
                 && vb < va
                 && vb <= v
             {
-                let (v_min, u_min) = golden_section_argmin(
-                    |uu| law(&path.eval(uu, 3), which),
+                let (u_min, v_min) = golden_section_argmin(
+                    |uu| law(&path.eval(uu.clamp(u_lo, u_hi), 3), which),
                     ua,
                     u,
                     GOLDEN_ITERS,
@@ -653,6 +694,7 @@ fn sample_laws(seg: &Segment, block: &Block, cfg: &InterpConfig, w: &mut Window,
                 }
                 if which == 0 && v_min.is_finite() {
                     // Where a curvature peak lies: a per-axis sample there too.
+                    let u_min = u_min.clamp(u_lo, u_hi);
                     let s_min = seg.s0 + path.arc_length(path.u_start(), u_min);
                     sample(w, s_min, &path.eval(u_min, 3));
                 }
@@ -708,48 +750,75 @@ pub(crate) fn axis_jerk_may_bind(smp: &AxisSample, ax: usize, l2: f64, cfg: &Int
 /// Golden-section steps refining a sampled law minimum (bracket shrinks by 0.618 each).
 const GOLDEN_ITERS: usize = 40;
 
-/// The parameter `u ≥ u0` at arc length `ds` past `u0` (Newton with a bracket).
-fn invert_arc_length(path: &Path, u0: f64, ds: f64, u_end: f64) -> f64 {
-    if ds <= 0.0 {
-        return u0;
-    }
-    let (mut lo, mut hi) = (u0, u_end);
-    let mut u = (u0 + ds / path.eval(u0, 1).d1.norm()).clamp(lo, hi);
-    for _ in 0..60 {
-        let f = path.arc_length(u0, u) - ds;
-        if libm::fabs(f) <= 1e-13 * (1.0 + ds) {
-            break;
-        }
-        if f > 0.0 {
-            hi = u;
-        } else {
-            lo = u;
-        }
-        let mut next = u - f / path.eval(u, 1).d1.norm();
-        if !(next > lo && next < hi) {
-            next = 0.5 * (lo + hi);
-        }
-        u = next;
-    }
-    u
+/// The parameters between which the laws of `path` (of length `len`, a piece
+/// of `block`) are evaluated: its whole range, narrowed by [`stationary_offset`]
+/// at an end that is `singular` (the curve stops or turns back there: the
+/// curvature is in general infinite, or as good as, and no tick sees it).
+fn law_window(
+    path: &Path,
+    len: f64,
+    singular: (bool, bool),
+    block: &Block,
+    cfg: &InterpConfig,
+) -> (f64, f64) {
+    let (ua, ub) = (path.u_start(), path.u_end());
+    let limit = |u: f64| {
+        let d = path.eval(u, 3);
+        machine_limit(&d, cfg, 1.0).min(feed_limit(&d, block.feed, block.mrr.as_ref(), cfg))
+    };
+    let lo = if singular.0 {
+        let d = stationary_offset(cfg, 0.5 * len, |x| limit(path.param_at_arc_length(ua, x)));
+        path.param_at_arc_length(ua, d)
+    } else {
+        ua
+    };
+    let hi = if singular.1 {
+        let d = stationary_offset(cfg, 0.5 * len, |x| {
+            limit(path.param_at_arc_length(ua, len - x))
+        });
+        path.param_at_arc_length(ua, len - d)
+    } else {
+        ub
+    };
+    (lo, hi)
 }
 
-/// Cut a NURBS at interior knots of full multiplicity where the tangent
-/// turns by more than `tol` (a corner inside one block). Lines and arcs are
-/// one piece. Returns the number of pieces written.
+/// Cut a NURBS where the tangent breaks: at interior knots of full
+/// multiplicity where it turns by more than `tol` (a corner inside one
+/// block), and where the curve stops or turns back
+/// ([`Nurbs::for_each_stationary`]: C' = 0, a cusp where the tangent reverses,
+/// a corner, or a point where the curvature blows up; or a hairpin that is a
+/// cusp to within `near`). Those are marked in `singular` (one flag per piece
+/// boundary, the block's ends included, which are marked where the curve is
+/// stationary): the pieces' laws are taken a tick inside them
+/// ([`law_window`]) and their junction is priced like a corner's. Lines and
+/// arcs are one piece. Returns the number of pieces written.
 pub(crate) fn split_at_tangent_breaks(
     path: &Path,
     out: &mut [Path; MAX_PIECES],
     tol: f64,
+    near: f64,
+    singular: &mut [bool; MAX_PIECES + 1],
 ) -> Result<usize, PushError> {
     out[0] = *path;
+    singular.fill(false);
     let Path::Nurbs(n) = path else {
         return Ok(1);
     };
+    let (ua, ub) = (n.u_start(), n.u_end());
+    singular[0] = n.is_stationary(ua, Side::After);
+    // Cut parameters and whether each stops or turns the curve back (more than
+    // MAX_PIECES - 1 is an error either way).
+    let mut cuts = [(0.0f64, false); 2 * MAX_PIECES];
+    let mut n_cuts = 0;
+    let mut add = |u: f64, stops: bool| {
+        if n_cuts < cuts.len() {
+            cuts[n_cuts] = (u, stops);
+        }
+        n_cuts += 1;
+    };
     let p = n.degree();
     let knots = n.knots();
-    let (ua, ub) = (n.u_start(), n.u_end());
-    let mut count = 1;
     let mut i = p + 1;
     while i < knots.len() - p - 1 {
         let u = knots[i];
@@ -758,28 +827,39 @@ pub(crate) fn split_at_tangent_breaks(
             mult += 1;
         }
         if u > ua && u < ub && mult >= p {
-            // Left and right tangents at a C0 knot.
-            // Just before the knot (evaluation at the knot takes the right span).
-            let prev_knot = knots[..i]
-                .iter()
-                .rev()
-                .find(|&&k| k < u)
-                .copied()
-                .unwrap_or(ua);
-            let left = n.eval(u - (u - prev_knot) * 1e-9, 1).d1;
-            let right = n.eval(u, 1).d1;
-            let cos = left.dot(&right) / (left.norm() * right.norm());
-            if !(cos >= libm::cos(tol)) {
-                if count >= MAX_PIECES {
-                    return Err(PushError::TooManyCorners);
-                }
-                let (a, b) = out[count - 1].split_at(u).map_err(PushError::Split)?;
-                out[count - 1] = a;
-                out[count] = b;
-                count += 1;
+            // The one-sided tangents at a C0 knot.
+            let left = n.tangent(u, Side::Before);
+            let right = n.tangent(u, Side::After);
+            if !(left.dot(&right) >= libm::cos(tol)) {
+                add(u, false);
             }
         }
         i += mult;
     }
+    n.for_each_stationary(near, |u| add(u, true));
+    if n_cuts > cuts.len() {
+        return Err(PushError::TooManyCorners);
+    }
+    let cuts = &mut cuts[..n_cuts];
+    cuts.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+    let mut count = 1;
+    let mut last = ua;
+    for &(u, stops) in cuts.iter() {
+        if u <= last {
+            // A stationary corner knot, found twice.
+            singular[count - 1] |= stops;
+            continue;
+        }
+        if count >= MAX_PIECES {
+            return Err(PushError::TooManyCorners);
+        }
+        let (a, b) = out[count - 1].split_at(u).map_err(PushError::Split)?;
+        out[count - 1] = a;
+        out[count] = b;
+        singular[count] = stops;
+        count += 1;
+        last = u;
+    }
+    singular[count] = n.is_stationary(ub, Side::Before);
     Ok(count)
 }

@@ -216,11 +216,41 @@ mod tests {
     fn closed_form_motion_matches_integration_and_stays_on_the_spline() {
         // Convex, concave and straight pieces, slow and fast.
         let pieces = [
-            Piece { x0: 0.0, h: 0.25, e0: 100.0, d: 400.0, e1: 900.0 },
-            Piece { x0: 3.0, h: 0.25, e0: 9000.0, d: 9800.0, e1: 9100.0 },
-            Piece { x0: 1.0, h: 0.5, e0: 2500.0, d: 2400.0, e1: 2600.0 },
-            Piece { x0: 0.0, h: 0.25, e0: 0.0, d: 20.0, e1: 400.0 },
-            Piece { x0: 0.0, h: 2.0, e0: 50.0, d: 50.0, e1: 50.0 },
+            Piece {
+                x0: 0.0,
+                h: 0.25,
+                e0: 100.0,
+                d: 400.0,
+                e1: 900.0,
+            },
+            Piece {
+                x0: 3.0,
+                h: 0.25,
+                e0: 9000.0,
+                d: 9800.0,
+                e1: 9100.0,
+            },
+            Piece {
+                x0: 1.0,
+                h: 0.5,
+                e0: 2500.0,
+                d: 2400.0,
+                e1: 2600.0,
+            },
+            Piece {
+                x0: 0.0,
+                h: 0.25,
+                e0: 0.0,
+                d: 20.0,
+                e1: 400.0,
+            },
+            Piece {
+                x0: 0.0,
+                h: 2.0,
+                e0: 50.0,
+                d: 50.0,
+                e1: 50.0,
+            },
         ];
         for p in &pieces {
             let x = 0.01;
@@ -229,7 +259,10 @@ mod tests {
                 let (xe, ve) = advance(p, x, v, t);
                 let (xr, vr) = rk4(p, x, v, t, 20_000);
                 assert!((xe - xr).abs() < 1e-12, "{p:?} t={t}: {xe} vs {xr}");
-                assert!((ve - vr).abs() < 1e-9 * (1.0 + vr), "{p:?} t={t}: {ve} vs {vr}");
+                assert!(
+                    (ve - vr).abs() < 1e-9 * (1.0 + vr),
+                    "{p:?} t={t}: {ve} vs {vr}"
+                );
                 if xe <= p.h {
                     // ṡ² = S(s) is a first integral of the motion.
                     assert!((ve * ve - p.s2(xe)).abs() < 1e-9 * (1.0 + ve * ve), "{p:?}");
@@ -241,7 +274,13 @@ mod tests {
     #[test]
     fn leaves_a_rest_point_and_reaches_a_piece_end_in_the_right_time() {
         // From rest with S = β·x + α·x² (e0 = 0): leaves at once.
-        let p = Piece { x0: 0.0, h: 0.25, e0: 0.0, d: 30.0, e1: 500.0 };
+        let p = Piece {
+            x0: 0.0,
+            h: 0.25,
+            e0: 0.0,
+            d: 30.0,
+            e1: 500.0,
+        };
         let (x, v) = advance(&p, 0.0, 0.0, 1e-3);
         assert!(x > 0.0 && v > 0.0);
         let t = time_to_end(&p, 0.0, 0.0, 10.0).unwrap();
@@ -256,7 +295,13 @@ mod tests {
         }
         assert!((t - want).abs() < 1e-4 * want, "{t} vs {want}");
         // Arriving at a rest point (e1 = 0) takes a finite time.
-        let q = Piece { x0: 0.0, h: 0.25, e0: 400.0, d: 30.0, e1: 0.0 };
+        let q = Piece {
+            x0: 0.0,
+            h: 0.25,
+            e0: 400.0,
+            d: 30.0,
+            e1: 0.0,
+        };
         let t = time_to_end(&q, 0.0, 20.0, 10.0).unwrap();
         assert!(t.is_finite() && t > 0.0);
         let (xe, ve) = advance(&q, 0.0, 20.0, t);

@@ -9,7 +9,9 @@ use common::{LIMIT_REL_TOL, Lcg, check_kinematics};
 use interp_core::geom::{Curve, Vec3};
 use interp_core::interp::PushError;
 use interp_core::path::{Arc, Blending, Block, Line, Path};
-use interp_core::{BlockPlanner, InterpConfig, Interpolator, PlannedBlock, RunState, Setpoint};
+use interp_core::{
+    BlockPlanner, Driver, Executor, InterpConfig, Interpolator, PlannedBlock, RunState, Setpoint,
+};
 use proptest::prelude::*;
 
 /// Setpoints lie on the program within this, mm.
@@ -482,13 +484,14 @@ fn a_closed_curve_in_one_block_is_traversed_whole() {
 }
 
 /// Streams `blocks` one every `gap` ticks (the first before any tick) to the
-/// end: through `push`, or planned by a `BlockPlanner` of its own (told
-/// where the machine is) and committed between ticks, as the daemon does.
+/// end: through `push`, or as the daemon does: an [`Executor`] ticking on its
+/// own and a [`Driver`] fed with its status, whose plans are committed
+/// between ticks.
 fn stream(cfg: InterpConfig, blocks: &[Block], gap: usize, separate: bool) -> Vec<Setpoint> {
     let mut ip = Box::new(Interpolator::<256>::new(cfg, start_of(blocks)).unwrap());
     let s = start_of(blocks);
-    let mut planner = Box::new(BlockPlanner::new(cfg, Vec3::new(s[0], s[1], s[2]), 0.0).unwrap());
-    let mut plan = Box::new(PlannedBlock::new());
+    let mut exec = Box::new(Executor::<256>::new(cfg, s).unwrap());
+    let mut driver = Box::new(Driver::new(cfg, Vec3::new(s[0], s[1], s[2]), 0.0).unwrap());
     let mut next = 0;
     let mut sps = Vec::new();
     let mut due = 0;
@@ -496,14 +499,18 @@ fn stream(cfg: InterpConfig, blocks: &[Block], gap: usize, separate: bool) -> Ve
         if next < blocks.len() && t >= due {
             // A block that does not fit yet is offered again next tick.
             let queued = if separate {
-                let (at, rest) = ip.executor().plan_position();
-                planner.set_machine(at, rest);
-                match planner.plan(&blocks[next], &mut plan) {
-                    Ok(()) => {
-                        ip.commit(&plan).unwrap();
+                // The parts of a long block first, as `Interpolator::push` does.
+                while let Some(plan) = driver.next_part(&exec.status()) {
+                    exec.commit(plan).unwrap();
+                }
+                match driver.push(&exec.status(), &blocks[next]) {
+                    Ok(plan) => {
+                        exec.commit(plan).unwrap();
                         true
                     }
-                    Err(PushError::ProfileFull) => false,
+                    Err(PushError::ProfileFull | PushError::Full { .. } | PushError::Pending) => {
+                        false
+                    }
                     Err(e) => panic!("{e}"),
                 }
             } else {
@@ -513,11 +520,25 @@ fn stream(cfg: InterpConfig, blocks: &[Block], gap: usize, separate: bool) -> Ve
                 next += 1;
                 due = t + gap;
                 if next == blocks.len() {
-                    ip.finish();
+                    if separate {
+                        driver.finish();
+                        while let Some(plan) = driver.next(&exec.status()) {
+                            exec.commit(plan).unwrap();
+                        }
+                    } else {
+                        ip.finish();
+                    }
                 }
             }
         }
-        let sp = ip.tick();
+        let sp = if separate {
+            while let Some(plan) = driver.next(&exec.status()) {
+                exec.commit(plan).unwrap();
+            }
+            exec.tick()
+        } else {
+            ip.tick()
+        };
         sps.push(sp);
         if sp.state == RunState::Done {
             break;
@@ -561,20 +582,24 @@ fn a_plan_for_another_queue_end_is_refused_and_a_resynced_planner_goes_on() {
     let mut ip = Box::new(Interpolator::<256>::new(cfg, start_of(&blocks)).unwrap());
     let s = start_of(&blocks);
     let mut planner = Box::new(BlockPlanner::new(cfg, Vec3::new(s[0], s[1], s[2]), 0.0).unwrap());
-    let plans: Vec<Box<PlannedBlock>> = blocks
-        .iter()
-        .map(|b| {
-            let mut p = Box::new(PlannedBlock::new());
-            planner.plan(b, &mut p).unwrap();
-            p
-        })
-        .collect();
+    let mut plans: Vec<Box<PlannedBlock>> = Vec::new();
+    let mut ahead = Box::new(PlannedBlock::new());
+    for (i, b) in blocks.iter().enumerate() {
+        let mut p = Box::new(PlannedBlock::new());
+        planner.plan(b, &mut p).unwrap();
+        plans.push(p);
+        if i == 2 {
+            // The speed through the first three blocks (as the guard would).
+            planner.plan_ahead(&mut ahead).unwrap();
+        }
+    }
     // Out of order: block 2 was planned to follow block 1.
     assert_eq!(ip.commit(&plans[1]), Err(PushError::Stale));
     assert_eq!(ip.queued_segments(), 0);
     for p in &plans[..3] {
         ip.commit(p).unwrap();
     }
+    ip.commit(&ahead).unwrap();
     let queued = ip.queued_segments();
     assert_eq!(ip.commit(&plans[1]), Err(PushError::Stale));
     assert_eq!(ip.queued_segments(), queued);

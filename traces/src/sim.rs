@@ -4,10 +4,11 @@
 //! same [`ConfigMsg`] ⇒ the same setpoints, bit for bit. The driving order is
 //! part of that contract: blocks are pushed in order; when the interpolator
 //! refuses one because its queue or look-ahead is full, it ticks once and the
-//! push is tried again; after the last block, `finish()` and tick until done.
+//! push is tried again (the block planned once, its commit retried: the same
+//! as `push`); after the last block, `finish()` and tick until done.
 
 use interp_core::interp::{DEFAULT_QUEUE, PushError};
-use interp_core::{Interpolator, RunState, Setpoint};
+use interp_core::{Interpolator, PlannedBlock, RunState, Setpoint};
 use serde::{Deserialize, Serialize};
 
 use crate::blocks::{BlockError, Program};
@@ -174,14 +175,24 @@ pub fn run<E>(
 
     let mut segments = 0usize;
     let mut faulted = false;
+    let mut plan = Box::new(PlannedBlock::new());
     'blocks: for (k, eb) in expanded.blocks.iter().enumerate() {
         if k == 0 {
             let ev = EventMsg::new(EventKind::Start, 0, 0.0);
             sink(SimItem::Event(&ev)).map_err(SimError::Sink)?;
         }
         for seg in &eb.segments {
+            // Plan once, then retry only the commit: `push` is exactly plan then
+            // commit, and while only ticks happen the plan stays valid. Planning
+            // again on every tick the queue is full measured the block's length
+            // each time (most of a long program's run time).
+            let planned = ip.planner().plan(seg, &mut plan);
             loop {
-                match ip.push(seg) {
+                let pushed = match planned {
+                    Ok(()) => ip.commit(&plan),
+                    Err(e) => Err(e),
+                };
+                match pushed {
                     Ok(()) => break,
                     Err(PushError::Full { .. } | PushError::ProfileFull)
                         if ip.queued_segments() > 0 =>
