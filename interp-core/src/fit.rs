@@ -104,26 +104,22 @@ pub fn banded_cholesky_solve(a: &mut [[f64; BAND]], w: usize, b: &mut [[f64; 3]]
     true
 }
 
-/// Least-squares control points of degree `p` over `knots` for the data
-/// `q` at parameters `ub`: `ctrl[..fixed_start]` and
-/// `ctrl[ctrl.len() − fixed_end..]` are given by the caller and kept; the
-/// others minimise `Σ |C(ub_k) − q_k|²` over the interior data (`k` in
-/// `1..m`; the end points are the fixed ends' business).
-///
-/// `band` and `rhs` are scratch of at least the number of free control
-/// points. No allocation.
+/// The normal equations of [`lsq_fit`]: fills `band` (`band[i][d]` =
+/// A(i, i−d)) and `rhs` for the free control points and returns how many
+/// there are (0: nothing to solve). For callers with their own solver (a
+/// dense fallback when the banded one finds the system singular).
 #[allow(clippy::too_many_arguments)]
-pub fn lsq_fit(
+pub fn normal_equations(
     q: &[Vec3],
     ub: &[f64],
     p: usize,
     knots: &[f64],
-    ctrl: &mut [Vec3],
+    ctrl: &[Vec3],
     fixed_start: usize,
     fixed_end: usize,
     band: &mut [[f64; BAND]],
     rhs: &mut [[f64; 3]],
-) -> Result<(), FitError> {
+) -> Result<usize, FitError> {
     let m = q.len().wrapping_sub(1);
     let count = ctrl.len();
     if !(1..=MAX_DEGREE).contains(&p)
@@ -138,7 +134,7 @@ pub fn lsq_fit(
     }
     let unknowns = count - fixed_start - fixed_end;
     if unknowns == 0 {
-        return Ok(());
+        return Ok(0);
     }
     if unknowns > m.saturating_sub(1) || band.len() < unknowns || rhs.len() < unknowns {
         return Err(FitError::Shape);
@@ -174,6 +170,34 @@ pub fn lsq_fit(
             }
         }
     }
+    Ok(unknowns)
+}
+
+/// Least-squares control points of degree `p` over `knots` for the data
+/// `q` at parameters `ub`: `ctrl[..fixed_start]` and
+/// `ctrl[ctrl.len() − fixed_end..]` are given by the caller and kept; the
+/// others minimise `Σ |C(ub_k) − q_k|²` over the interior data (`k` in
+/// `1..m`; the end points are the fixed ends' business).
+///
+/// `band` and `rhs` are scratch of at least the number of free control
+/// points. No allocation.
+#[allow(clippy::too_many_arguments)]
+pub fn lsq_fit(
+    q: &[Vec3],
+    ub: &[f64],
+    p: usize,
+    knots: &[f64],
+    ctrl: &mut [Vec3],
+    fixed_start: usize,
+    fixed_end: usize,
+    band: &mut [[f64; BAND]],
+    rhs: &mut [[f64; 3]],
+) -> Result<(), FitError> {
+    let unknowns = normal_equations(q, ub, p, knots, ctrl, fixed_start, fixed_end, band, rhs)?;
+    if unknowns == 0 {
+        return Ok(());
+    }
+    let (band, rhs) = (&mut band[..unknowns], &mut rhs[..unknowns]);
     if !banded_cholesky_solve(band, p, rhs) {
         return Err(FitError::Singular);
     }

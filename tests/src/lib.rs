@@ -5,6 +5,7 @@
 //! `cargo test --workspace`. This library holds the helpers they share.
 
 pub mod path_time;
+pub mod polyline;
 
 use std::io::Cursor;
 use std::path::{Path, PathBuf};

@@ -5,12 +5,20 @@
 //! part of that contract: blocks are pushed in order; when the interpolator
 //! refuses one because its queue or look-ahead is full, it ticks once and the
 //! push is tried again; after the last block, `finish()` and tick until done.
+//!
+//! Between the program and the interpolator runs the `G64 P` stage
+//! (`interp_core::smooth::Smoother`, window `DEFAULT_WINDOW`): every
+//! expanded segment is pushed into it, and every block it releases goes to
+//! the interpolator at once; at the end, `Smoother::finish` releases the
+//! rest. The trace records the program's own blocks, so a replay re-runs the
+//! stage and gets the same segments.
 
 use interp_core::interp::{DEFAULT_QUEUE, PushError};
-use interp_core::{Interpolator, RunState, Setpoint};
+use interp_core::smooth::{SmoothError, SmoothStats, Smoother};
+use interp_core::{Block, InterpConfig, Interpolator, RunState, Setpoint};
 use serde::{Deserialize, Serialize};
 
-use crate::blocks::{BlockError, Program};
+use crate::blocks::{BlockError, Expanded, Program};
 use crate::messages::{BlockMsg, ConfigMsg, EventKind, EventMsg, FORMAT_VERSION};
 
 /// Id of the first interpolator block.
@@ -100,6 +108,25 @@ pub struct SimOutcome {
     pub segments: usize,
     /// The interpolator's counters.
     pub stats: interp_core::interp::Stats,
+    /// What the `G64 P` stage did.
+    pub smoothing: SmoothStats,
+}
+
+/// The interpolator blocks of an expanded program: its segments through the
+/// `G64 P` stage, exactly as [`run`] pushes them (for analysis and replay).
+pub fn smoothed_segments(expanded: &Expanded, cfg: &InterpConfig) -> Result<Vec<Block>, String> {
+    let mut st: Box<Smoother> =
+        Box::new(Smoother::new(cfg, FIRST_BLOCK_ID).map_err(|e| e.to_string())?);
+    let mut out = Vec::new();
+    for seg in expanded.segments() {
+        while st.push(seg) == Err(SmoothError::Full) {
+            out.extend(st.pop());
+        }
+        out.extend(std::iter::from_fn(|| st.pop()));
+    }
+    st.finish();
+    out.extend(std::iter::from_fn(|| st.pop()));
+    Ok(out)
 }
 
 /// The configuration message for a program run with `interp` and `settings`.
@@ -172,8 +199,40 @@ pub fn run<E>(
         Ok(last.state != RunState::Fault)
     };
 
+    let mut smoother: Box<Smoother> = Box::new(
+        Smoother::new(&config.interp, FIRST_BLOCK_ID)
+            .map_err(|e| SimError::Config(e.to_string()))?,
+    );
     let mut segments = 0usize;
     let mut faulted = false;
+    // Pushes one released block into the interpolator, ticking while its queue is full.
+    let push = |ip: &mut Interpolator,
+                last: &mut Setpoint,
+                sink: &mut dyn FnMut(SimItem<'_>) -> Result<(), E>,
+                seg: &Block,
+                eb: &crate::blocks::ExpandedBlock|
+     -> Result<bool, SimError<E>> {
+        loop {
+            match ip.push(seg) {
+                Ok(()) => return Ok(true),
+                Err(PushError::Full { .. } | PushError::ProfileFull)
+                    if ip.queued_segments() > 0 =>
+                {
+                    if !tick(ip, last, sink)? {
+                        return Ok(false);
+                    }
+                }
+                Err(e) => {
+                    return Err(SimError::Push {
+                        index: eb.index,
+                        source_line: eb.input.source_line,
+                        block_id: seg.id,
+                        reason: e.to_string(),
+                    });
+                }
+            }
+        }
+    };
     'blocks: for (k, eb) in expanded.blocks.iter().enumerate() {
         if k == 0 {
             let ev = EventMsg::new(EventKind::Start, 0, 0.0);
@@ -181,27 +240,18 @@ pub fn run<E>(
         }
         for seg in &eb.segments {
             loop {
-                match ip.push(seg) {
-                    Ok(()) => break,
-                    Err(PushError::Full { .. } | PushError::ProfileFull)
-                        if ip.queued_segments() > 0 =>
-                    {
-                        if !tick(&mut ip, &mut last, &mut sink)? {
-                            faulted = true;
-                            break 'blocks;
-                        }
+                let refused = smoother.push(seg) == Err(SmoothError::Full);
+                while let Some(out) = smoother.pop() {
+                    if !push(&mut ip, &mut last, &mut sink, &out, eb)? {
+                        faulted = true;
+                        break 'blocks;
                     }
-                    Err(e) => {
-                        return Err(SimError::Push {
-                            index: eb.index,
-                            source_line: eb.input.source_line,
-                            block_id: seg.id,
-                            reason: e.to_string(),
-                        });
-                    }
+                    segments += 1;
+                }
+                if !refused {
+                    break;
                 }
             }
-            segments += 1;
         }
         let msg = BlockMsg {
             index: eb.index as u32,
@@ -210,6 +260,18 @@ pub fn run<E>(
             accepted_at_seq: last.seq,
         };
         sink(SimItem::Block(&msg)).map_err(SimError::Sink)?;
+    }
+    if !faulted {
+        smoother.finish();
+        let tail = expanded.blocks.last();
+        while let Some(out) = smoother.pop() {
+            let eb = tail.expect("a released block comes from some input block");
+            if !push(&mut ip, &mut last, &mut sink, &out, eb)? {
+                faulted = true;
+                break;
+            }
+            segments += 1;
+        }
     }
     if !faulted {
         ip.finish();
@@ -231,6 +293,7 @@ pub fn run<E>(
         blocks: expanded.blocks.len(),
         segments,
         stats: ip.stats(),
+        smoothing: smoother.stats(),
     })
 }
 
