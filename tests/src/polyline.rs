@@ -6,9 +6,13 @@
 //! smallest over the segments in its cube and the 26 around it, exact for
 //! every distance below the cube's size (larger ones are reported as the
 //! cube size, which fails any tolerance it could be compared with). A chord
-//! between two setpoints counts with `min_s max(d(A, s), d(B, s))` over the
-//! segments `s` near either end: the distance to one segment is convex, so
-//! the whole chord is within that of `s`.
+//! between two setpoints is bounded by `min_s max(d(A, s), d(B, s))` over the
+//! segments `s` near either end (the distance to one segment is convex, so
+//! the whole chord is within that of `s`); where that bound is not within
+//! [`RESOLUTION`] of the larger end distance (a chord across a vertex), the
+//! chord is halved, down to halves of [`RESOLUTION`], where
+//! `max(d(A), d(B)) + |AB|/2` bounds it. So the chord bound exceeds the true
+//! largest distance by at most [`RESOLUTION`].
 
 use std::collections::HashMap;
 
@@ -16,6 +20,9 @@ use interp_core::Vec3;
 
 /// Cube size of the grid, mm: the largest distance measured exactly.
 pub const CELL: f64 = 0.5;
+
+/// How much a chord bound may exceed the chord's true largest distance, mm.
+pub const RESOLUTION: f64 = 2e-5;
 
 /// A programmed polyline (or several: a path with jumps is several
 /// polylines, whose segments all count).
@@ -94,15 +101,33 @@ impl Polyline {
             .fold(CELL, f64::min)
     }
 
-    /// A bound on the distance of every point of the chord `a b` (capped at [`CELL`]).
+    /// A bound on the distance of every point of the chord `a b`, at most
+    /// [`RESOLUTION`] above the true largest one (capped at [`CELL`]).
     pub fn chord_distance(&self, a: &Vec3, b: &Vec3) -> f64 {
-        self.near(a)
+        self.chord_bound(a, b, self.distance(a), self.distance(b), 0)
+    }
+
+    fn chord_bound(&self, a: &Vec3, b: &Vec3, da: f64, db: f64, depth: u32) -> f64 {
+        let one = self
+            .near(a)
             .chain(self.near(b))
             .map(|i| {
                 let (s0, s1) = &self.segs[i as usize];
                 seg_dist(a, s0, s1).max(seg_dist(b, s0, s1))
             })
-            .fold(CELL, f64::min)
+            .fold(CELL, f64::min);
+        let ends = da.max(db);
+        let half = 0.5 * (b - a).norm();
+        if one - ends <= RESOLUTION || depth >= 40 {
+            return one;
+        }
+        if half <= RESOLUTION {
+            return (ends + half).min(one);
+        }
+        let m = (a + b) * 0.5;
+        let dm = self.distance(&m);
+        self.chord_bound(a, &m, da, dm, depth + 1)
+            .max(self.chord_bound(&m, b, dm, db, depth + 1))
     }
 
     /// The largest distance of the points and of the chords between
@@ -139,14 +164,24 @@ mod tests {
                 .fold(f64::INFINITY, f64::min);
             assert_eq!(pl.distance(&p), brute.min(CELL));
         }
-        // A chord cutting a corner is farther than either of its ends.
+        // A chord cutting a corner: its midpoint is 0.05 off both lines, its ends on them.
         let sq = Polyline::new(&[
             Vec3::new(0.0, 0.0, 0.0),
             Vec3::new(1.0, 0.0, 0.0),
             Vec3::new(1.0, 1.0, 0.0),
         ]);
-        let (a, b) = (Vec3::new(0.8, 0.0, 0.0), Vec3::new(1.0, 0.2, 0.0));
+        let (a, b) = (Vec3::new(0.9, 0.0, 0.0), Vec3::new(1.0, 0.1, 0.0));
         assert_eq!(sq.distance(&a), 0.0);
-        assert!(sq.chord_distance(&a, &b) >= 0.2 - 1e-15);
+        let d = sq.chord_distance(&a, &b);
+        let truth = 0.05;
+        assert!(d >= truth - 1e-15 && d <= truth + RESOLUTION, "{d}");
+        // A chord along the polyline across a small turn is close to it.
+        let bend = Polyline::new(&[
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(2.0, 0.01, 0.0),
+        ]);
+        let d = bend.chord_distance(&Vec3::new(0.95, 0.0, 0.0), &Vec3::new(1.05, 0.0005, 0.0));
+        assert!(d < 3e-4 + RESOLUTION, "{d}");
     }
 }
