@@ -1,103 +1,33 @@
-//! `interpd`, the real-time CNC interpolator service.
-//!
-//! Per `DESIGN.md`, this binary will be the only part of the workspace that owns
-//! threads, sockets and files: the tokio control plane, the RT thread that
-//! ticks the interpolator and publishes setpoints over iceoryx2, and the
-//! recorder thread, behind the subcommands `serve`, `send`, `simulate`,
-//! `replay`, `jitter`, `plan` and `trace`, each added by the issue that
-//! implements it. For now it has `demo`: the bundled butterfly NURBS through
-//! the fixed-period interpolator loop (see [`demo`]).
+//! `interpd`, the real-time CNC interpolator service: the command line over
+//! the `interpd` library (`lib.rs`). `cli.rs` holds the flags, and each
+//! `command/<verb>.rs` wires one subcommand to the library.
 
-mod clock;
-mod control;
-mod demo;
-mod demo_plots;
-mod demo_service;
-mod histogram;
-mod jitter;
-mod plan_gouge;
-mod plan_raster;
-mod plan_setup;
-mod plan_writer;
-mod protocol;
-mod publish;
-mod replay;
-mod rt;
-mod rt_alloc;
-mod send;
-mod serve;
-mod simulate;
-mod trace_cmd;
-mod watch;
+mod cli;
+mod command;
+
+use anyhow::Result;
+use clap::Parser;
+use interpd::service::rt_alloc;
+
+use cli::{Cli, Command};
 
 /// The system allocator behind the RT thread's fixed pool (`rt_alloc`):
-/// iceoryx2 allocates a small object per published sample. The daemon's unit
-/// tests install the same pool in front of a counting allocator (`demo.rs`).
-#[cfg(not(test))]
+/// iceoryx2 allocates a small object per published sample. The library's
+/// unit tests install the same pool in front of a counting allocator.
 #[global_allocator]
 static ALLOCATOR: rt_alloc::RtPool<std::alloc::System> = rt_alloc::RtPool(std::alloc::System);
 
-use anyhow::Result;
-use clap::{Parser, Subcommand};
-
-/// Real-time CNC interpolator service.
-#[derive(Debug, Parser)]
-#[command(name = "interpd", version)]
-struct Cli {
-    #[command(subcommand)]
-    command: Command,
-}
-
-#[derive(Debug, Subcommand)]
-enum Command {
-    /// Stream the bundled butterfly NURBS through the interpolator loop and print a summary.
-    Demo(demo::DemoArgs),
-    /// Run the service: RT loop publishing setpoints over iceoryx2, control plane on TCP and a Unix socket.
-    Serve(serve::ServeArgs),
-    /// Stream a program to a running `interpd serve` with back-pressure.
-    Send(send::SendArgs),
-    /// Subscribe to the setpoints (iceoryx2) and report gaps.
-    Watch(watch::WatchArgs),
-    /// Measure wake lateness and tick+publish time: the full pipeline vs a bare loop.
-    Jitter(jitter::JitterArgs),
-    /// Run a program through the interpolator with no clock; print a summary, write a trace.
-    Simulate(simulate::SimulateArgs),
-    /// Re-simulate a trace's blocks and compare every setpoint bit for bit.
-    Replay(replay::ReplayArgs),
-    /// Summarise or plot a recorded trace.
-    Trace(trace_cmd::TraceArgs),
-    /// Offline planners: meshes to tool paths.
-    #[command(subcommand)]
-    Plan(PlanCommand),
-}
-
-/// `interpd plan …` subcommands.
-#[derive(Debug, Subcommand)]
-enum PlanCommand {
-    /// Raster finishing over an STL mesh by slicing the offset triangle mesh.
-    Raster(plan_raster::RasterArgs),
-    /// 5-axis machinability and setup orientation of an STL part.
-    Setup(plan_setup::SetupArgs),
-    /// Check a G1 path for gouges against an STL part, correct it, and predict the milled surface.
-    Gouge(plan_gouge::GougeArgs),
-    /// Fit G1 paths into G6.2 NURBS blocks within a tolerance.
-    Fit(plan_gouge::FitArgs),
-}
-
 fn main() -> Result<()> {
     match Cli::parse().command {
-        Command::Demo(args) => demo::main(&args),
-        Command::Serve(args) => serve::main(&args),
-        Command::Send(args) => send::main(&args),
-        Command::Watch(args) => watch::main(&args),
-        Command::Jitter(args) => jitter::main(&args),
-        Command::Simulate(args) => simulate::main(&args),
-        Command::Replay(args) => replay::main(&args),
-        Command::Trace(args) => trace_cmd::main(&args),
-        Command::Plan(PlanCommand::Raster(args)) => plan_raster::main(&args),
-        Command::Plan(PlanCommand::Setup(args)) => plan_setup::main(&args),
-        Command::Plan(PlanCommand::Gouge(args)) => plan_gouge::gouge_main(&args),
-        Command::Plan(PlanCommand::Fit(args)) => plan_gouge::fit_main(&args),
+        Command::Demo(args) => command::demo::run(&args),
+        Command::Serve(args) => command::serve::run(&args),
+        Command::Send(args) => command::send::run(&args),
+        Command::Watch(args) => command::watch::run(&args),
+        Command::Jitter(args) => command::jitter::run(&args),
+        Command::Simulate(args) => command::simulate::run(&args),
+        Command::Replay(args) => command::replay::run(&args),
+        Command::Trace(args) => command::trace::run(&args),
+        Command::Plan(cmd) => command::plan::run(&cmd),
     }
 }
 
@@ -144,7 +74,7 @@ mod tests {
             "--json",
         ])
         .expect("plan raster parses");
-        let Command::Plan(PlanCommand::Raster(args)) = cli.command else {
+        let Command::Plan(command::plan::PlanCommand::Raster(args)) = cli.command else {
             panic!("plan raster parsed as another command");
         };
         assert_eq!(args.tool, planner::cutter::Cutter::Ball { diameter: 6.0 });
@@ -175,7 +105,7 @@ mod tests {
             "--json",
         ])
         .expect("plan setup parses");
-        let Command::Plan(PlanCommand::Setup(args)) = cli.command else {
+        let Command::Plan(command::plan::PlanCommand::Setup(args)) = cli.command else {
             panic!("expected plan setup");
         };
         assert_eq!((args.cells, args.json), (5000, true));

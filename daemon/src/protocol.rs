@@ -1,18 +1,23 @@
 //! The control plane's line protocol (see `docs/daemon.md`): one request per
 //! line, exactly one reply line per request.
 //!
-//! Requests: a JSON block (`{"feed": …, "kind": "line"|"arc"|"nurbs", …}`,
-//! the JSON block form of `traces`, see `docs/traces.md`), or one of
-//! `start`, `hold`, `resume`, `override X`, `end`, `abort`, `status`,
-//! `auth TOKEN`. Replies: `ok …`, `status {json}` or `err LINE PROBLEM`.
+//! Requests ([`Request`]): a JSON block (`{"feed": …, "kind":
+//! "line"|"arc"|"nurbs", …}`, the JSON block form of `traces`, see
+//! `docs/traces.md`), or one of `begin`, `start`, `hold`, `resume`,
+//! `override X`, `end`, `abort`, `status`, `auth TOKEN`. Replies
+//! ([`Reply`]): `ok …`, `status {json}` or `err LINE PROBLEM`. Both parse
+//! from their line and print back to it.
 
 use interp_core::Block;
 use interp_core::nurbs::MAX_CTRL;
-use traces::{InputBlock, PathSpec, Program};
+use traces::{InputBlock, PathSpec, Pipeline};
 
 /// Longest request line, bytes (newline excluded). Longer lines are refused
-/// with an error and skipped up to their newline.
-pub const MAX_LINE_BYTES: usize = 256 * 1024;
+/// with an error and skipped up to their newline. It fits the largest block
+/// the protocol takes: [`MAX_BLOCK_CTRL`] control points, weights and knots
+/// at full precision (shortest round-trip floats of up to 24 characters:
+/// about 85 bytes per control point, 340 KiB in all) with room to spare.
+pub const MAX_LINE_BYTES: usize = 1024 * 1024;
 /// Most control points in one JSON NURBS (it is split into pieces of at most
 /// `MAX_CTRL` for the interpolator).
 pub const MAX_BLOCK_CTRL: usize = 4096;
@@ -24,6 +29,9 @@ pub const PIECE_CTRL: usize = MAX_CTRL;
 pub enum Request {
     /// A motion block (the `traces` JSON block form).
     Block(Box<InputBlock>),
+    /// Claim a new program for this connection; the reply names it and
+    /// where it starts (where the machine will be when it runs).
+    Begin,
     /// Cycle start.
     Start,
     /// Feed hold.
@@ -66,6 +74,7 @@ pub fn parse(line: &str) -> Result<Request, String> {
         Some(a) => Err(format!("{cmd:?} takes no argument, got {a:?}")),
     };
     match cmd.as_str() {
+        "begin" => no_arg(Request::Begin),
         "start" => no_arg(Request::Start),
         "hold" => no_arg(Request::Hold),
         "resume" => no_arg(Request::Resume),
@@ -81,21 +90,171 @@ pub fn parse(line: &str) -> Result<Request, String> {
         }
         "auth" => Ok(Request::Auth(arg.ok_or("auth needs a token")?.to_owned())),
         _ => Err(format!(
-            "unknown request {cmd:?} (expected a JSON block or one of start, hold, resume, \
-             override, end, abort, status, auth)"
+            "unknown request {cmd:?} (expected a JSON block or one of begin, start, hold, \
+             resume, override, end, abort, status, auth)"
         )),
     }
 }
 
-/// Expands one JSON block (the `traces` JSON block form) that starts at
-/// `start` into interpolator blocks with ids from `first_id` (a NURBS is split
-/// into pieces of at most [`PIECE_CTRL`] control points, exactly as
-/// `interpd simulate` and `interpd replay` do). Also returns the segment info
-/// recorded with the block.
+impl core::fmt::Display for Request {
+    /// The request's line (without its newline); [`parse`] reads it back.
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Request::Block(b) => f.write_str(&block_json(b)),
+            Request::Begin => f.write_str("begin"),
+            Request::Start => f.write_str("start"),
+            Request::Hold => f.write_str("hold"),
+            Request::Resume => f.write_str("resume"),
+            Request::Override(x) => write!(f, "override {x}"),
+            Request::End => f.write_str("end"),
+            Request::Abort => f.write_str("abort"),
+            Request::Status => f.write_str("status"),
+            Request::Auth(t) => write!(f, "auth {t}"),
+            Request::Nothing => Ok(()),
+        }
+    }
+}
+
+/// One reply line.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Reply {
+    /// `ok`: an empty line or a comment.
+    Ok,
+    /// `ok block K segments A..=B`: the K-th block of the program, queued as
+    /// interpolator segments A to B.
+    Block {
+        /// Position of the block in its program, from 1.
+        index: u32,
+        /// First segment id.
+        first: u32,
+        /// Last segment id.
+        last: u32,
+    },
+    /// `ok begin program N at X Y Z`: program N belongs to this connection
+    /// and starts at X Y Z.
+    Begin {
+        /// The program's number.
+        program: u32,
+        /// Where it starts, mm.
+        at: [f64; 3],
+    },
+    /// `ok start`.
+    Start,
+    /// `ok hold`.
+    Hold,
+    /// `ok resume`.
+    Resume,
+    /// `ok override X`.
+    Override(f64),
+    /// `ok end`.
+    End,
+    /// `ok abort`: the machine is at rest, the queue flushed.
+    Abort,
+    /// `ok auth`.
+    Auth,
+    /// `status {json}`.
+    Status(Box<crate::service::control::StatusReply>),
+    /// `err LINE PROBLEM`: request LINE of the connection was refused.
+    Err {
+        /// The request's line number on its connection, from 1.
+        line: u64,
+        /// What is wrong.
+        problem: String,
+    },
+}
+
+impl Reply {
+    /// Whether the request was carried out.
+    pub fn is_ok(&self) -> bool {
+        !matches!(self, Reply::Err { .. })
+    }
+}
+
+impl core::fmt::Display for Reply {
+    /// The reply's line (without its newline); [`Reply::parse`] reads it back.
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Reply::Ok => f.write_str("ok"),
+            Reply::Block { index, first, last } => {
+                write!(f, "ok block {index} segments {first}..={last}")
+            }
+            Reply::Begin { program, at } => {
+                write!(
+                    f,
+                    "ok begin program {program} at {} {} {}",
+                    at[0], at[1], at[2]
+                )
+            }
+            Reply::Start => f.write_str("ok start"),
+            Reply::Hold => f.write_str("ok hold"),
+            Reply::Resume => f.write_str("ok resume"),
+            Reply::Override(x) => write!(f, "ok override {x}"),
+            Reply::End => f.write_str("ok end"),
+            Reply::Abort => f.write_str("ok abort"),
+            Reply::Auth => f.write_str("ok auth"),
+            Reply::Status(s) => write!(
+                f,
+                "status {}",
+                serde_json::to_string(s).map_err(|_| core::fmt::Error)?
+            ),
+            Reply::Err { line, problem } => write!(f, "err {line} {problem}"),
+        }
+    }
+}
+
+impl Reply {
+    /// Parses one reply line (without its newline).
+    pub fn parse(line: &str) -> Result<Reply, String> {
+        let bad = || format!("unexpected reply {line:?}");
+        if let Some(json) = line.strip_prefix("status ") {
+            return serde_json::from_str(json)
+                .map(|s| Reply::Status(Box::new(s)))
+                .map_err(|e| format!("reading the status {json:?}: {e}"));
+        }
+        if let Some(rest) = line.strip_prefix("err ") {
+            let (n, problem) = rest.split_once(' ').unwrap_or((rest, ""));
+            let line = n.parse().map_err(|_| bad())?;
+            return Ok(Reply::Err {
+                line,
+                problem: problem.to_owned(),
+            });
+        }
+        let words: Vec<&str> = line.split_whitespace().collect();
+        let num = |w: &str| w.parse::<f64>().map_err(|_| bad());
+        Ok(match words.as_slice() {
+            ["ok"] => Reply::Ok,
+            ["ok", "start"] => Reply::Start,
+            ["ok", "hold"] => Reply::Hold,
+            ["ok", "resume"] => Reply::Resume,
+            ["ok", "end"] => Reply::End,
+            ["ok", "abort"] => Reply::Abort,
+            ["ok", "auth"] => Reply::Auth,
+            ["ok", "override", x] => Reply::Override(num(x)?),
+            ["ok", "block", k, "segments", range] => {
+                let (a, b) = range.split_once("..=").ok_or_else(bad)?;
+                Reply::Block {
+                    index: k.parse().map_err(|_| bad())?,
+                    first: a.parse().map_err(|_| bad())?,
+                    last: b.parse().map_err(|_| bad())?,
+                }
+            }
+            ["ok", "begin", "program", n, "at", x, y, z] => Reply::Begin {
+                program: n.parse().map_err(|_| bad())?,
+                at: [num(x)?, num(y)?, num(z)?],
+            },
+            _ => return Err(bad()),
+        })
+    }
+}
+
+/// Expands one JSON block (the `traces` JSON block form) as the next block
+/// of the program `pipeline` carries (a NURBS is split into pieces of at
+/// most [`PIECE_CTRL`] control points, exactly as `interpd simulate` and
+/// `interpd replay` do). Also returns the segment info recorded with the
+/// block.
 pub fn expand(
     block: &InputBlock,
-    start: [f64; 3],
-    first_id: u32,
+    pipeline: &mut Pipeline,
 ) -> Result<(Vec<Block>, Vec<traces::messages::SegmentInfo>), String> {
     if let PathSpec::Nurbs { points, .. } = &block.path
         && points.len() > MAX_BLOCK_CTRL
@@ -105,15 +264,17 @@ pub fn expand(
             points.len()
         ));
     }
-    let program = Program {
-        start: Some(start),
-        blocks: vec![block.clone()],
-    };
-    let mut e = program
-        .expand(PIECE_CTRL, first_id)
-        .map_err(|e| e.kind.to_string())?;
-    let b = e.blocks.pop().ok_or("the block expanded to nothing")?;
+    let b = pipeline.push(block).map_err(|e| e.kind.to_string())?;
     Ok((b.segments, b.info))
+}
+
+/// [`expand`] of a block that starts a pipeline at `start` with ids from `first_id`.
+pub fn expand_from(
+    block: &InputBlock,
+    start: [f64; 3],
+    first_id: u32,
+) -> Result<(Vec<Block>, Vec<traces::messages::SegmentInfo>), String> {
+    expand(block, &mut Pipeline::new(start, first_id, PIECE_CTRL))
 }
 
 /// The JSON line of a block.
@@ -178,17 +339,74 @@ mod tests {
     }
 
     #[test]
+    fn requests_and_replies_print_and_parse_back() {
+        for line in [
+            "begin",
+            "start",
+            "hold",
+            "resume",
+            "override 0.25",
+            "end",
+            "abort",
+            "status",
+            "auth s3cret",
+            r#"{"feed":600.0,"kind":"line","end":[10.0,0.0,0.0]}"#,
+        ] {
+            let r = parse(line).unwrap();
+            assert_eq!(r.to_string(), line);
+            assert_eq!(parse(&r.to_string()), Ok(r));
+        }
+        for r in [
+            Reply::Ok,
+            Reply::Block {
+                index: 3,
+                first: 4,
+                last: 5,
+            },
+            Reply::Begin {
+                program: 7,
+                at: [20.0, -0.1, 1e-17],
+            },
+            Reply::Start,
+            Reply::Hold,
+            Reply::Resume,
+            Reply::Override(1.5),
+            Reply::End,
+            Reply::Abort,
+            Reply::Auth,
+            Reply::Err {
+                line: 12,
+                problem: "busy: program 3 belongs to connection 1 (tcp 127.0.0.1:4)".into(),
+            },
+        ] {
+            let line = r.to_string();
+            assert_eq!(Reply::parse(&line), Ok(r), "{line}");
+        }
+        assert_eq!(
+            Reply::Block {
+                index: 1,
+                first: 1,
+                last: 1
+            }
+            .to_string(),
+            "ok block 1 segments 1..=1"
+        );
+        assert!(Reply::parse("ok sure").is_err());
+        assert!(Reply::parse("err x y").is_err());
+    }
+
+    #[test]
     fn blocks_expand_and_check_their_geometry() {
         let b = block(r#"{"feed": 600, "kind": "line", "end": [10, 0, 0]}"#);
-        let (bs, info) = expand(&b, [0.0; 3], 3).unwrap();
+        let (bs, info) = expand_from(&b, [0.0; 3], 3).unwrap();
         assert_eq!(bs.len(), 1);
         assert_eq!((bs[0].id, info[0].block_id), (3, 3));
         assert_eq!(bs[0].feed, 10.0);
         assert!((bs[0].path.length() - 10.0).abs() < 1e-12);
         // Zero length, bad feed.
-        assert!(expand(&b, [10.0, 0.0, 0.0], 1).is_err());
+        assert!(expand_from(&b, [10.0, 0.0, 0.0], 1).is_err());
         let bad = block(r#"{"feed": -1, "kind": "line", "end": [1, 0, 0]}"#);
-        assert!(expand(&bad, [0.0; 3], 1).unwrap_err().contains("feed"));
+        assert!(expand_from(&bad, [0.0; 3], 1).unwrap_err().contains("feed"));
     }
 
     #[test]
@@ -203,7 +421,7 @@ mod tests {
             &BUTTERFLY_KNOTS,
         );
         let b = block(&line);
-        let (pieces, _) = expand(&b, START, 1).unwrap();
+        let (pieces, _) = expand_from(&b, START, 1).unwrap();
         assert!(pieces.len() >= 2);
         for (k, w) in pieces.windows(2).enumerate() {
             let gap = (w[0].path.end_point() - w[1].path.start_point()).norm();
@@ -214,6 +432,6 @@ mod tests {
         let want = Vec3::from(BUTTERFLY_POINTS[50]);
         assert!((end - want).norm() < 1e-9);
         // Starting elsewhere is refused.
-        assert!(expand(&b, [0.0; 3], 1).is_err());
+        assert!(expand_from(&b, [0.0; 3], 1).is_err());
     }
 }

@@ -1,14 +1,18 @@
 #!/usr/bin/env python3
 """A minimal soft controller: reads every setpoint interpd publishes over
 iceoryx2 (service `cnc/setpoints`, type `interpd::SetpointMsg`) and reports
-gaps in the sequence numbers.
+gaps in the sequence numbers, a restart of the publisher (the sequence starts
+again; the position may jump) and a dead publisher (no sample for --timeout
+seconds: the service publishes every period, idle or not).
 
     pip install iceoryx2
     python3 subscriber.py [--service cnc/setpoints] [--until-done] [--seconds N] [--json]
 
-Exit status 0 when no sample was missed, 1 otherwise, 2 on a usage error.
+Exit status 0 when no sample was missed, the publisher neither restarted nor
+went silent (and with --until-done, the program reached `done`); 1
+otherwise, 2 on a usage error.
 The payload layout is documented in docs/daemon.md and mirrors
-`daemon/src/publish.rs` (`SetpointMsg`, `#[repr(C)]`).
+`daemon/src/service/publish.rs` (`SetpointMsg`, `#[repr(C)]`).
 """
 
 import argparse
@@ -47,7 +51,7 @@ class SetpointMsg(ctypes.Structure):
         return "interpd::SetpointMsg"
 
 
-# Must match the publisher's service settings (daemon/src/publish.rs).
+# Must match the publisher's service settings (daemon/src/service/publish.rs).
 SUBSCRIBER_BUFFER = 1024
 MAX_SUBSCRIBERS = 8
 
@@ -58,8 +62,8 @@ def main() -> int:
     ap.add_argument("--until-done", action="store_true",
                     help="stop at the first `done` sample after motion")
     ap.add_argument("--seconds", type=float, default=None)
-    ap.add_argument("--timeout", type=float, default=30.0,
-                    help="give up when no sample arrives for this long, s")
+    ap.add_argument("--timeout", type=float, default=5.0,
+                    help="the publisher is dead when no sample arrives for this long, s")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
 
@@ -78,7 +82,9 @@ def main() -> int:
     subscriber = service.subscriber_builder().buffer_size(SUBSCRIBER_BUFFER).create()
     print(f"subscribed to {args.service!r}", file=sys.stderr, flush=True)
 
-    received = gaps = non_finite = 0
+    received = gaps = non_finite = restarts = 0
+    restart_jump = 0.0
+    silent = None
     first = last = None
     last_msg = None
     moved = False
@@ -92,8 +98,13 @@ def main() -> int:
                 break
             m = sample.payload().contents
             seq = m.seq
-            if last is not None and seq != last + 1:
-                gaps += max(seq - last - 1, 1)
+            if last is not None and seq <= last:
+                # A publisher counts from 1: a lower number is a new one.
+                restarts += 1
+                if last_msg is not None:
+                    restart_jump = max(restart_jump, math.dist(last_msg[1], m.axes[:3]))
+            elif last is not None:
+                gaps += seq - last - 1
             if first is None:
                 first = seq
             last = seq
@@ -111,7 +122,8 @@ def main() -> int:
         if args.seconds is not None and now - t0 >= args.seconds:
             break
         if now - last_rx > args.timeout:
-            print(f"no sample for {args.timeout} s", file=sys.stderr)
+            silent = now - last_rx
+            print(f"no sample for {silent:.1f} s: the publisher is dead", file=sys.stderr)
             break
         try:
             node.wait(poll)
@@ -127,13 +139,19 @@ def main() -> int:
         "final_state": STATES[last_msg[2]] if last_msg and last_msg[2] < len(STATES) else None,
         "final_position": last_msg[1] if last_msg else None,
         "reached_done": bool(moved and last_msg and last_msg[2] == DONE),
+        "restarts": restarts,
+        "restart_jump_mm": restart_jump,
+        "silent_s": silent,
     }
     if args.json:
         print(json.dumps(summary))
     else:
-        print(f"{received} samples, {gaps} missing, {non_finite} non-finite, "
+        print(f"{received} samples, {gaps} missing, {restarts} restarts, {non_finite} non-finite, "
               f"seq {first}..{last}, final {summary['final_state']} at {summary['final_position']}")
-    ok = received > 0 and gaps == 0 and non_finite == 0
+    if restarts:
+        print(f"the publisher restarted {restarts} time(s): its sequence started again, "
+              f"the position jumped {restart_jump:.6f} mm", file=sys.stderr)
+    ok = received > 0 and gaps == 0 and non_finite == 0 and restarts == 0 and silent is None
     if args.until_done:
         ok = ok and summary["reached_done"]
     return 0 if ok else 1

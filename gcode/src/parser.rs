@@ -35,7 +35,17 @@ const BYTES_PER_BLOCK_GUESS: usize = 32;
 ///
 /// Stops at `M2`/`M30` or at a second `%` line. Never panics.
 pub fn parse(text: &str) -> Result<Program, ParseError> {
-    let mut p = Parser::default();
+    parse_from(text, [0.0; 3])
+}
+
+/// Parses as [`parse`] does, with the machine at `start` (mm) before the
+/// first line instead of the origin: relative moves (G91) and the first move
+/// start there, so a program is converted from where the machine is.
+pub fn parse_from(text: &str, start: Point) -> Result<Program, ParseError> {
+    let mut p = Parser {
+        pos: start,
+        ..Parser::default()
+    };
     // A G-code line is rarely shorter than this: one reservation instead of
     // repeated growth (and copies) on large programs.
     p.blocks.reserve(text.len() / BYTES_PER_BLOCK_GUESS);

@@ -2,51 +2,17 @@
 //! bit-identical setpoints: 1,000,000 ticks, twice, with blocks pushed as the
 //! queue frees up (push is non-RT but allocation-free too).
 //!
-//! A counting global allocator counts allocations made on this test's thread
-//! while counting is switched on (copper-rs's habit). This file holds one
-//! test so no other test shares the counter.
+//! A counting global allocator (`alloc-count`) counts allocations made on
+//! this test's thread while counting is switched on (copper-rs's habit).
 
 mod common;
-
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use interp_core::geom::{Curve, Vec3};
 use interp_core::path::{Arc, Block, Path};
 use interp_core::{InterpConfig, Interpolator, RunState};
 
-struct Counting;
-
-static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
-thread_local! {
-    // const-initialised, no destructor: reading it never allocates.
-    static COUNTING: Cell<bool> = const { Cell::new(false) };
-}
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if COUNTING.with(Cell::get) {
-            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        }
-        // SAFETY: forwarded unchanged to the system allocator.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: forwarded unchanged to the system allocator.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        if COUNTING.with(Cell::get) {
-            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        }
-        // SAFETY: forwarded unchanged to the system allocator.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: alloc_count::Counting = alloc_count::Counting;
 
 const TICKS: u64 = 1_000_000;
 
@@ -74,7 +40,7 @@ fn run() -> (u64, u64, u64) {
     let mut shift = Vec3::zeros();
     let mut hash = 0xcbf2_9ce4_8422_2325u64;
     let mut moving = 0u64;
-    COUNTING.with(|c| c.set(true));
+    alloc_count::start();
     for t in 0..TICKS {
         // Operator commands through the schedule (RT-side calls, allocation-free).
         match t % 200_000 {
@@ -129,8 +95,7 @@ fn run() -> (u64, u64, u64) {
         words[11] = ((sp.block_id as u64) << 8) | sp.state as u64;
         fold(&mut hash, &words);
     }
-    COUNTING.with(|c| c.set(false));
-    let allocations = ALLOCATIONS.swap(0, Ordering::Relaxed);
+    let allocations = alloc_count::stop();
     (hash, allocations, moving)
 }
 

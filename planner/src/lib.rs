@@ -10,7 +10,17 @@
 pub mod cutter;
 pub mod fit;
 pub mod gouge;
+#[cfg(feature = "gcode")]
+pub mod io;
 pub mod mesh;
 pub mod predict;
 pub mod raster;
 pub mod setup;
+
+/// The smallest tolerance that means something for a part whose coordinates
+/// reach `extent` mm: an f64 coordinate there is resolved to about
+/// `extent · ε`, and a tolerance within 64 of those steps is round-off (and
+/// asks a planner for more points than memory holds).
+pub fn min_tolerance(extent: f64) -> f64 {
+    64.0 * f64::EPSILON * extent.abs().max(1.0)
+}

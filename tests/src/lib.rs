@@ -1,8 +1,10 @@
-//! Workspace-level end-to-end tests for interpd.
+//! Workspace-level tests of interpd's traces.
 //!
-//! Per `DESIGN.md`, the tests themselves live in `tests/tests/` (one file per
-//! end-to-end scenario, with golden traces beside them) and run with
-//! `cargo test --workspace`. This library holds the helpers they share.
+//! The tests live in `tests/tests/` (golden traces, MCAP interop, path
+//! time) and run with `cargo test --workspace`; the end-to-end tests of the
+//! service and its commands live with the `interpd` package
+//! (`daemon/tests/`), which builds the binary for them. This library holds
+//! the helpers the tests here share.
 
 pub mod path_time;
 pub mod polyline;

@@ -269,42 +269,98 @@ impl Program {
 
     /// Checks every block and cuts it into interpolator blocks with ids from
     /// `first_id`; NURBS longer than `max_ctrl` control points are split.
+    /// Every block goes through one [`Pipeline`], as the daemon's control
+    /// plane sends each program's blocks.
     pub fn expand(&self, max_ctrl: usize, first_id: u32) -> Result<Expanded, BlockError> {
         let start = self.start_point();
-        let mut at = v3(start);
-        let mut id = first_id;
+        let mut pipeline = Pipeline::new(start, first_id, max_ctrl);
         let mut out = Vec::with_capacity(self.blocks.len());
-        for (index, input) in self.blocks.iter().enumerate() {
-            let err = |kind| BlockError {
-                index,
-                source_line: input.source_line,
-                kind,
-            };
-            let segments = expand_block(input, at, max_ctrl, &mut id).map_err(err)?;
-            let info = segments
-                .iter()
-                .map(|b| SegmentInfo {
-                    block_id: b.id,
-                    u_start: b.path.u_start(),
-                    u_end: b.path.u_end(),
-                    control_points: match &b.path {
-                        Path::Nurbs(n) => n.control_count(),
-                        _ => 0,
-                    },
-                    length: b.path.length(),
-                })
-                .collect();
-            if let Some(last) = segments.last() {
-                at = last.path.end_point();
-            }
-            out.push(ExpandedBlock {
-                index,
-                input: input.clone(),
-                segments,
-                info,
-            });
+        for input in &self.blocks {
+            out.push(pipeline.push(input)?);
         }
+        // Nothing is held back yet (see `Pipeline::finish`).
+        debug_assert!(pipeline.finish().is_empty());
         Ok(Expanded { start, blocks: out })
+    }
+}
+
+/// The non-real-time path of one program's blocks, in order: each input
+/// block is checked and cut into interpolator segments (long NURBS split
+/// into pieces of at most `max_ctrl` control points, the same curve), ready
+/// for `BlockPlanner::plan`. `interpd simulate`, `interpd replay` and the
+/// daemon's control plane all send a program's blocks through one of these,
+/// so a stage that reshapes the stream (corner blending, compression of
+/// runs of short G64 moves into NURBS) goes in here, once, for all of them:
+/// [`Pipeline::push`] may then hold segments back until it knows the next
+/// block, and [`Pipeline::finish`] hands over the rest at the program's end.
+#[derive(Clone, Debug)]
+pub struct Pipeline {
+    at: Vec3,
+    next_id: u32,
+    index: usize,
+    max_ctrl: usize,
+}
+
+impl Pipeline {
+    /// A program that starts at `start` (mm) with segment ids from `first_id`.
+    pub fn new(start: [f64; 3], first_id: u32, max_ctrl: usize) -> Self {
+        Pipeline {
+            at: v3(start),
+            next_id: first_id,
+            index: 0,
+            max_ctrl,
+        }
+    }
+
+    /// Where the next block starts (the end of the last one), mm.
+    pub fn tail(&self) -> [f64; 3] {
+        a3(self.at)
+    }
+
+    /// The id the next segment gets.
+    pub fn next_id(&self) -> u32 {
+        self.next_id
+    }
+
+    /// The next input block of the program: its segments and how it was split.
+    pub fn push(&mut self, input: &InputBlock) -> Result<ExpandedBlock, BlockError> {
+        let index = self.index;
+        let err = |kind| BlockError {
+            index,
+            source_line: input.source_line,
+            kind,
+        };
+        let segments =
+            expand_block(input, self.at, self.max_ctrl, &mut self.next_id).map_err(err)?;
+        let info = segments
+            .iter()
+            .map(|b| SegmentInfo {
+                block_id: b.id,
+                u_start: b.path.u_start(),
+                u_end: b.path.u_end(),
+                control_points: match &b.path {
+                    Path::Nurbs(n) => n.control_count(),
+                    _ => 0,
+                },
+                length: b.path.length(),
+            })
+            .collect();
+        if let Some(last) = segments.last() {
+            self.at = last.path.end_point();
+        }
+        self.index += 1;
+        Ok(ExpandedBlock {
+            index,
+            input: input.clone(),
+            segments,
+            info,
+        })
+    }
+
+    /// The program ends: the segments a stage still holds back (none yet:
+    /// every block comes out whole from [`Pipeline::push`]).
+    pub fn finish(&mut self) -> Vec<Block> {
+        Vec::new()
     }
 }
 

@@ -12,8 +12,6 @@
 //! and plots them ([`plot`]). Programs come in the JSON block form
 //! ([`blocks`]). `docs/traces.md` describes the format.
 
-#[cfg(feature = "testing")]
-pub mod alloc_count;
 pub mod analysis;
 pub mod blocks;
 pub mod messages;
@@ -24,7 +22,7 @@ pub mod replay;
 pub mod sim;
 pub mod writer;
 
-pub use blocks::{InputBlock, PathSpec, Program};
+pub use blocks::{InputBlock, PathSpec, Pipeline, Program};
 pub use messages::{BlockMsg, Channel, ConfigMsg, EventKind, EventMsg, LoopTimingMsg, SetpointMsg};
 pub use reader::{ReadError, Trace};
 pub use recorder::{Record, RecordTx, Recorder};

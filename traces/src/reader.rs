@@ -101,6 +101,30 @@ impl Trace {
         Trace::from_bytes(&bytes)
     }
 
+    /// Reads a trace like [`Trace::open`], but takes a truncated or
+    /// corrupted one (a recorder cut off by a crash) as what it holds up to
+    /// its last complete chunk: the trace, and the damage as text. Fails
+    /// when the file cannot be read, a message does not decode, or nothing
+    /// usable (not even the config) was recovered.
+    pub fn open_recovering(path: impl AsRef<Path>) -> Result<(Trace, Option<String>), ReadError> {
+        match Trace::open(path) {
+            Ok(t) => Ok((t, None)),
+            Err(ReadError::Damaged {
+                recovered,
+                file_bytes,
+                cause,
+            }) if recovered.config.is_some() => {
+                let note = format!(
+                    "truncated or corrupted ({cause}): using the {} recovered up to its last \
+                     complete chunk of a {file_bytes}-byte file",
+                    recovered.recovered()
+                );
+                Ok((*recovered, Some(note)))
+            }
+            Err(e) => Err(e),
+        }
+    }
+
     /// Reads a trace held in memory.
     pub fn from_bytes(bytes: &[u8]) -> Result<Trace, ReadError> {
         let mut trace = Trace::default();

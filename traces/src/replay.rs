@@ -125,6 +125,26 @@ pub fn first_difference(recorded: &SetpointMsg, replayed: &SetpointMsg) -> Optio
     })
 }
 
+/// Why a replay's run stops early.
+#[derive(Debug)]
+enum Stop {
+    /// A setpoint or block split differs.
+    Differs(Mismatch),
+    /// The recording of a truncated trace ends here.
+    RecordingEnds,
+}
+
+impl fmt::Display for Stop {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Stop::Differs(m) => m.fmt(f),
+            Stop::RecordingEnds => f.write_str("the recording ends"),
+        }
+    }
+}
+
+impl std::error::Error for Stop {}
+
 /// Whether `trace` holds a live run's schedule (commit events from `interpd
 /// serve`): replay then follows it tick by tick ([`replay_schedule`]).
 pub fn has_schedule(trace: &Trace) -> bool {
@@ -135,7 +155,20 @@ pub fn has_schedule(trace: &Trace) -> bool {
 /// recording is replayed by its schedule ([`replay_schedule`]); a simulated
 /// one by running its program.
 pub fn replay(trace: &Trace) -> Result<ReplayReport, ReplayError> {
+    replay_with(trace, false)
+}
+
+/// [`replay`] of a trace cut short (read with
+/// [`Trace::open_recovering`](crate::reader::Trace::open_recovering)):
+/// every recorded setpoint is compared, and the run stops where the
+/// recording stops instead of calling the rest missing.
+pub fn replay_truncated(trace: &Trace) -> Result<ReplayReport, ReplayError> {
+    replay_with(trace, true)
+}
+
+fn replay_with(trace: &Trace, truncated: bool) -> Result<ReplayReport, ReplayError> {
     if has_schedule(trace) {
+        // Follows the recorded setpoints: it stops where they stop.
         return replay_schedule(trace);
     }
     let (config, program) = program_of(trace)?;
@@ -146,60 +179,59 @@ pub fn replay(trace: &Trace) -> Result<ReplayReport, ReplayError> {
     let mut compared = 0u64;
     let mut missing = 0u64;
     let mut block_k = 0usize;
-    let res = sim::run(
-        &config,
-        &program,
-        max_time,
-        |item| -> Result<(), Mismatch> {
-            match item {
-                SimItem::Tick { setpoint, .. } => {
-                    let replayed = SetpointMsg::from(setpoint);
-                    match recorded.get(next) {
-                        Some(r) if r.seq == replayed.seq => {
-                            next += 1;
-                            compared += 1;
-                            if let Some(m) = first_difference(r, &replayed) {
-                                return Err(m);
-                            }
-                        }
-                        Some(r) if r.seq > replayed.seq => missing += 1,
-                        Some(r) => {
-                            return Err(Mismatch {
-                                seq: r.seq,
-                                field: "seq".into(),
-                                recorded: r.seq.to_string(),
-                                replayed: replayed.seq.to_string(),
-                            });
-                        }
-                        None => {
-                            return Err(Mismatch {
-                                seq: replayed.seq,
-                                field: "setpoints".into(),
-                                recorded: format!("{} setpoints (trace ends)", recorded.len()),
-                                replayed: "more setpoints".into(),
-                            });
+    let res = sim::run(&config, &program, max_time, |item| -> Result<(), Stop> {
+        match item {
+            SimItem::Tick { setpoint, .. } => {
+                let replayed = SetpointMsg::from(setpoint);
+                match recorded.get(next) {
+                    Some(r) if r.seq == replayed.seq => {
+                        next += 1;
+                        compared += 1;
+                        if let Some(m) = first_difference(r, &replayed) {
+                            return Err(Stop::Differs(m));
                         }
                     }
-                }
-                SimItem::Block(b) => {
-                    let rec = trace.blocks.get(block_k);
-                    block_k += 1;
-                    if rec.is_none_or(|r| r.segments != b.segments) {
-                        return Err(split_mismatch(
-                            b.index,
-                            rec.map(|r| r.segments.as_slice()),
-                            &b.segments,
-                        ));
+                    Some(r) if r.seq > replayed.seq => missing += 1,
+                    Some(r) => {
+                        return Err(Stop::Differs(Mismatch {
+                            seq: r.seq,
+                            field: "seq".into(),
+                            recorded: r.seq.to_string(),
+                            replayed: replayed.seq.to_string(),
+                        }));
+                    }
+                    None if truncated => return Err(Stop::RecordingEnds),
+                    None => {
+                        return Err(Stop::Differs(Mismatch {
+                            seq: replayed.seq,
+                            field: "setpoints".into(),
+                            recorded: format!("{} setpoints (trace ends)", recorded.len()),
+                            replayed: "more setpoints".into(),
+                        }));
                     }
                 }
-                SimItem::Config(_) | SimItem::Event(_) => {}
             }
-            Ok(())
-        },
-    );
+            SimItem::Block(b) => {
+                let rec = trace.blocks.get(block_k);
+                block_k += 1;
+                if rec.is_none() && truncated {
+                    return Ok(()); // recorded after the cut
+                }
+                if rec.is_none_or(|r| r.segments != b.segments) {
+                    return Err(Stop::Differs(split_mismatch(
+                        b.index,
+                        rec.map(|r| r.segments.as_slice()),
+                        &b.segments,
+                    )));
+                }
+            }
+            SimItem::Config(_) | SimItem::Event(_) => {}
+        }
+        Ok(())
+    });
     match res {
-        Ok(_) => {}
-        Err(SimError::Sink(m)) => return Err(ReplayError::Mismatch(m)),
+        Ok(_) | Err(SimError::Sink(Stop::RecordingEnds)) => {}
+        Err(SimError::Sink(Stop::Differs(m))) => return Err(ReplayError::Mismatch(m)),
         Err(e) => return Err(ReplayError::Sim(e.to_string())),
     }
     if let Some(r) = recorded.get(next) {

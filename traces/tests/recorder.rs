@@ -25,7 +25,7 @@ fn setpoint(k: u64) -> Setpoint {
 #[global_allocator]
 static ALLOCATOR: counting::Counting = counting::Counting;
 
-use traces::alloc_count as counting;
+use alloc_count as counting;
 
 #[test]
 fn a_small_queue_overflows_counts_and_records_it_without_allocating() {

@@ -1,0 +1,381 @@
+//! `interpd send PROGRAM`: streams a program to `interpd serve` with
+//! back-pressure (at most [`WINDOW`] requests unanswered; the server answers a
+//! block only once it is queued), shows progress, and waits for the end.
+//!
+//! It first claims a program (`begin`): the server names it and where it
+//! starts, and a G-code program is converted from there (G91, a first move
+//! to where the machine is or to the origin). `start` is sent (on a second
+//! connection) as soon as the server stops answering for [`STALL`] (its
+//! queue is full: the program is longer than the look-ahead) or after the
+//! whole program was accepted, whichever comes first; so a program that fits
+//! runs exactly as `simulate` would. It then follows *its* program and exits
+//! non-zero unless that program reached `done`. Ctrl-C sends `hold`, then
+//! `abort`.
+
+use std::collections::VecDeque;
+use std::io::{IsTerminal, Write};
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use crate::protocol::Reply;
+use crate::service::control::{Phase, StatusReply};
+use anyhow::{Context, Error, Result, anyhow, bail};
+use tokio::io::{AsyncBufReadExt, AsyncRead, AsyncWrite, AsyncWriteExt, BufReader};
+
+use crate::service::serve::DEFAULT_PORT;
+
+/// Requests in flight at most.
+pub const WINDOW: usize = 8;
+/// No reply for this long while requests are in flight means back-pressure.
+pub const STALL: Duration = Duration::from_millis(100);
+/// Status poll interval while waiting for the end.
+const POLL: Duration = Duration::from_millis(50);
+
+/// Options of `interpd send`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct SendArgs {
+    /// The program: G-code (`.ngc`/`.nc`), a JSON program (`.json`), or JSON
+    /// blocks one per line (`.jsonl`; blank lines and `#` comments skipped).
+    pub program: PathBuf,
+    /// TCP address of the server.
+    #[arg(long, default_value_t = SocketAddr::from(([127, 0, 0, 1], DEFAULT_PORT)))]
+    pub addr: SocketAddr,
+    /// Connect to this Unix socket instead of TCP.
+    #[arg(long, value_name = "PATH")]
+    pub socket: Option<PathBuf>,
+    /// Token, if the server wants one.
+    #[arg(long)]
+    pub token: Option<String>,
+    /// Do not wait for the program to finish.
+    #[arg(long)]
+    pub no_wait: bool,
+    /// Print the final status as JSON.
+    #[arg(long)]
+    pub json: bool,
+    /// No progress output.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Expect {
+    Block,
+}
+
+/// The program's request lines: the file as the program loader reads it
+/// ([`crate::program::load`], as `interpd simulate` does), G-code converted
+/// from `start` (where the program will start) with rapids at `rapid_speed`
+/// (the machine's path-speed limit).
+pub fn program_lines(path: &Path, start: [f64; 3], rapid_speed: f64) -> Result<Vec<String>> {
+    let opts = crate::program::LoadOptions {
+        start: Some(start),
+        rapid_speed,
+    };
+    let program = crate::program::load(path, &opts)?;
+    Ok(program
+        .blocks
+        .iter()
+        .map(crate::protocol::block_json)
+        .collect())
+}
+
+/// Sends `start` on a connection of its own (authenticated like the stream).
+async fn start_aside(args: &SendArgs) -> Result<()> {
+    async fn ask<S: AsyncRead + AsyncWrite + Unpin>(io: S, args: &SendArgs) -> Result<()> {
+        let (rd, mut wr) = tokio::io::split(io);
+        let mut rd = BufReader::new(rd).lines();
+        if let Some(t) = &args.token {
+            wr.write_all(format!("auth {t}\n").as_bytes()).await?;
+        }
+        wr.write_all(b"start\n").await?;
+        let expected = if args.token.is_some() { 2 } else { 1 };
+        for _ in 0..expected {
+            let r = rd
+                .next_line()
+                .await?
+                .ok_or_else(|| anyhow!("the server closed the start connection"))?;
+            if let Reply::Err { problem, .. } = Reply::parse(&r).map_err(Error::msg)? {
+                // Not fatal: the program's own end decides how `send` exits.
+                eprintln!("interpd send: {problem}");
+            }
+        }
+        Ok(())
+    }
+    match &args.socket {
+        Some(p) => {
+            ask(
+                tokio::net::UnixStream::connect(p)
+                    .await
+                    .with_context(|| format!("connecting to {} for start", p.display()))?,
+                args,
+            )
+            .await
+        }
+        None => {
+            ask(
+                tokio::net::TcpStream::connect(args.addr)
+                    .await
+                    .with_context(|| format!("connecting to {} for start", args.addr))?,
+                args,
+            )
+            .await
+        }
+    }
+}
+
+/// How a `send` ended.
+#[derive(Debug, PartialEq)]
+pub enum Outcome {
+    /// All accepted and its program reached `done` (with `--no-wait`: all
+    /// accepted and started).
+    Done,
+    /// A line was refused (the program was aborted).
+    Refused(String),
+    /// Ctrl-C.
+    Interrupted,
+    /// The program ended otherwise than `done` (aborted, faulted).
+    Ended {
+        /// Its number.
+        program: u32,
+        /// How it ended.
+        phase: Phase,
+    },
+    /// A later program began before this one was seen to end.
+    Overtaken {
+        /// This program.
+        program: u32,
+        /// The current one.
+        now: u32,
+    },
+}
+
+struct Progress {
+    tty: bool,
+    quiet: bool,
+    last: Instant,
+}
+
+impl Progress {
+    fn show(&mut self, msg: &str, force: bool) {
+        if self.quiet {
+            return;
+        }
+        if self.tty {
+            eprint!("\r\x1b[2K{msg}");
+            let _ = std::io::stderr().flush();
+        } else if force || self.last.elapsed() >= Duration::from_secs(2) {
+            eprintln!("{msg}");
+            self.last = Instant::now();
+        }
+    }
+    fn done(&self) {
+        if self.tty && !self.quiet {
+            eprintln!();
+        }
+    }
+}
+
+fn bar(done: usize, total: usize) -> String {
+    const W: usize = 30;
+    let f = (done * W).checked_div(total).unwrap_or(W);
+    format!("[{}{}]", "#".repeat(f), ".".repeat(W - f))
+}
+
+/// Claims a program (`begin`), streams the lines `load` makes for its start
+/// point and the machine's rapid speed, then `end` and `start`, then follows
+/// that program to its end. Returns how it ended and the final status line (JSON).
+pub async fn stream<S: AsyncRead + AsyncWrite + Unpin>(
+    io: S,
+    load: &dyn Fn([f64; 3], f64) -> Result<Vec<String>>,
+    args: &SendArgs,
+) -> Result<(Outcome, String)> {
+    let (rd, mut wr) = tokio::io::split(io);
+    let mut rd = BufReader::new(rd).lines();
+    let gone = "the server closed the connection (it stopped or crashed)";
+    let next_reply = async |rd: &mut tokio::io::Lines<BufReader<_>>| -> Result<Reply> {
+        let line = rd
+            .next_line()
+            .await
+            .context(gone)?
+            .ok_or_else(|| anyhow!(gone))?;
+        Reply::parse(&line).map_err(Error::msg)
+    };
+    let send = async |wr: &mut tokio::io::WriteHalf<S>, line: &str| -> Result<()> {
+        wr.write_all(format!("{line}\n").as_bytes())
+            .await
+            .context(gone)
+    };
+    if let Some(t) = &args.token {
+        send(&mut wr, &format!("auth {t}")).await?;
+        if let Reply::Err { problem, .. } = next_reply(&mut rd).await? {
+            bail!("authentication failed: {problem}");
+        }
+    }
+    send(&mut wr, "begin").await?;
+    let (program, at) = match next_reply(&mut rd).await? {
+        Reply::Begin { program, at } => (program, at),
+        Reply::Err { problem, .. } => bail!("the server refused a new program: {problem}"),
+        other => bail!("unexpected reply to begin: {other}"),
+    };
+    send(&mut wr, "status").await?;
+    let Reply::Status(st) = next_reply(&mut rd).await? else {
+        bail!("no status from the server");
+    };
+    let lines = load(at, st.max_path_speed)?;
+    if lines.is_empty() {
+        bail!("{} has no blocks", args.program.display());
+    }
+    let mut sigint = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::interrupt())
+        .context("installing the Ctrl-C handler")?;
+    let mut progress = Progress {
+        tty: std::io::stderr().is_terminal(),
+        quiet: args.quiet,
+        last: Instant::now(),
+    };
+    let total = lines.len();
+    let (mut sent, mut acked) = (0usize, 0usize);
+    let mut expect: VecDeque<Expect> = VecDeque::new();
+    let mut started = false;
+    let mut refused: Option<String> = None;
+    let mut interrupted = false;
+    while acked < total && refused.is_none() {
+        while sent < total && expect.len() < WINDOW {
+            send(&mut wr, &lines[sent])
+                .await
+                .with_context(|| format!("sending block {} of {total}", sent + 1))?;
+            sent += 1;
+            expect.push_back(Expect::Block);
+        }
+        tokio::select! {
+            r = tokio::time::timeout(STALL, next_reply(&mut rd)) => match r {
+                Err(_) => {
+                    // Back-pressure: the queue is full; let the machine run.
+                    // `start` goes over a second connection: on this one it
+                    // would wait behind the block the server is holding
+                    // until the queue drains, which needs `start`.
+                    if !started {
+                        start_aside(args).await?;
+                        started = true;
+                    }
+                }
+                Ok(reply) => {
+                    let reply = reply?;
+                    match expect.pop_front() {
+                        Some(Expect::Block) => {
+                            if reply.is_ok() {
+                                acked += 1;
+                            } else {
+                                refused = Some(format!("block {} of {total}: {reply}", acked + 1));
+                            }
+                        }
+                        None => bail!("unexpected reply {reply}"),
+                    }
+                    progress.show(&format!("{} {acked}/{total} blocks queued", bar(acked, total)), false);
+                }
+            },
+            _ = sigint.recv() => { interrupted = true; break; }
+        }
+    }
+    // Replies still owed are read by `request` below in order.
+    let request = async |wr: &mut tokio::io::WriteHalf<S>,
+                         rd: &mut tokio::io::Lines<BufReader<tokio::io::ReadHalf<S>>>,
+                         expect: &mut VecDeque<Expect>,
+                         req: &str|
+           -> Result<Reply> {
+        send(wr, req).await?;
+        while expect.pop_front().is_some() {
+            next_reply(rd).await?;
+        }
+        next_reply(rd).await
+    };
+    let status = async |wr: &mut tokio::io::WriteHalf<S>,
+                        rd: &mut tokio::io::Lines<BufReader<tokio::io::ReadHalf<S>>>,
+                        expect: &mut VecDeque<Expect>|
+           -> Result<StatusReply> {
+        match request(wr, rd, expect, "status").await? {
+            Reply::Status(s) => Ok(*s),
+            other => bail!("unexpected reply to status: {other}"),
+        }
+    };
+    let json = |s: &StatusReply| serde_json::to_string(s).unwrap_or_default();
+    if interrupted || refused.is_some() {
+        progress.done();
+        if interrupted {
+            eprintln!("interpd send: interrupted: hold, then abort");
+            request(&mut wr, &mut rd, &mut expect, "hold").await?;
+        }
+        if let Reply::Err { problem, .. } = request(&mut wr, &mut rd, &mut expect, "abort").await? {
+            eprintln!("interpd send: abort: {problem}");
+        }
+        let st = status(&mut wr, &mut rd, &mut expect).await?;
+        return Ok((
+            match refused {
+                Some(e) => Outcome::Refused(e),
+                None => Outcome::Interrupted,
+            },
+            json(&st),
+        ));
+    }
+    if let Reply::Err { problem, .. } = request(&mut wr, &mut rd, &mut expect, "end").await? {
+        bail!("end refused: {problem}");
+    }
+    if !started
+        && let Reply::Err { problem, .. } = request(&mut wr, &mut rd, &mut expect, "start").await?
+    {
+        eprintln!("interpd send: {problem}");
+    }
+    loop {
+        let st = status(&mut wr, &mut rd, &mut expect).await?;
+        if st.program != program {
+            progress.done();
+            return Ok((
+                Outcome::Overtaken {
+                    program,
+                    now: st.program,
+                },
+                json(&st),
+            ));
+        }
+        let msg = if st.machine_program == program {
+            format!(
+                "program {program}: {} at {:.3} mm, block {}",
+                st.state, st.s, st.block_id
+            )
+        } else {
+            format!(
+                "program {program}: waiting for the machine (it runs program {})",
+                st.machine_program
+            )
+        };
+        progress.show(
+            &format!("{} {total}/{total} blocks queued, {msg}", bar(total, total)),
+            false,
+        );
+        let ended = match st.program_phase {
+            Phase::Done => Some(Outcome::Done),
+            Phase::Aborted | Phase::Fault | Phase::None => Some(Outcome::Ended {
+                program,
+                phase: st.program_phase,
+            }),
+            // Accepted and started (committed, or waiting for the program before it).
+            Phase::Open | Phase::Ended if args.no_wait => Some(Outcome::Done),
+            Phase::Open | Phase::Ended => None,
+        };
+        if let Some(outcome) = ended {
+            progress.done();
+            return Ok((outcome, json(&st)));
+        }
+        tokio::select! {
+            _ = tokio::time::sleep(POLL) => {}
+            _ = sigint.recv() => {
+                progress.done();
+                eprintln!("interpd send: interrupted: hold, then abort");
+                request(&mut wr, &mut rd, &mut expect, "hold").await?;
+                request(&mut wr, &mut rd, &mut expect, "abort").await?;
+                let st = status(&mut wr, &mut rd, &mut expect).await?;
+                return Ok((Outcome::Interrupted, json(&st)));
+            }
+        }
+    }
+}

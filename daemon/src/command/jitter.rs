@@ -1,0 +1,9 @@
+//! `interpd jitter`: wake lateness and tick time, the pipeline against bare loops.
+
+use anyhow::Result;
+use interpd::tools::jitter::{JitterArgs, main};
+
+/// Runs the command.
+pub fn run(args: &JitterArgs) -> Result<()> {
+    main(args)
+}

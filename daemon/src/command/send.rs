@@ -1,0 +1,48 @@
+//! `interpd send PROGRAM`: streams a program through the library's client
+//! ([`interpd::client::send`]) and exits non-zero unless its program reached
+//! `done`.
+
+use anyhow::{Context, Result, bail};
+use interpd::client::send::{Outcome, SendArgs, program_lines, stream};
+
+/// Runs `send`.
+pub fn run(args: &SendArgs) -> Result<()> {
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()?;
+    let load = |start: [f64; 3], rapid: f64| program_lines(&args.program, start, rapid);
+    let (code, status) = rt.block_on(async {
+        match &args.socket {
+            Some(p) => {
+                let s = tokio::net::UnixStream::connect(p)
+                    .await
+                    .with_context(|| format!("connecting to {}", p.display()))?;
+                stream(s, &load, args).await
+            }
+            None => {
+                let s = tokio::net::TcpStream::connect(args.addr)
+                    .await
+                    .with_context(|| format!("connecting to {}", args.addr))?;
+                s.set_nodelay(true).ok();
+                stream(s, &load, args).await
+            }
+        }
+    })?;
+    if args.json {
+        println!("{status}");
+    } else {
+        println!("final status: {status}");
+    }
+    match code {
+        Outcome::Done => Ok(()),
+        Outcome::Refused(e) => bail!("the server refused the program: {e}"),
+        Outcome::Interrupted => bail!("interrupted: held and aborted"),
+        Outcome::Ended { program, phase } => bail!(
+            "program {program} did not reach done: it was {}",
+            interpd::service::control::phase_name(phase)
+        ),
+        Outcome::Overtaken { program, now } => {
+            bail!("program {program} was left behind: program {now} began before it was seen done")
+        }
+    }
+}

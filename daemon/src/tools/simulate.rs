@@ -1,0 +1,206 @@
+//! `interpd simulate`: a program through the interpolator with no clock.
+//!
+//! The same `Interpolator` as the real-time loop, driven by
+//! `traces::sim::run` (the code `interpd replay` re-runs), writes an MCAP
+//! trace if asked and prints the run's summary.
+//!
+//! Configuration, lowest precedence first: `InterpConfig::default()` and
+//! `SimSettings::default()`, the TOML file of `--config` (tables `[interp]`
+//! and `[simulate]`, kebab-case keys as the structs serialise), every
+//! `--set KEY=VALUE` (any `[interp]` key, TOML value syntax), then the named
+//! flags. Unknown keys are refused with their name.
+
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use interp_core::InterpConfig;
+use traces::analysis::{Analyzer, Summary};
+use traces::sim::{self, SimItem, SimSettings};
+use traces::writer::{TraceCompression, TraceWriter};
+
+/// Options of `interpd simulate`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct SimulateArgs {
+    /// The program: G-code (`.ngc`, `.nc`) or the JSON block form (`docs/traces.md`).
+    pub program: PathBuf,
+    /// TOML configuration (`[interp]`, `[simulate]`).
+    #[arg(long, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+    /// Write the trace to this MCAP file.
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
+    /// Print the summary as one JSON object.
+    #[arg(long)]
+    pub json: bool,
+    /// Override any `[interp]` key, e.g. `--set brake-reserve=0.1` (repeatable).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
+    /// Interpolation period, µs (`interp.period`; default 1000).
+    #[arg(long, value_name = "US")]
+    pub period_us: Option<f64>,
+    /// Chord tolerance, mm (`interp.chord-tolerance`; default 0.001).
+    #[arg(long, value_name = "MM")]
+    pub chord_tolerance_mm: Option<f64>,
+    /// Machine path-speed limit, mm/s (`interp.max-path-speed`; default 250).
+    #[arg(long, value_name = "MM_PER_S")]
+    pub max_speed: Option<f64>,
+    /// Tangential acceleration limit, mm/s² (`interp.max-path-accel`; default 2000).
+    #[arg(long, value_name = "MM_PER_S2")]
+    pub max_accel: Option<f64>,
+    /// Control points per segment when long NURBS are split (`simulate.max-ctrl-per-block`; default 20).
+    #[arg(long, value_name = "N")]
+    pub max_ctrl_per_block: Option<usize>,
+    /// Chunk compression of the trace: zstd (default), lz4 or none.
+    #[arg(long, value_name = "KIND", default_value = "zstd")]
+    pub compression: TraceCompression,
+}
+
+/// The resolved configuration.
+#[derive(Clone, Debug)]
+pub struct Resolved {
+    /// The interpolator's.
+    pub interp: InterpConfig,
+    /// The simulation's.
+    pub settings: SimSettings,
+}
+
+fn table_of<T: serde::Serialize>(v: &T) -> Result<toml::Table> {
+    toml::Table::try_from(v).context("serialising the default configuration")
+}
+
+/// Lays `over` on `base`, refusing keys `base` does not have.
+fn merge(base: &mut toml::Table, over: &toml::Table, section: &str, origin: &str) -> Result<()> {
+    for (k, v) in over {
+        if !base.contains_key(k) {
+            let known: Vec<&str> = base.keys().map(String::as_str).collect();
+            bail!(
+                "{origin}: unknown key `{section}.{k}` (known: {})",
+                known.join(", ")
+            );
+        }
+        base.insert(k.clone(), v.clone());
+    }
+    Ok(())
+}
+
+/// Defaults, then `--config`, then `--set`, then flags.
+pub fn resolve(args: &SimulateArgs) -> Result<Resolved> {
+    let mut interp = table_of(&InterpConfig::default())?;
+    let mut simulate = table_of(&SimSettings::default())?;
+    if let Some(path) = &args.config {
+        let origin = path.display().to_string();
+        let text = std::fs::read_to_string(path).with_context(|| format!("reading {origin}"))?;
+        let file: toml::Table =
+            toml::from_str(&text).with_context(|| format!("parsing {origin} as TOML"))?;
+        for (k, v) in &file {
+            let (target, name) = match k.as_str() {
+                "interp" => (&mut interp, "interp"),
+                "simulate" => (&mut simulate, "simulate"),
+                _ => bail!("{origin}: unknown table `{k}` (known: interp, simulate)"),
+            };
+            let Some(t) = v.as_table() else {
+                bail!("{origin}: `{k}` must be a table");
+            };
+            merge(target, t, name, &origin)?;
+        }
+    }
+    for s in &args.set {
+        let Some((k, v)) = s.split_once('=') else {
+            bail!("--set {s}: expected KEY=VALUE");
+        };
+        let doc: toml::Table = toml::from_str(&format!("{} = {}", k.trim(), v.trim()))
+            .with_context(|| format!("--set {s}: VALUE must be a TOML value"))?;
+        merge(&mut interp, &doc, "interp", &format!("--set {s}"))?;
+    }
+    let mut cfg: InterpConfig = interp
+        .try_into()
+        .context("the [interp] configuration does not fit InterpConfig")?;
+    let mut settings: SimSettings = simulate
+        .try_into()
+        .context("the [simulate] configuration does not fit")?;
+    if let Some(us) = args.period_us {
+        cfg.period = us * 1e-6;
+    }
+    if let Some(v) = args.chord_tolerance_mm {
+        cfg.chord_tolerance = v;
+    }
+    if let Some(v) = args.max_speed {
+        cfg.max_path_speed = v;
+    }
+    if let Some(v) = args.max_accel {
+        cfg.max_path_accel = v;
+    }
+    if let Some(n) = args.max_ctrl_per_block {
+        settings.max_ctrl_per_block = n;
+    }
+    cfg.validate()
+        .map_err(anyhow::Error::msg)
+        .context("checking the configuration")?;
+    let max = interp_core::nurbs::MAX_CTRL;
+    if !(1..=max).contains(&settings.max_ctrl_per_block) {
+        bail!(
+            "simulate.max-ctrl-per-block must be in 1..={max}, got {}",
+            settings.max_ctrl_per_block
+        );
+    }
+    Ok(Resolved {
+        interp: cfg,
+        settings,
+    })
+}
+
+/// What `writer` in the config message says.
+pub fn writer_name() -> String {
+    format!("interpd simulate {}", env!("CARGO_PKG_VERSION"))
+}
+
+/// Runs the simulation; writes the trace to `args.out` if given.
+pub fn run(args: &SimulateArgs) -> Result<Summary> {
+    let r = resolve(args)?;
+    let program = crate::program::load(
+        &args.program,
+        &crate::program::LoadOptions {
+            start: None,
+            rapid_speed: r.interp.max_path_speed,
+        },
+    )?;
+    let source = args.program.display().to_string();
+    let config = sim::config_for(&program, r.interp, &r.settings, &writer_name(), &source);
+    let expanded = program
+        .expand(r.settings.max_ctrl_per_block, sim::FIRST_BLOCK_ID)
+        .with_context(|| format!("in {source}"))?;
+    // The segments the interpolator runs: the program through the G64 P stage.
+    let segments = sim::smoothed_segments(&expanded, &config.interp)
+        .map_err(anyhow::Error::msg)
+        .with_context(|| format!("smoothing {source}"))?;
+    let mut analyzer = Analyzer::new(&config, expanded.blocks.len(), &segments);
+    let mut observe = |item: &SimItem<'_>| match item {
+        SimItem::Tick { setpoint, .. } => {
+            analyzer.push(setpoint);
+        }
+        SimItem::Event(e) => analyzer.event(e.kind),
+        SimItem::Config(_) | SimItem::Block(_) => {}
+    };
+    let max_time = r.settings.max_machine_time;
+    match &args.out {
+        Some(path) => {
+            let f = File::create(path).with_context(|| format!("creating {}", path.display()))?;
+            let mut w = TraceWriter::new(BufWriter::new(f), args.compression)
+                .with_context(|| format!("starting the trace {}", path.display()))?;
+            sim::record(&config, &program, max_time, &mut w, observe)
+                .with_context(|| format!("simulating {source}"))?;
+            w.finish()
+                .with_context(|| format!("finishing the trace {}", path.display()))?;
+        }
+        None => {
+            sim::run(&config, &program, max_time, |item| {
+                observe(&item);
+                Ok::<(), std::convert::Infallible>(())
+            })
+            .with_context(|| format!("simulating {source}"))?;
+        }
+    }
+    Ok(analyzer.summary())
+}

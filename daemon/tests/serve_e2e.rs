@@ -1,0 +1,554 @@
+//! End-to-end: `interpd serve` with `interpd send` and `interpd watch` (an
+//! iceoryx2 subscriber) as separate processes, over TCP and the Unix socket.
+
+mod serve_support;
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::os::unix::fs::PermissionsExt;
+use std::time::{Duration, Instant};
+
+use serve_support::*;
+
+/// Setpoints must lie on the programmed polyline this closely, mm.
+const ON_PATH_TOL: f64 = 1e-9;
+
+/// A polyline with corners (full stops) and a Z move, from the origin.
+const POLYLINE: [[f64; 3]; 4] = [
+    [0.0, 0.0, 0.0],
+    [8.0, 0.0, 0.0],
+    [8.0, 4.0, 0.0],
+    [0.0, 4.0, 1.5],
+];
+
+/// Runs `interpd replay` on `trace`, asserts it is bit-identical and returns
+/// how many setpoints it compared and everything it printed.
+fn replay_said(trace: &std::path::Path) -> (u64, String) {
+    let out = std::process::Command::new(interpd())
+        .arg("replay")
+        .arg(trace)
+        .output()
+        .expect("interpd replay");
+    let said = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(out.status.success(), "replay failed: {said}");
+    let compared = said
+        .split(" setpoints bit-identical")
+        .next()
+        .and_then(|h| h.split_whitespace().last())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no count in {said:?}"));
+    (compared, said)
+}
+
+/// [`replay_said`]'s count.
+fn replay_bit_identical(trace: &std::path::Path) -> u64 {
+    replay_said(trace).0
+}
+
+/// `interpd trace summary --json` of `trace`.
+fn trace_summary(trace: &std::path::Path) -> serde_json::Value {
+    let out = std::process::Command::new(interpd())
+        .args(["trace", "summary", "--json"])
+        .arg(trace)
+        .output()
+        .expect("interpd trace summary");
+    assert!(
+        out.status.success(),
+        "trace summary: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("summary JSON")
+}
+
+#[test]
+fn streamed_program_is_published_gapless_on_the_path_and_ends_at_rest_at_its_end() {
+    let dir = temp_dir("e2e");
+    let service = service_name("e2e");
+    let trace = dir.join("run.mcap");
+    let srv = Server::start(
+        &service,
+        &["--no-socket", "--record", trace.to_str().unwrap()],
+    );
+    let csv = dir.join("setpoints.csv");
+    let watcher = watch(&service, &csv);
+    std::thread::sleep(Duration::from_millis(300)); // let the subscriber connect
+    let program = dir.join("poly.jsonl");
+    let mut text = String::from("# a polyline\n");
+    for (i, p) in POLYLINE[1..].iter().enumerate() {
+        text.push_str(&line_to(*p, 3000.0, i as u32 + 1));
+        text.push('\n');
+    }
+    std::fs::write(&program, text).unwrap();
+    let out = std::process::Command::new(interpd())
+        .args(["send", "--json", "--addr"])
+        .arg(format!("127.0.0.1:{}", srv.port))
+        .arg(&program)
+        .output()
+        .expect("interpd send");
+    assert!(
+        out.status.success(),
+        "send failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let status: serde_json::Value =
+        serde_json::from_slice(&out.stdout).expect("send --json prints the status");
+    assert_eq!(status["state"], "done", "{status}");
+    assert_eq!(status["blocks_accepted"], 3);
+
+    let w = wait_child(watcher, "interpd watch");
+    assert!(
+        w.status.success(),
+        "watch: {}",
+        String::from_utf8_lossy(&w.stdout)
+    );
+    let summary: serde_json::Value = serde_json::from_slice(&w.stdout).unwrap();
+    assert_eq!(summary["gaps"], 0);
+    let rows = read_csv(&csv);
+    assert!(rows.len() > 100, "{} rows", rows.len());
+    // Gapless publisher sequence, and ticks that advance by one once moving.
+    for w in rows.windows(2) {
+        assert_eq!(w[1].seq, w[0].seq + 1, "gap after {:?}", w[0]);
+        if w[0].tick > 0 {
+            assert_eq!(w[1].tick, w[0].tick + 1);
+        }
+    }
+    // Every point on the polyline.
+    let mut max_off = 0.0f64;
+    for r in &rows {
+        let d = POLYLINE
+            .windows(2)
+            .map(|s| dist_to_segment(r.p, s[0], s[1]))
+            .fold(f64::INFINITY, f64::min);
+        max_off = max_off.max(d);
+    }
+    assert!(
+        max_off <= ON_PATH_TOL,
+        "a setpoint is {max_off} mm off the path"
+    );
+    // At rest, exactly at the end, done; it moved through every block.
+    let last = rows.last().unwrap();
+    assert_eq!(last.state, "done");
+    assert_eq!(last.p, POLYLINE[3]);
+    assert_eq!(last.feed, 0.0);
+    let ids: std::collections::BTreeSet<u32> = rows.iter().map(|r| r.block_id).collect();
+    assert!(
+        ids.contains(&1) && ids.contains(&2) && ids.contains(&3),
+        "{ids:?}"
+    );
+
+    let (st, text) = srv.stop();
+    assert!(st.success(), "serve exited with {st}: {text}");
+    assert!(text.contains("stopped:"), "{text}");
+    assert!(text.contains("0 records dropped"), "{text}");
+
+    // The recording replays bit for bit (`interpd replay`).
+    let compared = replay_bit_identical(&trace);
+    // Every moving tick the subscriber saw is in the trace.
+    let moving = rows
+        .iter()
+        .filter(|r| r.tick > 0)
+        .map(|r| r.tick)
+        .max()
+        .unwrap();
+    assert!(
+        compared >= moving,
+        "{compared} compared, {moving} ticks seen"
+    );
+}
+
+#[test]
+fn bad_lines_get_an_error_naming_the_problem_and_the_connection_stays_up() {
+    let dir = temp_dir("badlines");
+    let sock = dir.join("interpd.sock");
+    let service = service_name("badlines");
+    let srv = Server::start(&service, &["--socket", sock.to_str().unwrap()]);
+    let mut c = srv.connect();
+    let r = c.ask("jump 3");
+    assert!(r.starts_with("err 1 unknown request \"jump\""), "{r}");
+    let r = c.ask("{\"feed\": 100, \"kind\": ");
+    assert!(r.starts_with("err 2 invalid JSON block"), "{r}");
+    let long = "#".repeat(1200 * 1024);
+    let r = c.ask(&long);
+    assert!(
+        r.starts_with("err 3 line of") && r.contains("exceeds the limit"),
+        "{r}"
+    );
+    let r = c.ask(&line_to([1.0, 0.0, 0.0], -5.0, 1));
+    assert!(r.starts_with("err 4 feed must be a positive"), "{r}");
+    let r = c.ask(r#"{"feed": 100, "kind": "nurbs", "degree": 2, "points": [[5,5,5],[6,5,5],[7,6,5]], "knots": [0,0,0,1,1,1]}"#);
+    assert!(r.starts_with("err 5 ") && r.contains("start"), "{r}");
+    let r = c.ask("override 9");
+    assert!(r.starts_with("err 6 override 9 outside"), "{r}");
+    // Still up: a good block and a status.
+    let r = c.ask(&line_to([1.0, 0.0, 0.0], 600.0, 7));
+    assert_eq!(r, "ok block 1 segments 1..=1");
+    let s = c.status();
+    assert_eq!(s["line_errors"], 6);
+    assert_eq!(s["blocks_accepted"], 1);
+    assert_eq!(s["state"], "idle"); // no `start` yet
+
+    // The Unix socket: mode 0600, same protocol.
+    let mode = std::fs::metadata(&sock).unwrap().permissions().mode() & 0o777;
+    assert_eq!(mode, 0o600);
+    let u = std::os::unix::net::UnixStream::connect(&sock).unwrap();
+    u.set_read_timeout(Some(WAIT)).unwrap();
+    let mut ur = BufReader::new(u.try_clone().unwrap());
+    let mut uw = u;
+    uw.write_all(b"status\n").unwrap();
+    let mut line = String::new();
+    ur.read_line(&mut line).unwrap();
+    assert!(line.starts_with("status {"), "{line}");
+
+    // Run it to the end.
+    assert_eq!(c.ask("end"), "ok end");
+    assert_eq!(c.ask("start"), "ok start");
+    let s = c.wait_for("done", |s| s["state"] == "done");
+    assert_eq!(s["position"], serde_json::json!([1.0, 0.0, 0.0]));
+    let (st, _) = srv.stop();
+    assert!(st.success());
+    assert!(!sock.exists(), "the socket file is removed at exit");
+}
+
+#[test]
+fn a_client_leaving_mid_stream_holds_and_the_accepted_blocks_stay() {
+    let service = service_name("disconnect");
+    let srv = Server::start(&service, &["--no-socket"]);
+    let mut c = srv.connect();
+    // 40 mm at 1200 mm/min: two seconds of motion.
+    assert!(
+        c.ask(&line_to([40.0, 0.0, 0.0], 1200.0, 1))
+            .starts_with("ok")
+    );
+    assert!(
+        c.ask(&line_to([40.0, 10.0, 0.0], 1200.0, 2))
+            .starts_with("ok")
+    );
+    assert_eq!(c.ask("start"), "ok start");
+    c.wait_for("motion", |s| {
+        s["state"] == "running" && s["s"].as_f64().unwrap() > 1.0
+    });
+    drop(c); // gone without `end`
+    let mut c2 = srv.connect();
+    let s = c2.wait_for("hold at rest", |s| {
+        s["state"] == "holding" && s["feed"] == 0.0
+    });
+    let x = s["position"][0].as_f64().unwrap();
+    assert!(x > 1.0 && x < 40.0, "held at {x}");
+    assert_eq!(s["position"][1], 0.0);
+    // Resume and finish the program with what was accepted.
+    assert_eq!(c2.ask("resume"), "ok resume");
+    assert_eq!(c2.ask("override 2"), "ok override 2");
+    assert_eq!(c2.ask("end"), "ok end");
+    let s = c2.wait_for("done", |s| s["state"] == "done");
+    assert_eq!(s["position"], serde_json::json!([40.0, 10.0, 0.0]));
+    drop(srv);
+}
+
+#[test]
+fn hold_resume_and_abort_stop_on_the_path_and_a_new_program_starts_there() {
+    let service = service_name("commands");
+    let dir = temp_dir("commands");
+    let trace = dir.join("commands.mcap");
+    let srv = Server::start(
+        &service,
+        &["--no-socket", "--record", trace.to_str().unwrap()],
+    );
+    let mut c = srv.connect();
+    assert!(
+        c.ask(&line_to([30.0, 0.0, 0.0], 1800.0, 1))
+            .starts_with("ok")
+    );
+    assert_eq!(c.ask("start"), "ok start");
+    c.wait_for("motion", |s| s["s"].as_f64().unwrap() > 2.0);
+    // Streamed while moving: committed between ticks of a running program.
+    assert!(
+        c.ask(&line_to([30.0, 10.0, 0.0], 1800.0, 2))
+            .starts_with("ok")
+    );
+    assert_eq!(c.ask("end"), "ok end");
+    assert_eq!(c.ask("override 0.5"), "ok override 0.5");
+    assert_eq!(c.ask("hold"), "ok hold");
+    let h = c.wait_for("held", |s| s["state"] == "holding" && s["feed"] == 0.0);
+    let held_at = h["s"].as_f64().unwrap();
+    std::thread::sleep(Duration::from_millis(100));
+    let h2 = c.status();
+    assert_eq!(h2["s"].as_f64().unwrap(), held_at, "moved while held");
+    assert_eq!(c.ask("resume"), "ok resume");
+    c.wait_for("moving again", |s| s["s"].as_f64().unwrap() > held_at + 1.0);
+    let r = c.ask("abort");
+    assert_eq!(r, "ok abort");
+    let a = c.status();
+    assert_eq!(a["state"], "idle");
+    assert_eq!(a["feed"], 0.0);
+    let x = a["position"][0].as_f64().unwrap();
+    assert!(x > held_at && x < 30.0, "stopped at {x}");
+    assert_eq!(a["position"][1], 0.0);
+    // A new program starts where the machine stopped.
+    assert!(c.ask(&line_to([x, 5.0, 0.0], 1800.0, 2)).starts_with("ok"));
+    assert_eq!(c.ask("end"), "ok end");
+    assert_eq!(c.ask("start"), "ok start");
+    let d = c.wait_for("done", |s| s["state"] == "done");
+    assert_eq!(d["position"], serde_json::json!([x, 5.0, 0.0]));
+    // And another after that one is done.
+    assert!(c.ask(&line_to([x, 8.0, 0.0], 1800.0, 1)).starts_with("ok"));
+    assert_eq!(c.ask("end"), "ok end");
+    assert_eq!(c.ask("start"), "ok start");
+    let d = c.wait_for("done again", |s| {
+        s["state"] == "done" && s["position"] == serde_json::json!([x, 8.0, 0.0])
+    });
+    assert_eq!(d["feed"], 0.0);
+    let (st, text) = srv.stop();
+    assert!(st.success(), "serve exited with {st}: {text}");
+    assert!(text.contains("0 records dropped"), "{text}");
+
+    // The whole session (three programs, blocks committed while moving,
+    // override, hold, resume, abort) replays bit for bit by its schedule.
+    let compared = replay_bit_identical(&trace);
+    let ticks = d["ticks"].as_u64().unwrap();
+    assert!(compared >= ticks, "{compared} of {ticks} ticks replayed");
+
+    // `interpd trace summary` analyses the whole session: the segments of
+    // the later programs come from following the schedule.
+    let sum = trace_summary(&trace);
+    assert_eq!(sum["setpoints"].as_u64(), Some(compared), "{sum}");
+    assert_eq!(sum["missing_setpoints"], 0, "{sum}");
+    assert_eq!(sum["input_blocks"], 4, "{sum}");
+    assert_eq!(
+        sum["final_point"],
+        serde_json::json!([x, 8.0, 0.0]),
+        "{sum}"
+    );
+    // Along X to where the abort stopped, then 5 mm and 3 mm along Y.
+    let length = sum["length_mm"].as_f64().unwrap();
+    assert!((length - (x + 8.0)).abs() < 1e-6, "{length} mm for {x} + 8");
+    assert!(sum["max_chord_error_mm"].as_f64().unwrap() < 1e-9, "{sum}");
+    assert!(sum["events"]["abort"].as_u64() >= Some(1), "{sum}");
+}
+
+#[test]
+fn a_full_queue_is_back_pressure_not_loss() {
+    let service = service_name("backpressure");
+    let srv = Server::start(&service, &["--no-socket"]);
+    // 1 mm collinear lines: no corner stops, so the run is short once started.
+    let n = 150usize;
+    let mut w = std::net::TcpStream::connect(("127.0.0.1", srv.port)).unwrap();
+    let mut r = BufReader::new(w.try_clone().unwrap());
+    let writer = std::thread::spawn(move || {
+        let mut buf = String::new();
+        for i in 0..n {
+            buf.push_str(&line_to([(i + 1) as f64, 0.0, 0.0], 6000.0, i as u32 + 1));
+            buf.push('\n');
+        }
+        w.write_all(buf.as_bytes()).unwrap();
+        w
+    });
+    // Without `start` nothing moves: replies stop once the queues are full.
+    r.get_ref()
+        .set_read_timeout(Some(Duration::from_millis(500)))
+        .unwrap();
+    let mut oks = 0usize;
+    let mut line = String::new();
+    loop {
+        line.clear();
+        match r.read_line(&mut line) {
+            Ok(0) => panic!("closed"),
+            Ok(_) => {
+                assert!(line.starts_with("ok block"), "{line}");
+                oks += 1;
+            }
+            Err(_) => break, // stalled: back-pressure
+        }
+    }
+    assert!(oks > 10 && oks < n, "{oks} of {n} accepted before start");
+    let mut c = srv.connect();
+    assert_eq!(c.ask("start"), "ok start");
+    r.get_ref().set_read_timeout(Some(WAIT)).unwrap();
+    let t0 = Instant::now();
+    while oks < n {
+        line.clear();
+        r.read_line(&mut line).unwrap();
+        assert!(line.starts_with("ok block"), "{line}");
+        oks += 1;
+        assert!(t0.elapsed() < WAIT);
+    }
+    let mut w = writer.join().unwrap();
+    w.write_all(b"end\n").unwrap();
+    line.clear();
+    r.read_line(&mut line).unwrap();
+    assert_eq!(line.trim(), "ok end");
+    let s = c.wait_for("done", |s| s["state"] == "done");
+    assert_eq!(s["position"][0], n as f64);
+    assert_eq!(s["blocks_accepted"], n as u64);
+    assert_eq!(s["pieces_pushed"], n as u64);
+    assert_eq!(s["pieces_refused"], 0);
+    let mut rest = String::new();
+    let _ = r
+        .get_mut()
+        .set_read_timeout(Some(Duration::from_millis(10)));
+    let _ = r.read_to_string(&mut rest);
+    drop(srv);
+}
+
+#[test]
+fn a_restart_after_a_crash_serves_the_same_service_again() {
+    let service = service_name("crash");
+    let srv = Server::start(&service, &["--no-socket"]);
+    let pid = srv.child.id();
+    signal(pid, 9); // SIGKILL: no cleanup at all
+    drop(srv);
+    let srv = Server::start(&service, &["--no-socket"]);
+    let mut c = srv.connect();
+    assert!(c.ask(&line_to([2.0, 0.0, 0.0], 600.0, 1)).starts_with("ok"));
+    assert_eq!(c.ask("end"), "ok end");
+    assert_eq!(c.ask("start"), "ok start");
+    c.wait_for("done", |s| s["state"] == "done");
+    let (st, _) = srv.stop();
+    assert!(st.success());
+}
+
+#[test]
+fn remote_listening_needs_a_flag_and_a_token() {
+    let out = std::process::Command::new(interpd())
+        .args(["serve", "--no-socket", "--port", "0", "--listen", "0.0.0.0"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--allow-remote"));
+    let out = std::process::Command::new(interpd())
+        .args([
+            "serve",
+            "--no-socket",
+            "--port",
+            "0",
+            "--listen",
+            "0.0.0.0",
+            "--allow-remote",
+        ])
+        .env_remove("INTERPD_TOKEN")
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--token"));
+    // With a token, a connection must authenticate first.
+    let service = service_name("token");
+    let srv = Server::start(&service, &["--no-socket", "--token", "s3cret"]);
+    let mut c = srv.connect();
+    let r = c.ask("status");
+    assert!(r.starts_with("err 1 authentication required"), "{r}");
+    let mut c = srv.connect();
+    assert!(c.ask("auth wrong").starts_with("err 1 wrong token"));
+    assert_eq!(c.ask("auth s3cret"), "ok auth");
+    assert!(c.ask("status").starts_with("status {"));
+}
+
+/// `interpd send` of a program longer than the look-ahead: the server holds
+/// the block that does not fit until the machine moves, so `start` must not
+/// wait behind it on the same connection (it did: a deadlock whenever the
+/// server answered every block within the stall time).
+#[test]
+fn send_streams_a_program_longer_than_the_look_ahead_to_its_end() {
+    let service = service_name("long");
+    let dir = temp_dir("long");
+    let srv = Server::start(&service, &["--no-socket"]);
+    // 150 collinear 10 mm lines: 1,500 mm, more than the 1,024 mm profile
+    // ring plus the 16 planned blocks the RT queue holds, so the server must
+    // hold a block back before the machine has started.
+    let n = 150;
+    let mut text = String::new();
+    for i in 1..=n {
+        text.push_str(&line_to([10.0 * i as f64, 0.0, 0.0], 15_000.0, i));
+        text.push('\n');
+    }
+    let program = dir.join("long.jsonl");
+    std::fs::write(&program, text).unwrap();
+    let child = std::process::Command::new(interpd())
+        .args(["send", "--json", "--addr"])
+        .arg(format!("127.0.0.1:{}", srv.port))
+        .arg(&program)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("interpd send");
+    let out = wait_child(child, "interpd send of a long program");
+    assert!(
+        out.status.success(),
+        "send failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let status: serde_json::Value = serde_json::from_slice(&out.stdout).expect("status JSON");
+    assert_eq!(status["state"], "done", "{status}");
+    assert_eq!(status["blocks_accepted"], n);
+    assert_eq!(status["pieces_pushed"], n);
+    assert_eq!(
+        status["position"],
+        serde_json::json!([10.0 * n as f64, 0.0, 0.0])
+    );
+    drop(srv);
+}
+
+/// `interpd watch` tells a restart of the publisher (its sequence starts
+/// again, the position jumps) from a gap, and gives up on a dead publisher
+/// after `--liveness` seconds instead of waiting forever.
+#[test]
+fn watch_reports_a_publisher_restart_and_a_dead_publisher() {
+    let service = service_name("restart");
+    let srv = Server::start(&service, &["--no-socket"]);
+    let child = std::process::Command::new(interpd())
+        .args(["watch", "--json", "--liveness", "1", "--service", &service])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("interpd watch");
+    std::thread::sleep(Duration::from_millis(500));
+    crash_and_restart_elsewhere(srv);
+    let out = wait_child(child, "interpd watch of a dying publisher");
+    assert!(!out.status.success(), "watch exited 0");
+    let err = String::from_utf8_lossy(&out.stderr);
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).expect("summary");
+    assert_eq!(summary["restarts"], 1, "{summary}");
+    assert_eq!(summary["restart_jump_mm"], 5.0, "{summary}");
+    assert_eq!(summary["gaps"], 0, "a restart is not a gap: {summary}");
+    assert!(summary["silent_s"].as_f64().unwrap() >= 1.0, "{summary}");
+    assert!(err.contains("the publisher restarted 1 time(s)"), "{err}");
+    assert!(err.contains("went silent"), "{err}");
+    // No publisher at all: not "0 samples, fine".
+    let out = std::process::Command::new(interpd())
+        .args(["watch", "--liveness", "0.3", "--service"])
+        .arg(service_name("nobody"))
+        .output()
+        .expect("interpd watch");
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("no sample in"), "{err}");
+}
+
+/// A recording cut off by a crash (`kill -9` of `serve`) is summarised and
+/// replayed bit for bit up to its last complete chunk.
+#[test]
+fn a_recording_cut_off_by_a_crash_replays_up_to_its_last_complete_chunk() {
+    let dir = temp_dir("crash-record");
+    let trace = dir.join("run.mcap");
+    let srv = Server::start(
+        &service_name("crash-record"),
+        &["--no-socket", "--record", trace.to_str().unwrap()],
+    );
+    let mut c = srv.connect();
+    // Four seconds of motion; the service dies after about two.
+    assert!(
+        c.ask(&line_to([80.0, 0.0, 0.0], 1200.0, 1))
+            .starts_with("ok")
+    );
+    assert_eq!(c.ask("start"), "ok start");
+    c.wait_for("two seconds of motion", |s| s["s"].as_f64().unwrap() > 35.0);
+    signal(srv.child.id(), 9);
+    drop(srv);
+    let (compared, said) = replay_said(&trace);
+    assert!(said.contains("truncated"), "{said}");
+    // At least one complete chunk (about 1,000 ticks) of the moving ticks.
+    assert!(compared >= 500, "{said}");
+    let sum = trace_summary(&trace);
+    assert_eq!(sum["setpoints"].as_u64(), Some(compared), "{sum}");
+}
