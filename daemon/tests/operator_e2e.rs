@@ -21,10 +21,16 @@ fn a_program_belongs_to_one_connection_and_others_may_still_hold_abort_and_ask()
     let srv = Server::start(&service_name("owner"), &["--no-socket"]);
     let mut a = srv.connect();
     let mut b = srv.connect();
-    // 60 mm at 1200 mm/min: three seconds of motion.
+    // 60 mm at 1200 mm/min: three seconds of motion. The pipeline holds a
+    // line back until the next block shows it is no collinear continuation:
+    // the second block releases the first.
     assert_eq!(
         a.ask(&line_to([60.0, 0.0, 0.0], 1200.0, 1)),
-        "ok block 1 segments 1..=1"
+        "ok block 1 segments 1..=0"
+    );
+    assert_eq!(
+        a.ask(&line_to([60.0, 0.0, 1.0], 1200.0, 2)),
+        "ok block 2 segments 1..=1"
     );
     // Client B's blocks are not merged into A's program.
     let r = b.ask(&line_to([0.0, 5.0, 0.0], 1200.0, 1));
@@ -64,7 +70,7 @@ fn a_program_belongs_to_one_connection_and_others_may_still_hold_abort_and_ask()
     assert_eq!(b.ask("start"), "ok start");
     let s = b.wait_for("done", |s| s["program_phase"] == "done");
     assert_eq!(s["position"], serde_json::json!([x, 5.0, 0.0]));
-    assert_eq!(s["blocks_accepted"], 2);
+    assert_eq!(s["blocks_accepted"], 3);
 }
 
 #[test]

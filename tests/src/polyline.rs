@@ -26,6 +26,7 @@ pub const RESOLUTION: f64 = 2e-5;
 
 /// A programmed polyline (or several: a path with jumps is several
 /// polylines, whose segments all count).
+#[derive(Debug)]
 pub struct Polyline {
     segs: Vec<(Vec3, Vec3)>,
     grid: HashMap<(i64, i64, i64), Vec<u32>>,

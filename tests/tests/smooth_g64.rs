@@ -7,7 +7,6 @@
 //! random dense programs hold the same bound.
 
 use gcode::CoreOptions;
-use interp_core::geom::Curve;
 use interp_core::smooth::Policy;
 use interp_core::{InterpConfig, Vec3};
 use interpd_tests::path_time::{interpolated_run, smoothed};

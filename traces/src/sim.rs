@@ -7,18 +7,18 @@
 //! push is tried again; after the last block, `finish()` and tick until done.
 //!
 //! Between the program and the interpolator runs the `G64 P` stage
-//! (`interp_core::smooth::Smoother`, window `DEFAULT_WINDOW`): every
-//! expanded segment is pushed into it, and every block it releases goes to
-//! the interpolator at once; at the end, `Smoother::finish` releases the
-//! rest. The trace records the program's own blocks, so a replay re-runs the
+//! (`interp_core::smooth::Smoother`, window `DEFAULT_WINDOW`) of a
+//! [`Pipeline`], as in the daemon's control plane: every expanded block is
+//! pushed into it, and every block it releases goes to the interpolator at
+//! once; at the end, `Pipeline::finish` releases the rest. The trace records the program's own blocks, so a replay re-runs the
 //! stage and gets the same segments.
 
 use interp_core::interp::{DEFAULT_QUEUE, PushError};
-use interp_core::smooth::{SmoothError, SmoothStats, Smoother};
+use interp_core::smooth::SmoothStats;
 use interp_core::{Block, InterpConfig, Interpolator, RunState, Setpoint};
 use serde::{Deserialize, Serialize};
 
-use crate::blocks::{BlockError, Expanded, Program};
+use crate::blocks::{BlockError, Expanded, Pipeline, Program};
 use crate::messages::{BlockMsg, ConfigMsg, EventKind, EventMsg, FORMAT_VERSION};
 
 /// Id of the first interpolator block.
@@ -113,19 +113,16 @@ pub struct SimOutcome {
 }
 
 /// The interpolator blocks of an expanded program: its segments through the
-/// `G64 P` stage, exactly as [`run`] pushes them (for analysis and replay).
+/// `G64 P` stage of a [`Pipeline`], exactly as [`run`] pushes them (for
+/// analysis and replay).
 pub fn smoothed_segments(expanded: &Expanded, cfg: &InterpConfig) -> Result<Vec<Block>, String> {
-    let mut st: Box<Smoother> =
-        Box::new(Smoother::new(cfg, FIRST_BLOCK_ID).map_err(|e| e.to_string())?);
+    let mut pipeline = Pipeline::new(expanded.start, FIRST_BLOCK_ID, usize::MAX, cfg)
+        .map_err(|e| e.to_string())?;
     let mut out = Vec::new();
-    for seg in expanded.segments() {
-        while st.push(seg) == Err(SmoothError::Full) {
-            out.extend(st.pop());
-        }
-        out.extend(std::iter::from_fn(|| st.pop()));
+    for eb in &expanded.blocks {
+        pipeline.push_expanded(eb, &mut out);
     }
-    st.finish();
-    out.extend(std::iter::from_fn(|| st.pop()));
+    out.extend(pipeline.finish());
     Ok(out)
 }
 
@@ -199,10 +196,16 @@ pub fn run<E>(
         Ok(last.state != RunState::Fault)
     };
 
-    let mut smoother: Box<Smoother> = Box::new(
-        Smoother::new(&config.interp, FIRST_BLOCK_ID)
-            .map_err(|e| SimError::Config(e.to_string()))?,
-    );
+    // The program's segments through the `G64 P` stage, as the daemon's
+    // control plane sends them.
+    let mut pipeline = Pipeline::new(
+        expanded.start,
+        FIRST_BLOCK_ID,
+        config.max_ctrl_per_block,
+        &config.interp,
+    )
+    .map_err(|e| SimError::Config(e.to_string()))?;
+    let mut released = Vec::new();
     let mut segments = 0usize;
     let mut faulted = false;
     // Pushes one released block into the interpolator, ticking while its queue is full.
@@ -238,20 +241,14 @@ pub fn run<E>(
             let ev = EventMsg::new(EventKind::Start, 0, 0.0);
             sink(SimItem::Event(&ev)).map_err(SimError::Sink)?;
         }
-        for seg in &eb.segments {
-            loop {
-                let refused = smoother.push(seg) == Err(SmoothError::Full);
-                while let Some(out) = smoother.pop() {
-                    if !push(&mut ip, &mut last, &mut sink, &out, eb)? {
-                        faulted = true;
-                        break 'blocks;
-                    }
-                    segments += 1;
-                }
-                if !refused {
-                    break;
-                }
+        released.clear();
+        pipeline.push_expanded(eb, &mut released);
+        for out in &released {
+            if !push(&mut ip, &mut last, &mut sink, out, eb)? {
+                faulted = true;
+                break 'blocks;
             }
+            segments += 1;
         }
         let msg = BlockMsg {
             index: eb.index as u32,
@@ -262,9 +259,8 @@ pub fn run<E>(
         sink(SimItem::Block(&msg)).map_err(SimError::Sink)?;
     }
     if !faulted {
-        smoother.finish();
         let tail = expanded.blocks.last();
-        while let Some(out) = smoother.pop() {
+        for out in pipeline.finish() {
             let eb = tail.expect("a released block comes from some input block");
             if !push(&mut ip, &mut last, &mut sink, &out, eb)? {
                 faulted = true;
@@ -293,7 +289,7 @@ pub fn run<E>(
         blocks: expanded.blocks.len(),
         segments,
         stats: ip.stats(),
-        smoothing: smoother.stats(),
+        smoothing: pipeline.stats(),
     })
 }
 
