@@ -63,7 +63,7 @@ fn a_program_belongs_to_one_connection_and_others_may_still_hold_abort_and_ask()
     );
     let r = a.ask(&line_to([x, 9.0, 0.0], 1200.0, 2));
     assert!(
-        r.starts_with("err 2 busy: program 2 belongs to connection 2"),
+        r.starts_with("err 3 busy: program 2 belongs to connection 2"),
         "{r}"
     );
     assert_eq!(b.ask("end"), "ok end");
