@@ -184,8 +184,7 @@ fn bad_lines_get_an_error_naming_the_problem_and_the_connection_stays_up() {
     assert!(r.starts_with("err 6 override 9 outside"), "{r}");
     // Still up: a good block and a status.
     let r = c.ask(&line_to([1.0, 0.0, 0.0], 600.0, 7));
-    // Held back by the pipeline until the next block or `end`.
-    assert_eq!(r, "ok block 1 segments 1..=0");
+    assert_eq!(r, "ok block 1 segments 1..=1");
     let s = c.status();
     assert_eq!(s["line_errors"], 6);
     assert_eq!(s["blocks_accepted"], 1);
@@ -262,17 +261,11 @@ fn hold_resume_and_abort_stop_on_the_path_and_a_new_program_starts_there() {
         c.ask(&line_to([30.0, 0.0, 0.0], 1800.0, 1))
             .starts_with("ok")
     );
-    // The second block releases the first from the pipeline.
-    assert!(
-        c.ask(&line_to([30.0, 10.0, 0.0], 1800.0, 2))
-            .starts_with("ok")
-    );
     assert_eq!(c.ask("start"), "ok start");
     c.wait_for("motion", |s| s["s"].as_f64().unwrap() > 2.0);
-    // Streamed while moving: what it releases is committed between ticks
-    // of a running program.
+    // Streamed while moving: committed between ticks of a running program.
     assert!(
-        c.ask(&line_to([30.0, 10.0, 2.0], 1800.0, 3))
+        c.ask(&line_to([30.0, 10.0, 0.0], 1800.0, 2))
             .starts_with("ok")
     );
     assert_eq!(c.ask("end"), "ok end");
@@ -322,7 +315,7 @@ fn hold_resume_and_abort_stop_on_the_path_and_a_new_program_starts_there() {
     let sum = trace_summary(&trace);
     assert_eq!(sum["setpoints"].as_u64(), Some(compared), "{sum}");
     assert_eq!(sum["missing_setpoints"], 0, "{sum}");
-    assert_eq!(sum["input_blocks"], 5, "{sum}");
+    assert_eq!(sum["input_blocks"], 4, "{sum}");
     assert_eq!(
         sum["final_point"],
         serde_json::json!([x, 8.0, 0.0]),
@@ -339,16 +332,14 @@ fn hold_resume_and_abort_stop_on_the_path_and_a_new_program_starts_there() {
 fn a_full_queue_is_back_pressure_not_loss() {
     let service = service_name("backpressure");
     let srv = Server::start(&service, &["--no-socket"]);
-    // 1 mm collinear lines: no corner stops, so the run is short once
-    // started. Their feeds alternate, so the pipeline merges none of them.
+    // 1 mm collinear lines: no corner stops, so the run is short once started.
     let n = 150usize;
     let mut w = std::net::TcpStream::connect(("127.0.0.1", srv.port)).unwrap();
     let mut r = BufReader::new(w.try_clone().unwrap());
     let writer = std::thread::spawn(move || {
         let mut buf = String::new();
         for i in 0..n {
-            let feed = if i % 2 == 0 { 6000.0 } else { 5999.0 };
-            buf.push_str(&line_to([(i + 1) as f64, 0.0, 0.0], feed, i as u32 + 1));
+            buf.push_str(&line_to([(i + 1) as f64, 0.0, 0.0], 6000.0, i as u32 + 1));
             buf.push('\n');
         }
         w.write_all(buf.as_bytes()).unwrap();

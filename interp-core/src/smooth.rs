@@ -22,10 +22,13 @@
 //!   point (the machine laws at its curvature) is no useful blend: the corner
 //!   stays exact.
 //!
-//! Under every mode, consecutive lines whose joint lies on the line through
-//! their outer ends (within round-off, same feed) are merged, and lines of
-//! round-off length are dropped. Arcs and NURBS pass through unchanged;
-//! `ExactPath` and `ExactStop` never change the path.
+//! Under `G64`, consecutive lines whose joint lies on the line through their
+//! outer ends (within round-off, same feed) are merged. Under every mode,
+//! lines of round-off length are dropped. Arcs and NURBS pass through
+//! unchanged; `ExactPath` and `ExactStop` never change the path, and their
+//! blocks are released as soon as they are pushed (nothing can change them),
+//! so a streaming client's last exact-path block moves without waiting for
+//! the program's end.
 //!
 //! The stage is streaming and fixed-capacity: [`Smoother::push`] takes the
 //! next program block, [`Smoother::pop`] gives the next block for the
@@ -316,8 +319,9 @@ impl<const W: usize> Smoother<W> {
     }
 
     /// Merges a line from `from` to `to` into the last held line if their
-    /// joint is collinear. Only when the last one is still whole (nothing of
-    /// it emitted), with the same feed, MRR and mode, and not an exact stop.
+    /// joint is collinear. Only under `G64` (a merge must wait for the next
+    /// block, which exact-path blocks never do), when the last one is still
+    /// whole (nothing of it emitted), with the same feed, MRR and mode.
     fn try_merge(&mut self, block: &Block, from: Vec3, to: Vec3) -> bool {
         let Some(last) = self.segs.back() else {
             return false;
@@ -325,7 +329,7 @@ impl<const W: usize> Smoother<W> {
         let single = self.segs.len() == 1;
         if !last.line()
             || (single && self.start_trimmed)
-            || last.block.blending == Blending::ExactStop
+            || self.tolerance(&last.block).is_none()
             || last.block.blending != block.blending
             || last.block.feed != block.feed
             || last.block.mrr != block.mrr
@@ -381,14 +385,18 @@ impl<const W: usize> Smoother<W> {
     /// Decides the front block if it can be decided now; false: wait.
     ///
     /// Only blocks that can no longer change are looked at: the last block
-    /// held may still grow by a collinear merge until another one follows it
-    /// (or the program ends). So the decision is the same whenever `pop` is
-    /// called.
+    /// held, if it is a `G64` line, may still grow by a collinear merge until
+    /// another one follows it (or the program ends). So the decision is the
+    /// same whenever `pop` is called.
     fn step(&mut self) -> bool {
         let Some(&front) = self.segs.front() else {
             return false;
         };
-        let stable = if self.finished {
+        let may_grow = self
+            .segs
+            .back()
+            .is_some_and(|last| last.line() && self.tolerance(&last.block).is_some());
+        let stable = if self.finished || !may_grow {
             self.segs.len()
         } else {
             self.segs.len() - 1

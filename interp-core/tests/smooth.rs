@@ -134,27 +134,57 @@ fn run(blocks: &[Block], cfg: &InterpConfig, max_ticks: u64) -> Result<Vec<Vec3>
 }
 
 #[test]
-fn seventy_collinear_micron_moves_then_a_long_one_are_one_line_and_finish() {
+fn seventy_collinear_micron_moves_then_a_long_one_are_one_line_under_g64_and_finish() {
     // Issue 15's minimal stall: 70 collinear 1 µm moves, then G1 X10.
     let cfg = InterpConfig::default();
-    for blending in [
-        Blending::ExactPath,
-        Blending::Within {
-            tolerance: Some(0.001),
-        },
-    ] {
-        let mut pts: Vec<Vec3> = (0..=70)
-            .map(|i| Vec3::new(i as f64 * 0.001, 0.0, 0.0))
-            .collect();
-        pts.push(Vec3::new(10.0, 0.0, 0.0));
+    let mut pts: Vec<Vec3> = (0..=70)
+        .map(|i| Vec3::new(i as f64 * 0.001, 0.0, 0.0))
+        .collect();
+    pts.push(Vec3::new(10.0, 0.0, 0.0));
+    let g64 = Blending::Within {
+        tolerance: Some(0.001),
+    };
+    let blocks = polyline(&pts, 100.0, g64);
+    let out = smooth_all(&blocks, &cfg, Policy::Auto);
+    assert_eq!(out.len(), 1, "{out:?}");
+    assert_eq!(out[0].path.start_point(), pts[0]);
+    assert_eq!(out[0].path.end_point(), pts[71]);
+    let sp = run(&blocks, &cfg, 100_000).unwrap();
+    assert_eq!(*sp.last().unwrap(), pts[71]);
+    // Exact path keeps every move (it is the planner's to run them).
+    let exact = polyline(&pts, 100.0, Blending::ExactPath);
+    assert_eq!(smooth_all(&exact, &cfg, Policy::Auto), exact);
+}
+
+#[test]
+fn exact_path_blocks_are_released_as_soon_as_they_are_pushed() {
+    // A streaming client's last exact-path line must move before `end`:
+    // nothing can change it, so the stage holds nothing back.
+    let cfg = InterpConfig::default();
+    let pts = [
+        Vec3::new(0.0, 0.0, 0.0),
+        Vec3::new(1.0, 0.0, 0.0),
+        Vec3::new(2.0, 0.0, 0.0),
+    ];
+    for blending in [Blending::ExactPath, Blending::ExactStop] {
         let blocks = polyline(&pts, 100.0, blending);
-        let out = smooth_all(&blocks, &cfg, Policy::Auto);
-        assert_eq!(out.len(), 1, "{blending:?}: {out:?}");
-        assert_eq!(out[0].path.start_point(), pts[0]);
-        assert_eq!(out[0].path.end_point(), pts[71]);
-        let sp = run(&blocks, &cfg, 100_000).unwrap();
-        assert_eq!(*sp.last().unwrap(), pts[71]);
+        let mut s: Box<Smoother> = Box::new(Smoother::new(&cfg, 1).unwrap());
+        for b in &blocks {
+            s.push(b).unwrap();
+            assert_eq!(s.pop(), Some(*b), "{blending:?}");
+            assert_eq!(s.held(), 0);
+        }
     }
+    // Under G64 the last line waits: the next one may continue it.
+    let g64 = polyline(&pts, 100.0, Blending::Within { tolerance: None });
+    let mut s: Box<Smoother> = Box::new(Smoother::new(&cfg, 1).unwrap());
+    s.push(&g64[0]).unwrap();
+    assert_eq!(s.pop(), None);
+    s.push(&g64[1]).unwrap();
+    assert_eq!(s.pop(), None, "the two collinear lines are one, still open");
+    s.finish();
+    let merged = s.pop().unwrap();
+    assert_eq!(merged.path.end_point(), pts[2]);
 }
 
 #[test]
