@@ -7,7 +7,7 @@
 
 mod serve_support;
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
@@ -24,16 +24,25 @@ fn python() -> Option<String> {
     ok.then_some(py)
 }
 
-#[test]
-fn the_python_subscriber_reads_every_setpoint() {
+/// The Python and the subscriber script, or `None` (with a note) when no
+/// Python has the iceoryx2 package: the test is then skipped.
+fn python_subscriber() -> Option<(String, PathBuf)> {
     let Some(py) = python() else {
         eprintln!(
             "note: skipped: no Python with the iceoryx2 package (set INTERPD_PYTHON; .ci/run does)"
         );
-        return;
+        return None;
     };
     let script =
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/python_subscriber/subscriber.py");
+    Some((py, script))
+}
+
+#[test]
+fn the_python_subscriber_reads_every_setpoint() {
+    let Some((py, script)) = python_subscriber() else {
+        return;
+    };
     let service = service_name("python");
     let sub = Command::new(&py)
         .arg(&script)
@@ -85,14 +94,9 @@ fn the_python_subscriber_reads_every_setpoint() {
 /// one (no sample for `--timeout` seconds) from a quiet one.
 #[test]
 fn the_python_subscriber_reports_a_restart_and_a_dead_publisher() {
-    let Some(py) = python() else {
-        eprintln!(
-            "note: skipped: no Python with the iceoryx2 package (set INTERPD_PYTHON; .ci/run does)"
-        );
+    let Some((py, script)) = python_subscriber() else {
         return;
     };
-    let script =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/python_subscriber/subscriber.py");
     let service = service_name("python-restart");
     let srv = Server::start(&service, &["--no-socket"]);
     let sub = Command::new(&py)

@@ -17,8 +17,10 @@ pub struct ParseError {
 /// The classes of parse error.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ParseErrorKind {
-    /// A character that starts no word, comment or expression.
-    #[error("unexpected character '{0}'")]
+    /// A character that starts no word, comment or expression. Shown as
+    /// `'x' (U+0078)`, and as its code point alone when it is invisible (a
+    /// control character such as NUL, a byte-order mark inside the text, …).
+    #[error("unexpected character {}", ShowChar(*.0))]
     UnexpectedChar(char),
     /// A letter that is no RS274/NGC word interpd knows.
     #[error("unknown word '{0}'")]
@@ -66,6 +68,27 @@ pub enum ParseErrorKind {
     /// A feature of RS274/NGC that interpd does not implement.
     #[error("unsupported: {0}")]
     Unsupported(String),
+}
+
+/// A character as an error message shows it: never raw when it would be
+/// invisible or would upset a terminal.
+struct ShowChar(char);
+
+impl core::fmt::Display for ShowChar {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let c = self.0;
+        let code = c as u32;
+        let invisible = c.is_control()
+            || c.is_whitespace()
+            || matches!(code, 0x200B..=0x200F | 0x2028..=0x202E | 0x2060..=0x206F | 0xFEFF);
+        if invisible {
+            write!(f, "U+{code:04X}")
+        } else if c.is_ascii() {
+            write!(f, "'{c}'")
+        } else {
+            write!(f, "'{c}' (U+{code:04X})")
+        }
+    }
 }
 
 /// Why [`crate::Program::to_core_blocks`] refused a block.

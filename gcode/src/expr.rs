@@ -10,7 +10,8 @@ use crate::error::ParseErrorKind;
 
 /// Numbered parameters `#1` … `#5601` (LinuxCNC's range; `#0` reads as 0).
 pub const PARAMETER_COUNT: usize = 5602;
-/// Deepest nesting of brackets and unary operators (protects the stack on hostile input).
+/// Deepest nesting inside one word: `[ ]` (a function's included), unary signs
+/// and `#` indirections each count a level (protects the stack on hostile input).
 pub const MAX_EXPRESSION_DEPTH: u32 = 64;
 /// How close to an integer a value must be to count as one (LinuxCNC's `is_near_int`).
 pub const NEAR_INT_TOL: f64 = 1e-4;
@@ -150,28 +151,45 @@ impl<'a> Cursor<'a> {
         }
     }
 
-    /// A real value: number, `[expr]`, parameter, function, or a signed one of those.
-    pub fn real_value(&mut self, depth: u32) -> ExprResult<f64> {
-        if depth > MAX_EXPRESSION_DEPTH {
-            return expr_err(self.pos, "nested too deeply");
+    /// One nesting level deeper than `depth`: a `[ ]` (a function's own
+    /// included), a unary sign or a `#` indirection each count one, up to
+    /// [`MAX_EXPRESSION_DEPTH`].
+    fn deeper(&self, depth: u32) -> ExprResult<u32> {
+        if depth >= MAX_EXPRESSION_DEPTH {
+            return expr_err(
+                self.pos,
+                &format!("nested more than {MAX_EXPRESSION_DEPTH} levels deep"),
+            );
         }
+        Ok(depth + 1)
+    }
+
+    /// A real value: number, `[expr]`, parameter, function, or a signed one of
+    /// those, `depth` levels inside the word (0 at its start).
+    pub fn real_value(&mut self, depth: u32) -> ExprResult<f64> {
         match self.peek() {
-            Some(b'[') => self.bracketed(depth + 1),
+            Some(b'[') => {
+                let d = self.deeper(depth)?;
+                self.bracketed(d)
+            }
             Some(b'#') => {
                 let at = self.pos;
+                let d = self.deeper(depth)?;
                 self.pos += 1;
-                let t = self.parameter_target(depth + 1)?;
+                let t = self.parameter_target(d)?;
                 self.read_parameter(&t, at)
             }
             Some(b'-') if !matches!(self.buf.get(self.pos + 1), Some(b'0'..=b'9' | b'.')) => {
+                let d = self.deeper(depth)?;
                 self.pos += 1;
-                Ok(-self.real_value(depth + 1)?)
+                Ok(-self.real_value(d)?)
             }
             Some(b'+') if !matches!(self.buf.get(self.pos + 1), Some(b'0'..=b'9' | b'.')) => {
+                let d = self.deeper(depth)?;
                 self.pos += 1;
-                self.real_value(depth + 1)
+                self.real_value(d)
             }
-            Some(c) if c.is_ascii_lowercase() => self.function(depth + 1),
+            Some(c) if c.is_ascii_lowercase() => self.function(depth),
             _ => self.number(),
         }
     }
@@ -229,11 +247,10 @@ impl<'a> Cursor<'a> {
         self.binary(0, depth)
     }
 
+    /// Operators of precedence `min_prec` and above; the recursion is bounded
+    /// by the number of precedence levels, so it adds no nesting depth.
     fn binary(&mut self, min_prec: u8, depth: u32) -> ExprResult<f64> {
-        if depth > MAX_EXPRESSION_DEPTH {
-            return expr_err(self.pos, "nested too deeply");
-        }
-        let mut lhs = self.real_value(depth + 1)?;
+        let mut lhs = self.real_value(depth)?;
         loop {
             let at = self.pos;
             let Some((op, len)) = self.operator() else {
@@ -244,7 +261,7 @@ impl<'a> Cursor<'a> {
                 return Ok(lhs);
             }
             self.pos += len;
-            let rhs = self.binary(prec + 1, depth + 1)?;
+            let rhs = self.binary(prec + 1, depth)?;
             lhs =
                 apply(op, lhs, rhs).map_err(|m| (at, ParseErrorKind::Expression(m.to_string())))?;
         }
@@ -284,7 +301,8 @@ impl<'a> Cursor<'a> {
         if self.peek() != Some(b'[') {
             return expr_err(start, "expected a number, '[', '#' or a function");
         }
-        let a = self.bracketed(depth)?;
+        let d = self.deeper(depth)?;
+        let a = self.bracketed(d)?;
         let deg = core::f64::consts::PI / 180.0;
         let domain = |ok: bool, v: f64| {
             if ok {
@@ -303,7 +321,7 @@ impl<'a> Cursor<'a> {
                 // ATAN[y]/[x] is the two-argument form.
                 if self.peek() == Some(b'/') && self.buf.get(self.pos + 1) == Some(&b'[') {
                     self.pos += 1;
-                    let x = self.bracketed(depth)?;
+                    let x = self.bracketed(d)?;
                     Ok(a.atan2(x) / deg)
                 } else {
                     Ok(a.atan() / deg)

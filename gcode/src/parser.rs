@@ -49,20 +49,20 @@ pub fn parse_from(text: &str, start: Point) -> Result<Program, ParseError> {
     // A G-code line is rarely shorter than this: one reservation instead of
     // repeated growth (and copies) on large programs.
     p.blocks.reserve(text.len() / BYTES_PER_BLOCK_GUESS);
+    // Windows editors and CAM posts start UTF-8 files with a byte-order mark.
+    let text = text.strip_prefix('\u{FEFF}').unwrap_or(text);
     let mut line_no: u32 = 0;
-    for raw in text.split('\n') {
+    for raw in lines(text) {
         line_no = line_no.saturating_add(1);
-        let raw = raw.strip_suffix('\r').unwrap_or(raw);
         match p.line(raw, line_no) {
             Ok(true) => {}
             Ok(false) => break,
             Err((byte, kind)) => {
                 // A NURBS defect is reported on the line of the offending point or knot.
                 let (line_no, raw) = match p.error_line.take() {
-                    Some(l) => (l, text.split('\n').nth(l as usize - 1).unwrap_or("")),
+                    Some(l) => (l, lines(text).nth(l as usize - 1).unwrap_or("")),
                     None => (line_no, raw),
                 };
-                let raw = raw.strip_suffix('\r').unwrap_or(raw);
                 let byte = byte.min(raw.len());
                 // Columns count characters; `byte` may sit inside one.
                 let column = raw
@@ -79,6 +79,30 @@ pub fn parse_from(text: &str, start: Point) -> Result<Program, ParseError> {
         }
     }
     p.finish(line_no)
+}
+
+/// The lines of a program without their ends: LF, CR LF, or a CR alone (the
+/// old Macintosh convention some CAM posts still write).
+fn lines(text: &str) -> impl Iterator<Item = &str> {
+    let mut rest = Some(text);
+    core::iter::from_fn(move || {
+        let t = rest?;
+        match t.bytes().position(|b| b == b'\n' || b == b'\r') {
+            Some(i) => {
+                let end = if t.as_bytes()[i] == b'\r' && t.as_bytes().get(i + 1) == Some(&b'\n') {
+                    i + 2
+                } else {
+                    i + 1
+                };
+                rest = Some(&t[end..]);
+                Some(&t[..i])
+            }
+            None => {
+                rest = None;
+                Some(t)
+            }
+        }
+    })
 }
 
 type LineResult<T> = Result<T, (usize, ParseErrorKind)>;
@@ -105,6 +129,19 @@ fn g_group(code: u32) -> Option<(u8, &'static str)> {
         540 => (12, "coordinate system"),
         610 | 611 | 640 => (13, "path control"),
         960 | 970 => (14, "spindle speed mode"),
+        _ => return None,
+    })
+}
+
+/// RS274/NGC codes interpd knows but does not implement, `code` in tenths:
+/// what they are, for the error (their D/H words are read so that the code,
+/// not the word, is named).
+fn unsupported_g(code: u32) -> Option<&'static str> {
+    Some(match code {
+        410 | 411 | 420 | 421 => "cutter radius compensation",
+        430..=432 => "tool length offsets",
+        280 | 281 | 300 | 301 => "return to a predefined position",
+        730 | 760 | 810..=890 => "canned cycles",
         _ => return None,
     })
 }
@@ -407,7 +444,7 @@ impl Parser {
             let at = cur.pos;
             if c == b'#' {
                 cur.pos += 1;
-                let t = cur.parameter_target(1)?;
+                let t = cur.parameter_target(0)?;
                 if cur.buf.get(cur.pos) != Some(&b'=') {
                     return err(
                         cur.pos,
@@ -417,7 +454,7 @@ impl Parser {
                     );
                 }
                 cur.pos += 1;
-                let v = cur.real_value(1)?;
+                let v = cur.real_value(0)?;
                 w.assignments.push((t, v));
                 continue;
             }
@@ -425,6 +462,14 @@ impl Parser {
                 return err(at, ParseErrorKind::UnexpectedChar(c as char));
             }
             match c {
+                // A line that is only a program number (`O1234`, how Fanuc
+                // programs begin) names the program: nothing to run.
+                b'o' if at == 0
+                    && cur.buf.len() > 1
+                    && cur.buf[1..].iter().all(u8::is_ascii_digit) =>
+                {
+                    return Ok(());
+                }
                 b'o' => {
                     return err(
                         at,
@@ -442,7 +487,7 @@ impl Parser {
                         )),
                     );
                 }
-                b'd' | b'h' | b'e' => {
+                b'e' => {
                     return err(
                         at,
                         ParseErrorKind::UnknownWord(c.to_ascii_uppercase() as char),
@@ -451,7 +496,7 @@ impl Parser {
                 _ => {}
             }
             cur.pos += 1;
-            let v = cur.real_value(1)?;
+            let v = cur.real_value(0)?;
             if !v.is_finite() {
                 return err(
                     at,
@@ -576,6 +621,12 @@ impl Parser {
         let mut motion_code: Option<(u32, usize)> = None;
         let mut non_modal: Option<(u32, usize)> = None;
         for &(code, col) in w.gs() {
+            if let Some(what) = unsupported_g(code) {
+                return err(
+                    col,
+                    ParseErrorKind::Unsupported(format!("{} ({what})", g_name(code))),
+                );
+            }
             let Some((group, name)) = g_group(code) else {
                 return err(col, ParseErrorKind::UnknownCode(g_name(code)));
             };
@@ -908,7 +959,7 @@ impl Parser {
         }
 
         // Words nothing used.
-        for c in [b'i', b'j', b'k', b'l', b'p', b'q', b'r'] {
+        for c in [b'd', b'h', b'i', b'j', b'k', b'l', b'p', b'q', b'r'] {
             if w.has(c) && used & (1 << idx(c)) == 0 {
                 return err(
                     w.col(c),
@@ -1449,25 +1500,16 @@ impl Parser {
                 ParseErrorKind::MissingArgument("the NURBS order P on the first G6.2 line".into()),
             );
         }
-        match w.get(b'q') {
-            Some(q) => {
-                use_word(b'q');
-                if !matches!(near_int(q), Some(1..=3)) {
-                    return err(
-                        w.col(b'q'),
-                        ParseErrorKind::BadValue("NURBS Q must be 1, 2 or 3".into()),
-                    );
-                }
-            }
-            None if first => {
+        // Q is LinuxCNC's choice of how to approximate the curve (1, 2 or 3);
+        // Fanuc's G06.2 has none. The curve is exact here either way.
+        if let Some(q) = w.get(b'q') {
+            use_word(b'q');
+            if !matches!(near_int(q), Some(1..=3)) {
                 return err(
-                    col,
-                    ParseErrorKind::MissingArgument(
-                        "the NURBS Q value (1, 2 or 3) on the first G6.2 line".into(),
-                    ),
+                    w.col(b'q'),
+                    ParseErrorKind::BadValue("NURBS Q must be 1, 2 or 3".into()),
                 );
             }
-            None => {}
         }
         let Some(k) = w.get(b'k') else {
             return err(

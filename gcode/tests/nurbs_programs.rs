@@ -112,6 +112,69 @@ fn butterfly_has_the_files_points_weights_and_knots() {
     assert_eq!(check_against_scan(FARFALLA), 1);
 }
 
+/// A NURBS as Fanuc documents G06.2 and CAM posts write it: no Q, the knot
+/// first on every control-point line, the last `order` knots alone on their
+/// own lines, knots not normalised, all three axes, `;` block ends.
+const FANUC: &str = "%
+O1000 (FANUC NURBS)
+G90 G17 G21 G94;
+G00 X6.5238 Y2.3909 Z4.2421;
+G06.2 P4 K0.0 X6.5238 Y2.3909 Z4.2421 R1.0 F3000;
+K0.0 X8.1200 Y4.0300 Z4.0000 R0.8;
+K0.0 X10.0000 Y4.5000 Z3.5000 R1.2;
+K0.0 X12.2000 Y3.1000 Z3.2500 R1.0;
+K12.5 X14.0000 Y1.0000 Z3.0000 R0.9;
+K25.0 X16.5000 Y0.5000 Z3.0000 R1.0;
+K37.5;
+K37.5;
+K37.5;
+K37.5;
+G01 X20.0 F3000;
+M30;
+%
+";
+
+#[test]
+fn fanuc_g06_2_without_q_reads_as_written() {
+    let text = FANUC;
+    let curves = nurbs(text);
+    assert_eq!(curves.len(), 1);
+    let c = &curves[0];
+    assert_eq!(c.degree, 3);
+    assert_eq!(c.points.len(), 6);
+    assert_eq!(c.points[0], [6.5238, 2.3909, 4.2421]);
+    assert_eq!(c.points[5], [16.5, 0.5, 3.0]);
+    assert_eq!(c.weights, [1.0, 0.8, 1.2, 1.0, 0.9, 1.0]);
+    assert_eq!(
+        c.knots,
+        [0.0, 0.0, 0.0, 0.0, 12.5, 25.0, 37.5, 37.5, 37.5, 37.5]
+    );
+    assert_eq!(c.feed, gcode::Feed::PerMinute(3000.0));
+    // The curve starts where the G00 left the tool: no connecting move, and
+    // the G01 after it starts at its end.
+    let p = parse(text).unwrap();
+    let kinds: Vec<_> = p.blocks.iter().map(|b| &b.kind).collect();
+    assert!(matches!(kinds[0], BlockKind::Rapid(_)));
+    assert!(matches!(kinds[1], BlockKind::Nurbs(_)));
+    let BlockKind::Linear(l) = kinds[2] else {
+        panic!("{:?}", kinds[2]);
+    };
+    assert_eq!(l.start, [16.5, 0.5, 3.0]);
+    // Q, where a LinuxCNC program gives it, changes nothing.
+    let with_q = text.replace("G06.2 P4 K0.0", "G06.2 P4 Q2 K0.0");
+    assert_eq!(parse(&with_q).unwrap(), p);
+    // A program-number line is all a program number may be.
+    assert!(parse("O1000 G1 X1 F1").is_err());
+    assert!(parse("O100 sub").is_err());
+    // And it converts into interp-core blocks (the same curve, exactly).
+    let core = p.to_core_blocks(&CoreOptions::default()).unwrap();
+    let Path::Nurbs(n) = core[1].path else {
+        panic!("{:?}", core[1].path);
+    };
+    assert_eq!(n.knots(), c.knots.as_slice());
+    assert_eq!(n.end_point(), interp_core::Vec3::new(16.5, 0.5, 3.0));
+}
+
 #[test]
 fn mazatrol_curves_in_three_planes_match_the_file() {
     assert_eq!(check_against_scan(MAZATROL), 3);

@@ -63,6 +63,104 @@ fn crlf_line_ends_are_accepted() {
 }
 
 #[test]
+fn windows_cam_files_a_byte_order_mark_and_cr_only_line_ends() {
+    let want = [[1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [2.0, 3.0, 0.0]];
+    // A UTF-8 byte-order mark, CR-only ends (old Mac), and every end mixed.
+    for text in [
+        "\u{FEFF}G1 X1 F1\r\nX2\r\nY3\r\n",
+        "G1 X1 F1\rX2\rY3\r",
+        "\u{FEFF}G1 X1 F1\rX2\nY3\r\n",
+    ] {
+        assert_eq!(ends(text), want, "{text:?}");
+        let p = parse(text).unwrap();
+        assert_eq!(
+            p.blocks.iter().map(|b| b.line).collect::<Vec<_>>(),
+            [1, 2, 3],
+            "{text:?}"
+        );
+    }
+    // Lines and columns still count from the first visible character.
+    let (line, col, _) = error("\u{FEFF}G1 X1 F1\rX2\rG1 X1 X2\r");
+    assert_eq!((line, col), (3, 7));
+}
+
+#[test]
+fn control_characters_are_named_by_code_point_and_column_never_printed() {
+    for (text, line, col, shown) in [
+        ("G1 X1 F1\nG1 X2\0\n", 2, 6, "U+0000"),
+        ("G1 X1\u{7}F1", 1, 6, "U+0007"),
+        ("G1 X1 F1\n\u{1b}[2J", 2, 1, "U+001B"),
+        ("G1 X1 F1\u{FEFF}", 1, 9, "U+FEFF"),
+        ("G1 X1 F1\u{a0}X2", 1, 9, "U+00A0"),
+        ("G0 X1 é", 1, 7, "'é' (U+00E9)"),
+    ] {
+        let e = parse(text).expect_err(text);
+        assert!(matches!(e.kind, ParseErrorKind::UnexpectedChar(_)), "{e}");
+        assert_eq!((e.line, e.column), (line, col), "{text:?}: {e}");
+        let msg = e.to_string();
+        assert_eq!(
+            msg,
+            format!("{line}:{col}: unexpected character {shown}"),
+            "{text:?}"
+        );
+        assert!(
+            msg.chars().all(|c| !c.is_control()),
+            "{msg:?} prints a control character"
+        );
+    }
+}
+
+#[test]
+fn expressions_nest_to_the_documented_limit() {
+    let max = gcode::MAX_EXPRESSION_DEPTH as usize;
+    let nested = |n: usize| format!("G0 X{}1{}", "[".repeat(n), "]".repeat(n));
+    assert_eq!(ends(&nested(max))[0][0], 1.0);
+    let (_, col, kind) = error(&nested(max + 1));
+    assert!(matches!(kind, ParseErrorKind::Expression(_)), "{kind}");
+    assert_eq!(col as usize, 5 + max, "the bracket one level too deep");
+    // Functions, unary signs and indirection count one level each.
+    let funcs = format!("G0 X{}1{}", "ABS[".repeat(max), "]".repeat(max));
+    assert_eq!(ends(&funcs)[0][0], 1.0);
+    let funcs = format!("G0 X{}1{}", "ABS[".repeat(max + 1), "]".repeat(max + 1));
+    assert!(parse(&funcs).is_err());
+    let signs = format!("G0 X{}[1]", "-".repeat(max - 1));
+    assert_eq!(
+        ends(&signs)[0][0],
+        if max.is_multiple_of(2) { -1.0 } else { 1.0 }
+    );
+    // Long operator chains are not nesting.
+    let chain = format!("G0 X[{}1]", "1+".repeat(1000));
+    assert_eq!(ends(&chain)[0][0], 1001.0);
+}
+
+#[test]
+fn tool_length_offsets_and_cutter_compensation_are_unsupported_codes() {
+    for (text, col, code) in [
+        ("G43 H1", 1, "G43"),
+        ("G0 X1\nG43 Z5 H12", 1, "G43"),
+        ("G41 D3", 1, "G41"),
+        ("G1 X1 F1 G42 D3", 10, "G42"),
+        ("G43.1 Z1", 1, "G43.1"),
+        ("G81 X1 Y1 Z-1 R1", 1, "G81"),
+    ] {
+        let e = parse(text).expect_err(text);
+        let ParseErrorKind::Unsupported(what) = &e.kind else {
+            panic!("{text}: {e}");
+        };
+        assert!(what.starts_with(code), "{text}: {e}");
+        assert_eq!(e.column, col, "{text}: {e}");
+    }
+    // H and D with nothing that uses them are stray words, named.
+    let (_, col, kind) = error("G1 X1 F1 H2");
+    assert_eq!(col, 10);
+    assert!(
+        matches!(kind, ParseErrorKind::ConflictingArguments(_)),
+        "{kind}"
+    );
+    assert!(blocks("G49\nG40\n").is_empty());
+}
+
+#[test]
 fn program_stops_at_m2_and_m30() {
     let b = blocks("G1 X1 F10\nM2\nG1 X2 ( never read )\n");
     assert_eq!(b.len(), 2);

@@ -107,7 +107,16 @@ pub fn feed_limit(d: &Derivs, feed: f64, mrr: Option<&MrrParams>, cfg: &InterpCo
 /// [`axis_limit`]). `budget` in (0, 1] is the share of the axes' curvature
 /// budget available here (1 on a smooth path, less next to a junction).
 /// Needs derivatives up to order 3.
+///
+/// Where the parametric speed vanishes (`C′ = 0`, a stationary point) the
+/// derivatives at the point give no curvature, which is in general infinite
+/// there (like `1/√s` at a repeated end control point): the pointwise limit is
+/// then 0. Planning takes the laws at such a point from a tick's distance away
+/// instead ([`stationary_offset`]).
 pub fn machine_limit(d: &Derivs, cfg: &InterpConfig, budget: f64) -> f64 {
+    if d.d1.norm_squared() == 0.0 {
+        return 0.0;
+    }
     let mut v = cfg.max_path_speed;
     if cfg.chord_error_law {
         v = v.min(chord_error_speed(
@@ -127,6 +136,47 @@ pub fn machine_limit(d: &Derivs, cfg: &InterpConfig, budget: f64) -> f64 {
     v
 }
 
+/// The share of one tick's step within which the curvature at a stationary
+/// point is taken from the step's far end (see [`stationary_offset`]).
+pub const STATIONARY_STEP_SHARE: f64 = 0.25;
+
+/// Fixed-point steps of [`stationary_offset`] (it converges like `(1/4)^k` in
+/// the logarithm where the curvature blows up like `1/√s`).
+const STATIONARY_OFFSET_ITERS: usize = 24;
+
+/// The arc length `δ` from a stationary point of a path (`C′ = 0`, e.g. a
+/// repeated control point at a NURBS end) at which the laws stand for the
+/// point: the fixed point `δ = STATIONARY_STEP_SHARE · Ts · V(δ)`, reached from
+/// above, where `limit_at(δ)` is the speed the laws allow at arc length `δ`
+/// from the point; at most `max`.
+///
+/// A sampled machine does not see the curvature at a point, but what the path
+/// does over one tick: at a repeated end control point the curvature blows up
+/// like `α/√s`, yet over a step `L` the path leaves its chord by only
+/// `≈ 0.2·α·L^{3/2}` and the second and third differences of the setpoints stay
+/// finite. The laws taken at `δ ≤ L/4` (curvature `α/√δ ≥ 2α/√L`) bound all of
+/// them (chord error up to `δ ≤ 0.4·L`, the second difference up to `0.56·L`),
+/// so the point is passed at a positive speed, neither at an infinite
+/// curvature (a stall) nor at none (a jump).
+pub fn stationary_offset(
+    cfg: &InterpConfig,
+    max: f64,
+    mut limit_at: impl FnMut(f64) -> f64,
+) -> f64 {
+    let step = STATIONARY_STEP_SHARE * cfg.period;
+    let mut d = (step * cfg.max_path_speed).min(max);
+    for _ in 0..STATIONARY_OFFSET_ITERS {
+        let v = limit_at(d);
+        let next = step * v;
+        // Only shrink: the law grows with the distance from the point.
+        if !(next < d * (1.0 - 1e-6)) || !(next > 0.0) {
+            break;
+        }
+        d = next;
+    }
+    d
+}
+
 /// Derivatives of a path with respect to arc length at one point.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ArcLengthDerivs {
@@ -139,7 +189,9 @@ pub struct ArcLengthDerivs {
 }
 
 impl ArcLengthDerivs {
-    /// From parametric derivatives up to order 3 (`None` where `|C'| = 0`).
+    /// From parametric derivatives up to order 3 (`None` where `|C'| = 0`: at a
+    /// stationary point the arc-length derivatives are limits that the point's
+    /// derivatives do not determine; see [`stationary_offset`]).
     pub fn new(d: &Derivs) -> Option<Self> {
         let s1 = d.d1.norm();
         if !(s1 > 0.0) {

@@ -83,16 +83,29 @@ pub trait Curve {
 /// sampled extremum (maximise by passing `−f`).
 pub fn golden_section_min(
     f: impl Fn(f64) -> f64,
+    a: f64,
+    b: f64,
+    iters: usize,
+    min_width: f64,
+) -> f64 {
+    golden_section_argmin(f, a, b, iters, min_width).1
+}
+
+/// [`golden_section_min`] with where it was seen: `(x, f(x))`.
+pub fn golden_section_argmin(
+    f: impl Fn(f64) -> f64,
     mut a: f64,
     mut b: f64,
     iters: usize,
     min_width: f64,
-) -> f64 {
+) -> (f64, f64) {
     const G: f64 = 0.618_033_988_749_894_9;
     let mut x1 = b - G * (b - a);
     let mut x2 = a + G * (b - a);
     let (mut f1, mut f2) = (f(x1), f(x2));
-    let mut best = f1.min(f2);
+    // As f64::min: a NaN value never wins over a number.
+    let better = |v: f64, best: f64| v < best || (best.is_nan() && !v.is_nan());
+    let mut best = if better(f2, f1) { (x2, f2) } else { (x1, f1) };
     for _ in 0..iters {
         if b - a <= min_width {
             break;
@@ -103,14 +116,62 @@ pub fn golden_section_min(
             f2 = f1;
             x1 = b - G * (b - a);
             f1 = f(x1);
+            if better(f1, best.1) {
+                best = (x1, f1);
+            }
         } else {
             a = x1;
             x1 = x2;
             f1 = f2;
             x2 = a + G * (b - a);
             f2 = f(x2);
+            if better(f2, best.1) {
+                best = (x2, f2);
+            }
         }
-        best = best.min(f1).min(f2);
     }
     best
+}
+
+/// The parameter `u` in `[u0, hi]` at arc length `ds` past `u0`, to what the
+/// arithmetic resolves: Newton on `length(u0, u)` (which also returns the
+/// quadrature rules it spent, summed in the result) with `speed(u) = |C'(u)|`,
+/// inside a shrinking bracket, bisecting where a step leaves it. `first` is
+/// the first guess of `u`. The one inversion of arc length for every path kind.
+pub fn invert_arc_length(
+    u0: f64,
+    ds: f64,
+    hi: f64,
+    first: f64,
+    mut length: impl FnMut(f64, f64) -> (f64, usize),
+    speed: impl Fn(f64) -> f64,
+) -> (f64, usize) {
+    let (mut lo, mut hi) = (u0, hi);
+    let mut u = first.clamp(lo, hi);
+    let mut rules = 0;
+    for _ in 0..60 {
+        let (l, r) = length(u0, u);
+        rules += r;
+        let f = l - ds;
+        let speed = speed(u);
+        // Nothing resolves the arc length better than one ulp of u moves the
+        // point: on long program curves (parameters in the thousands) that is
+        // above 1e-13 mm, and asking for more spent all 60 iterations.
+        let floor = 1e-13 * (1.0 + ds) + 4.0 * f64::EPSILON * libm::fabs(u) * speed;
+        if libm::fabs(f) <= floor {
+            break;
+        }
+        if f > 0.0 {
+            hi = u;
+        } else {
+            lo = u;
+        }
+        // At a zero of C' the step is not finite: bisect.
+        let mut next = u - f / speed;
+        if !(next > lo && next < hi) {
+            next = 0.5 * (lo + hi);
+        }
+        u = next;
+    }
+    (u, rules)
 }

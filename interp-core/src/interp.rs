@@ -843,8 +843,14 @@ impl<const Q: usize> Interpolator<Q> {
             let u_old = self.u;
             let (u_new, point) = match update {
                 ParamUpdate::FirstOrder => {
-                    let d = path.eval(u_old, 1);
-                    let u = (u_old + delta / d.d1.norm()).min(u_end);
+                    let speed = path.eval(u_old, 1).d1.norm();
+                    // Eq. 10 is undefined where C' = 0: take the second-order step there.
+                    let step = if speed > 0.0 {
+                        delta / speed
+                    } else {
+                        taylor2(path, u_old, delta)
+                    };
+                    let u = (u_old + step).min(u_end);
                     (u, path.eval(u, 0).p)
                 }
                 ParamUpdate::SecondOrder => {
@@ -918,11 +924,22 @@ impl<const Q: usize> Interpolator<Q> {
 }
 
 /// Second-order Taylor step in arc length: `Δ/|C'| − Δ²·(C'·C'')/(2|C'|⁴)`.
+///
+/// Near a stationary point (`|C'|² ≤ |C''|·Δ`, where that series does not
+/// converge; at the point itself it divides by zero) the step is the positive
+/// root of `|C''|·e²/2 + |C'|·e = Δ` instead: `√(2Δ/|C''|)` at the point.
 #[inline]
 fn taylor2(path: &Path, u: f64, delta: f64) -> f64 {
     let d = path.eval(u, 2);
     let sp2 = d.d1.norm_squared();
     let sp = libm::sqrt(sp2);
+    let bend = d.d2.norm();
+    if sp2 <= bend * delta {
+        if !(sp > 0.0 || bend > 0.0) {
+            return 0.0; // nothing to go by: the chord search brackets from u
+        }
+        return 2.0 * delta / (sp + libm::sqrt(sp2 + 2.0 * bend * delta));
+    }
     delta / sp - delta * delta * d.d1.dot(&d.d2) / (2.0 * sp2 * sp2)
 }
 

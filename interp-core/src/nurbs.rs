@@ -90,11 +90,22 @@ pub enum NurbsError {
         /// Index of the weight.
         index: usize,
     },
-    /// The curve stops (|C'| = 0) somewhere in the knot span starting at knots[span].
+    /// The curve stands still over the whole knot span starting at knots[span]:
+    /// the span's control points coincide, so it has no length (a segment may not
+    /// hold one; [`split_program_curve`] leaves such spans out, and refuses only a
+    /// curve that is all one point). Isolated parameters where |C'| = 0 are fine.
     ZeroSpeed {
         /// Index of the knot that starts the span.
         span: usize,
-        /// Parameter where the speed was found to vanish.
+        /// The span's first parameter.
+        u: f64,
+    },
+    /// The speed is not a number in the knot span starting at knots[span]
+    /// (coordinates or weights so large that the homogeneous form overflows).
+    Overflow {
+        /// Index of the knot that starts the span.
+        span: usize,
+        /// Parameter where it was found.
         u: f64,
     },
     /// A parameter for knot insertion or splitting is not strictly inside the range, or NaN.
@@ -158,7 +169,12 @@ impl core::fmt::Display for NurbsError {
             NurbsError::NonPositiveWeight { index } => write!(f, "weight {index} is not positive"),
             NurbsError::ZeroSpeed { span, u } => write!(
                 f,
-                "the curve stops (zero speed) at u = {u} in the knot span starting at knot {span}"
+                "the curve stands still (its control points coincide) over the knot span \
+                 starting at knot {span} (u = {u})"
+            ),
+            NurbsError::Overflow { span, u } => write!(
+                f,
+                "the curve's speed overflows at u = {u} in the knot span starting at knot {span}"
             ),
             NurbsError::ParameterOutOfRange { u } => write!(
                 f,
@@ -170,16 +186,54 @@ impl core::fmt::Display for NurbsError {
 
 impl core::error::Error for NurbsError {}
 
-/// Relative threshold of the zero-speed check: a span is refused where
-/// `|C'| <= ZERO_SPEED_REL_TOL · extent / (span length)`, with `extent` the diagonal of
-/// the bounding box of the span's control points (the speed such a span would have
-/// if its polygon were traversed uniformly).
+/// Relative resolution of "the curve stands still here". With `scale` = the
+/// diagonal of the bounding box of a span's control points plus twice their
+/// largest coordinate (rounding grows with the coordinates), a span whose
+/// control points lie within `ZERO_SPEED_REL_TOL · scale` of each other stands
+/// still, and the curve is *stationary* at a parameter of the span where
+/// `|C'| <= ZERO_SPEED_REL_TOL · scale / (span length)` (see
+/// [`Nurbs::for_each_stationary`]).
 pub const ZERO_SPEED_REL_TOL: f64 = 1e-12;
 
 /// Rows/columns of the per-span basis tables.
 const D1: usize = MAX_DEGREE + 1;
-/// Interior samples per span of the zero-speed check (the span ends are checked too).
+/// Interior samples per span of the overflow check and of the search for
+/// stationary points (the span ends are checked too).
 const ZERO_SPEED_SAMPLES: usize = 5;
+/// Golden-section steps refining a sampled minimum of the speed (the bracket
+/// shrinks by 0.618 each: to ~1e-13 of the span).
+const STATIONARY_ITERS: usize = 64;
+
+/// Which side of a parameter: the polynomial piece before it or after it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Side {
+    /// The curve arriving at the parameter (the span that ends there).
+    Before,
+    /// The curve leaving the parameter (the span that starts there).
+    After,
+}
+
+/// `(stands still, speed floor)` of a span of `points` over `[ka, kb]`: see
+/// [`ZERO_SPEED_REL_TOL`].
+fn span_resolution(points: impl Iterator<Item = [f64; 3]>, ka: f64, kb: f64) -> (bool, f64) {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    let mut big = 0.0f64;
+    for pt in points {
+        for c in 0..3 {
+            lo[c] = lo[c].min(pt[c]);
+            hi[c] = hi[c].max(pt[c]);
+            big = big.max(libm::fabs(pt[c]));
+        }
+    }
+    let (dx, dy, dz) = (hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]);
+    let extent = libm::sqrt(dx * dx + dy * dy + dz * dz);
+    let scale = extent + 2.0 * big;
+    (
+        extent.is_finite() && extent <= ZERO_SPEED_REL_TOL * scale,
+        ZERO_SPEED_REL_TOL * scale / (kb - ka),
+    )
+}
 /// Working capacity for knot insertion: one segment plus room to clamp both its ends.
 const WORK_CTRL: usize = MAX_CTRL + 2 * MAX_DEGREE;
 /// Knots of the working capacity.
@@ -501,7 +555,9 @@ pub fn basis_functions(degree: usize, knots: &[f64], u: f64) -> (usize, [f64; MA
 }
 
 /// Shared validation of [`Nurbs::new`] and [`validate_program_curve`].
-/// `weights == None` means all ones; `capacity == None` means no control point limit.
+/// `weights == None` means all ones; `capacity == None` means no control point
+/// limit, and a program curve: spans that stand still are allowed there (the
+/// split leaves them out) unless every span does.
 fn validate(
     degree: usize,
     points: &[[f64; 3]],
@@ -596,44 +652,55 @@ fn validate(
             return Err(NurbsError::KnotMultiplicity { index: i });
         }
     }
-    // Zero speed: the span's own polynomial at both its ends and inside.
+    // Spans that stand still, and speeds that overflow: the span's own
+    // polynomial at both its ends and inside.
+    let mut moving = 0usize;
     for span in p..count {
         let (ka, kb) = (knots[span], knots[span + 1]);
         if ka >= kb {
             continue;
         }
+        let (still, _) = span_resolution(points[span - p..=span].iter().copied(), ka, kb);
+        if still {
+            if capacity.is_some() {
+                return Err(NurbsError::ZeroSpeed { span, u: ka });
+            }
+            continue;
+        }
+        moving += 1;
         let mut cps = [[0.0f64; 4]; D1];
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
         for (j, cp) in cps.iter_mut().enumerate().take(p + 1) {
             let i = span - p + j;
-            let pt = &points[i];
-            *cp = homog(pt, weights.map_or(1.0, |w| w[i]));
-            for c in 0..3 {
-                lo[c] = lo[c].min(pt[c]);
-                hi[c] = hi[c].max(pt[c]);
-            }
+            *cp = homog(&points[i], weights.map_or(1.0, |w| w[i]));
         }
-        let (dx, dy, dz) = (hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]);
-        let extent = libm::sqrt(dx * dx + dy * dy + dz * dz);
-        let threshold = ZERO_SPEED_REL_TOL * extent / (kb - ka);
         let steps = ZERO_SPEED_SAMPLES + 1;
         for t in 0..=steps {
-            let u = if t == 0 {
-                ka
-            } else if t == steps {
-                kb
-            } else {
-                ka + (kb - ka) * (t as f64 / steps as f64)
-            };
+            let u = span_sample(ka, kb, t, steps);
             let speed = eval_core(p, &cps[..=p], knots, span, u, 1).d1.norm();
-            // A NaN speed (overflowing homogeneous coordinates) is refused too.
-            if speed.is_nan() || speed <= threshold {
-                return Err(NurbsError::ZeroSpeed { span, u });
+            if !speed.is_finite() {
+                return Err(NurbsError::Overflow { span, u });
             }
         }
     }
+    if moving == 0 {
+        return Err(NurbsError::ZeroSpeed {
+            span: p,
+            u: knots[p],
+        });
+    }
     Ok(())
+}
+
+/// Sample `t` of `0..=steps` of `[ka, kb]`, the ends exactly.
+#[inline]
+fn span_sample(ka: f64, kb: f64, t: usize, steps: usize) -> f64 {
+    if t == 0 {
+        ka
+    } else if t == steps {
+        kb
+    } else {
+        ka + (kb - ka) * (t as f64 / steps as f64)
+    }
 }
 
 /// Checks a program curve of any length with the rules of [`Nurbs::new`], except the
@@ -845,12 +912,323 @@ impl Nurbs {
         (self.eval_clamped(u, span, order), span)
     }
 
+    /// The non-empty span whose polynomial is the curve on `side` of `u` (already
+    /// clamped): before the first knot and after the last there is only one.
+    fn side_span(&self, u: f64, side: Side) -> usize {
+        let p = self.degree();
+        let k = self.knots();
+        let s = self.span_of(u);
+        if side == Side::After || u <= k[p] || k[s] < u {
+            return s;
+        }
+        // u is the knot k[s] > k[p]: the last non-empty span before it.
+        let mut t = s - 1;
+        while t > p && k[t] >= k[t + 1] {
+            t -= 1;
+        }
+        t
+    }
+
+    /// Derivatives up to `order` (0..=3) at `u` of the polynomial piece on `side`
+    /// of it: at a knot these are the one-sided limits ([`Curve::eval`] takes the
+    /// piece after). `u` is clamped to the range.
+    pub fn eval_side(&self, u: f64, order: usize, side: Side) -> Derivs {
+        let u = self.clamp_u(u);
+        self.eval_span(u, self.side_span(u, side), order)
+    }
+
+    /// Speed floor of `span` (see [`ZERO_SPEED_REL_TOL`]).
+    fn speed_floor(&self, span: usize) -> f64 {
+        let p = self.degree();
+        let pts = (span - p..=span).map(|i| {
+            let c = cartesian(&self.ctrl[i]);
+            [c.x, c.y, c.z]
+        });
+        span_resolution(pts, self.knots[span], self.knots[span + 1]).1
+    }
+
+    /// Is the curve stationary (|C'| = 0, to the resolution of
+    /// [`ZERO_SPEED_REL_TOL`]) at `u` on `side`? Where it is, the parametric
+    /// derivatives give neither the direction nor the curvature directly: see
+    /// [`Nurbs::tangent`].
+    pub fn is_stationary(&self, u: f64, side: Side) -> bool {
+        let u = self.clamp_u(u);
+        let span = self.side_span(u, side);
+        self.eval_span(u, span, 1).d1.norm() <= self.speed_floor(span)
+    }
+
+    /// Unit tangent of the curve at `u` on `side`, in the direction of travel:
+    /// `C'/|C'|`, and where the curve is stationary its limit, from the first
+    /// derivative that does not vanish (minus the second before a simple zero
+    /// of C' and plus it after, the third around a double zero; beyond that
+    /// the third a little way off, extrapolated to `u`). Where the two sides of a parameter
+    /// differ the curve has a corner there, and where they are opposite, a cusp.
+    pub fn tangent(&self, u: f64, side: Side) -> Vec3 {
+        let u = self.clamp_u(u);
+        let span = self.side_span(u, side);
+        let (ka, kb) = (self.knots[span], self.knots[span + 1]);
+        let h = kb - ka;
+        let floor = self.speed_floor(span);
+        let d = self.eval_span(u, span, 3);
+        let unit = |v: Vec3| {
+            let n = v.norm();
+            if n > 0.0 { v / n } else { Vec3::zeros() }
+        };
+        if d.d1.norm() > floor {
+            return unit(d.d1);
+        }
+        if d.d2.norm() > floor / h {
+            return match side {
+                Side::Before => -unit(d.d2),
+                Side::After => unit(d.d2),
+            };
+        }
+        if d.d3.norm() > floor / (h * h) {
+            return unit(d.d3);
+        }
+        // C' vanishes to order m >= 3: near u, C''' ≈ C^(m+1)·e^(m-2)/(m-2)!
+        // points the way of travel on both sides (a chord is rounding there).
+        // Richardson over steps e and 2e, with the order from their ratio,
+        // removes the O(e) term of the direction.
+        let e = 1e-4 * h;
+        let at = |x: f64| match side {
+            Side::Before => self.eval_span((u - x).max(ka), span, 3).d3,
+            Side::After => self.eval_span((u + x).min(kb), span, 3).d3,
+        };
+        let (v1, v2) = (at(e), at(2.0 * e));
+        let (n1, n2) = (v1.norm(), v2.norm());
+        if !(n1 > 0.0 && n2 > 0.0) {
+            return unit(v2);
+        }
+        let k = libm::round(libm::log2(n2 / n1)).max(0.0);
+        unit(v1 * 2.0 - v2 / libm::pow(2.0, k))
+    }
+
+    /// Curvature of the curve at `u` on `side` (1/mm): `|C'×C''|/|C'|³`, and
+    /// where the curve is stationary its limit. Leaving a simple zero of C'
+    /// (C'' ≠ 0) the curvature grows like `|C''×C'''| / (2|C''|³·|u − u₀|)`:
+    /// the limit is infinite (like `1/√s` in arc length: a repeated end control
+    /// point) unless C''' is parallel to C'', and then it is the next order's
+    /// `|C''×C⁗| / (3|C''|³)` (C⁗ by a difference of C''' across 1e-4 of the
+    /// span: the limit to about that). Where C'' vanishes too the curve leaves
+    /// the point like `C'''·e³`: infinite unless C''' and C⁗ are parallel, and
+    /// then this is the curvature 1e-6 of the span away on `side`.
+    pub fn curvature(&self, u: f64, side: Side) -> f64 {
+        let u = self.clamp_u(u);
+        let span = self.side_span(u, side);
+        let (ka, kb) = (self.knots[span], self.knots[span + 1]);
+        let h = kb - ka;
+        let floor = self.speed_floor(span);
+        let d = self.eval_span(u, span, 3);
+        if d.d1.norm() > floor {
+            return d.curvature();
+        }
+        // Sines of angles below this are rounding: the vectors are parallel.
+        const PARALLEL: f64 = 1e-9;
+        let parallel = |a: Vec3, b: Vec3| a.cross(&b).norm() <= PARALLEL * a.norm() * b.norm();
+        // A step of `frac` of the span into the piece on `side`.
+        let toward = |frac: f64| match side {
+            Side::Before => (u - frac * h).max(ka),
+            Side::After => (u + frac * h).min(kb),
+        };
+        let x = toward(1e-4);
+        let d4 = (self.eval_span(x, span, 3).d3 - d.d3) / (x - u);
+        if d.d2.norm() > floor / h {
+            if !parallel(d.d2, d.d3) {
+                return f64::INFINITY;
+            }
+            let s2 = d.d2.norm();
+            return d.d2.cross(&d4).norm() / (3.0 * s2 * s2 * s2);
+        }
+        if d.d3.norm() > floor / (h * h) && !parallel(d.d3, d4) {
+            return f64::INFINITY;
+        }
+        self.eval_span(toward(1e-6), span, 2).curvature()
+    }
+
+    /// Calls `f` with every parameter strictly inside the range where the curve
+    /// stops or turns back, in increasing order:
+    ///
+    /// - stationary points (|C'| = 0 on either side, to the resolution of
+    ///   [`ZERO_SPEED_REL_TOL`]): knots where a repeated control point or a
+    ///   double knot stops it, and zeros of C' inside a span (found from
+    ///   samples of the speed, refined by golden-section search);
+    /// - when `near > 0`, hairpins: minima of the speed where the tangent at arc
+    ///   length `near` before and after points back (turns by more than 90°),
+    ///   which to within `near` are cusps.
+    ///
+    /// The range's own ends are asked with [`Nurbs::is_stationary`].
+    pub fn for_each_stationary(&self, near: f64, mut f: impl FnMut(f64)) {
+        let p = self.degree();
+        let n = self.control_count();
+        let ua = self.u_start();
+        let steps = ZERO_SPEED_SAMPLES + 1;
+        let mut prev_span: Option<usize> = None;
+        for span in p..n {
+            let (ka, kb) = (self.knots[span], self.knots[span + 1]);
+            if ka >= kb {
+                continue;
+            }
+            let h = kb - ka;
+            let floor = self.speed_floor(span);
+            // The knot that starts the span, from either side, and a hairpin
+            // whose tip is the knot.
+            if let (true, Some(q)) = (ka > ua, prev_span) {
+                let hq = ka - self.knots[q];
+                let before = self.eval_span(ka, q, 1).d1.norm();
+                let after = self.eval_span(ka, span, 1).d1.norm();
+                let (a, b) = (ka - hq / steps as f64, ka + h / steps as f64);
+                if before <= self.speed_floor(q)
+                    || after <= floor
+                    || (near > 0.0
+                        && before.min(after) <= self.eval_span(a, q, 1).d1.norm()
+                        && before.min(after) <= self.eval_span(b, span, 1).d1.norm()
+                        && self.turns_back(a, ka, b, near))
+                {
+                    f(ka);
+                }
+            }
+            prev_span = Some(span);
+            // Zeros inside: refine each sampled local minimum of the speed that
+            // could hide one (|C'| changes by at most max|C''| between samples).
+            let mut speed = [0.0f64; ZERO_SPEED_SAMPLES + 2];
+            let mut bend = 0.0f64;
+            for (t, v) in speed.iter_mut().enumerate() {
+                let d = self.eval_span(span_sample(ka, kb, t, steps), span, 2);
+                *v = d.d1.norm();
+                bend = bend.max(d.d2.norm());
+            }
+            let gap = h / steps as f64;
+            let margin = 1e-9 * h;
+            // Where C' vanishes to a high order at a span end, the speed stays
+            // below the floor some way into the span, and the search below finds
+            // "zeros" there: stops closer to a stationary end (or to the last
+            // stop found) than the resolution of standing still are that one.
+            let still = floor * h;
+            let mut stops: [Option<Vec3>; 2] = [None, None];
+            for (k, &x) in [ka, kb].iter().enumerate() {
+                let d = self.eval_span(x, span, 1);
+                if d.d1.norm() <= floor {
+                    stops[k] = Some(d.p);
+                }
+            }
+            let mut last = ka;
+            for t in 0..=steps {
+                let left = if t > 0 { speed[t - 1] } else { f64::INFINITY };
+                let right = if t < steps {
+                    speed[t + 1]
+                } else {
+                    f64::INFINITY
+                };
+                if !(speed[t] <= left && speed[t] <= right && speed[t] <= 2.0 * bend * gap) {
+                    continue;
+                }
+                let a = span_sample(ka, kb, t.saturating_sub(1), steps);
+                let b = span_sample(ka, kb, (t + 1).min(steps), steps);
+                let (u, v2) = crate::geom::golden_section_argmin(
+                    |u| self.eval_span(u, span, 1).d1.norm_squared(),
+                    a,
+                    b,
+                    STATIONARY_ITERS,
+                    0.0,
+                );
+                // Zeros at the span's ends are its knots (above, and the next span's).
+                if !(u > ka + margin && u < kb - margin && u > last + margin) {
+                    continue;
+                }
+                let here = self.eval_span(u, span, 0).p;
+                if stops.iter().flatten().any(|q| (here - *q).norm() <= still) {
+                    continue;
+                }
+                if libm::sqrt(v2) <= floor || (near > 0.0 && self.turns_back(a, u, b, near)) {
+                    f(u);
+                    last = u;
+                    stops[0] = Some(here);
+                }
+            }
+        }
+    }
+
+    /// Does the curve turn back (by more than 90°) between arc length `near`
+    /// before `u` and `near` after it, looking no further than `[a, b]`?
+    fn turns_back(&self, a: f64, u: f64, b: f64, near: f64) -> bool {
+        let dir = |x: f64| self.tangent(x, if x < u { Side::Before } else { Side::After });
+        // Cheap first: the bracket's ends point apart.
+        if dir(a).dot(&dir(b)) >= 0.0 {
+            return false;
+        }
+        // The parameter at arc length `near` from u towards `end` (or `end`).
+        let reach = |end: f64| {
+            if self.arc_length(u, end, 0.0).abs() <= near {
+                return end;
+            }
+            let (mut lo, mut hi) = (u, end);
+            for _ in 0..STATIONARY_ITERS {
+                let mid = 0.5 * (lo + hi);
+                if self.arc_length(u, mid, 0.0).abs() <= near {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            lo
+        };
+        dir(reach(a)).dot(&dir(reach(b))) < 0.0
+    }
+
+    /// The parameter `u ≥ u0` at arc length `ds` past `u0` (at most the range's
+    /// end), to what the arithmetic resolves, and the quadrature rules spent:
+    /// Newton on [`Nurbs::arc_length`] (tolerance `tol`) inside a shrinking
+    /// bracket, bisecting where a Newton step leaves it. Where C' vanishes at or
+    /// near `u0` (`|C'|² ≤ |C''|·ds`, a stationary point: `ds/|C'|` is infinite
+    /// or far off) the first guess is the positive root of
+    /// `|C''|·e²/2 + |C'|·e = ds` instead, so the inversion costs there what it
+    /// costs elsewhere.
+    pub fn param_at_arc_length_counted(&self, u0: f64, ds: f64, tol: f64) -> (f64, usize) {
+        let u0 = self.clamp_u(u0);
+        if !(ds > 0.0) {
+            return (u0, 0);
+        }
+        let hi = self.u_end();
+        let d = self.eval(u0, 2);
+        let (sp, bend) = (d.d1.norm(), d.d2.norm());
+        let guess = if sp * sp > bend * ds {
+            ds / sp
+        } else if bend > 0.0 {
+            2.0 * ds / (sp + libm::sqrt(sp * sp + 2.0 * bend * ds))
+        } else {
+            hi - u0
+        };
+        crate::geom::invert_arc_length(
+            u0,
+            ds,
+            hi,
+            u0 + guess,
+            |a, b| self.arc_length_counted(a, b, tol),
+            |u| self.eval(u, 1).d1.norm(),
+        )
+    }
+
     /// Arc length over [ua, ub] (clamped to the range; negative if ub < ua) by adaptive
     /// Gauss–Kronrod 7/15 quadrature of |C'| per knot span, bisecting until the two
     /// rules differ by at most `tol` (absolute, mm, shared out in proportion to the
     /// parameter length). Bisection stops at depth 16 or when the rules agree to
-    /// rounding, so a tolerance of 0 is accepted. No allocation.
+    /// what the arithmetic resolves (see [`Nurbs::arc_length_counted`]), so a
+    /// tolerance of 0 is accepted. No allocation.
     pub fn arc_length(&self, ua: f64, ub: f64, tol: f64) -> f64 {
+        self.arc_length_counted(ua, ub, tol).0
+    }
+
+    /// [`Nurbs::arc_length`] and the number of Gauss–Kronrod rules it applied (15
+    /// evaluations of |C'| each): the work, for tests and benchmarks that guard its
+    /// growth.
+    ///
+    /// The two rules cannot agree better than rounding lets them: to a few ulps of
+    /// the result, and to what one ulp of the parameter moves the nodes
+    /// (`ulp(u)·|C'|` per node, which is what grows on long program curves whose
+    /// parameters run to thousands). Bisecting below that floor only multiplies
+    /// the work (up to 2^16 rules a span) without changing the result.
+    pub fn arc_length_counted(&self, ua: f64, ub: f64, tol: f64) -> (f64, usize) {
         let (ua, ub) = (self.clamp_u(ua), self.clamp_u(ub));
         let (lo, hi, sign) = if ub < ua {
             (ub, ua, -1.0)
@@ -858,12 +1236,13 @@ impl Nurbs {
             (ua, ub, 1.0)
         };
         if lo >= hi {
-            return 0.0;
+            return (0.0, 0);
         }
         let tol = if tol > 0.0 { tol } else { 0.0 };
         let total = hi - lo;
         let n = self.control_count();
         let mut sum = 0.0;
+        let mut rules = 0;
         for span in self.span_of(lo)..n {
             let (ka, kb) = (self.knots[span], self.knots[span + 1]);
             if ka >= hi {
@@ -874,25 +1253,34 @@ impl Nurbs {
             }
             let (a, b) = (lo.max(ka), hi.min(kb));
             if a < b {
-                sum += self.arc_length_span(span, a, b, tol * ((b - a) / total));
+                let (l, r) = self.arc_length_span(span, a, b, tol * ((b - a) / total));
+                sum += l;
+                rules += r;
             }
         }
-        sign * sum
+        (sign * sum, rules)
     }
 
-    /// Adaptive quadrature of |C'| over [a, b] inside one span, with an explicit stack.
-    fn arc_length_span(&self, span: usize, a: f64, b: f64, tol: f64) -> f64 {
+    /// Adaptive quadrature of |C'| over [a, b] inside one span, with an explicit stack;
+    /// returns the integral and the number of rules applied.
+    fn arc_length_span(&self, span: usize, a: f64, b: f64, tol: f64) -> (f64, usize) {
         // Depth-first: at most one pending right half per level plus the current one.
         let mut stack = [(0.0f64, 0.0f64, 0.0f64, 0usize); ARC_MAX_DEPTH + 2];
         stack[0] = (a, b, tol, 0);
         let mut top = 1;
         let mut sum = 0.0;
+        let mut rules = 0;
         while top > 0 {
             top -= 1;
             let (a, b, tol, depth) = stack[top];
             let (k, g) = self.gauss_kronrod(span, a, b);
+            rules += 1;
             let diff = libm::fabs(k - g);
-            if diff <= tol || diff <= ARC_REL_FLOOR * libm::fabs(k) || depth >= ARC_MAX_DEPTH {
+            // Rounding floor: a few ulps of the result, and one ulp of u times the
+            // mean speed (the nodes c ± h·x are only placed to ulp(u)).
+            let floor = ARC_REL_FLOOR * libm::fabs(k)
+                + f64::EPSILON * libm::fabs(a).max(libm::fabs(b)) * libm::fabs(k) / (b - a);
+            if diff <= tol || diff <= floor || depth >= ARC_MAX_DEPTH {
                 sum += k;
             } else {
                 let m = 0.5 * (a + b);
@@ -901,7 +1289,7 @@ impl Nurbs {
                 top += 2;
             }
         }
-        sum
+        (sum, rules)
     }
 
     /// (Kronrod 15-point, Gauss 7-point) estimates of ∫|C'| over [a, b] in `span`.
@@ -1236,12 +1624,18 @@ impl<E: core::fmt::Debug + core::fmt::Display> core::error::Error for SplitError
 /// consecutive segments of at most `max_ctrl` (<= MAX_CTRL - MAX_DEGREE - 1) control
 /// points each, that together are exactly the same curve, calling `sink` with each in
 /// order. Validates the whole input first with the same rules/errors as Nurbs::new
-/// (except the capacity). Cut points are existing distinct interior knots.
+/// (except the capacity, and spans that stand still: see below). Cut points are
+/// existing distinct interior knots.
 ///
 /// Segments keep the original parameters (each covers [knots[s], knots[e]]), adjacent
 /// segments share a bit-identical joint point, and the first and last points are
 /// exactly the given ones. `max_ctrl` is clamped to `degree + 1..=MAX_CTRL` (a single
 /// span needs degree + 1 points). A curve that fits is passed on as one segment.
+///
+/// A knot span whose control points coincide (the curve stands still there, e.g.
+/// a point repeated `degree + 1` times) has no length: it is left out, the
+/// segments before and after it meet at its point, and the parameters jump over
+/// it. Only a curve that is all one point is refused ([`NurbsError::ZeroSpeed`]).
 pub fn split_program_curve<E>(
     degree: usize,
     points: &[[f64; 3]],
@@ -1261,34 +1655,57 @@ pub fn split_program_curve<E>(
         }
         i
     };
+    // The span starting at knot index i (the last of its run) stands still.
+    let still =
+        |i: usize| span_resolution(points[i - p..=i].iter().copied(), knots[i], knots[i + 1]).0;
+    // The first span that moves from span start i on (validation found one).
+    let moving_from = |mut i: usize| {
+        while i < count && still(i) {
+            i = run_end(i + 1);
+        }
+        i
+    };
     // A segment from span start s (last index of its knot value) to e (first index
     // of its value) has control points P[s-p..e], i.e. e - s + p of them.
-    let mut s = p;
-    let mut joint: Option<([f64; 4], Vec3)> = None;
+    let mut s = moving_from(p);
+    let mut joint: Option<([f64; 4], Vec3, bool)> = None;
     loop {
         let mut e = s + 1;
         while e < count {
             let next = run_end(e) + 1;
-            if next - s + p > max_ctrl {
+            if next - s + p > max_ctrl || still(next - 1) {
                 break;
             }
             e = next;
         }
-        let seg =
-            program_segment(p, points, weights, knots, s, e, joint).map_err(SplitError::Invalid)?;
-        joint = Some((seg.ctrl[seg.control_count() - 1], seg.end));
+        // Where the rest stands still, the curve ends at this segment's end.
+        let rest = if e < count {
+            moving_from(run_end(e))
+        } else {
+            count
+        };
+        let last = rest >= count;
+        let seg = program_segment(p, points, weights, knots, s, e, joint, last)
+            .map_err(SplitError::Invalid)?;
         sink(seg).map_err(SplitError::Sink)?;
-        if e == count {
+        if last {
             return Ok(());
         }
-        s = run_end(e);
+        // Across a span that stands still the next segment starts at the same
+        // point but with its own weight there.
+        let gap = rest != run_end(e);
+        joint = Some((seg.ctrl[seg.control_count() - 1], seg.end, gap));
+        s = rest;
     }
 }
 
 /// The piece of a validated program curve over [knots[s], knots[e]] as a clamped
 /// segment: local control points and knots, both ends clamped by Boehm insertion.
-/// `joint` is the previous segment's last control point (homogeneous, Cartesian),
-/// reused so that the segments meet bit-identically.
+/// `joint` is the previous segment's last control point (homogeneous, Cartesian, and
+/// whether a span that stands still lies between), reused so that the segments meet
+/// bit-identically; the first segment starts at the first given point, and the
+/// `last` ends at the last given point.
+#[allow(clippy::too_many_arguments)]
 fn program_segment(
     p: usize,
     points: &[[f64; 3]],
@@ -1296,7 +1713,8 @@ fn program_segment(
     knots: &[f64],
     s: usize,
     e: usize,
-    joint: Option<([f64; 4], Vec3)>,
+    joint: Option<([f64; 4], Vec3, bool)>,
+    last: bool,
 ) -> Result<Nurbs, NurbsError> {
     let count = points.len();
     let c = e - s + p;
@@ -1311,13 +1729,17 @@ fn program_segment(
     w.clamp_left()?;
     w.reverse_negated();
     let start = match joint {
-        Some((h, pt)) => {
+        Some((h, pt, false)) => {
             w.ctrl[0] = h;
+            pt
+        }
+        Some((_, pt, true)) => {
+            w.ctrl[0] = homog(&[pt.x, pt.y, pt.z], w.ctrl[0][3]);
             pt
         }
         None => Vec3::from(points[0]),
     };
-    let end = if e == count {
+    let end = if last {
         Vec3::from(points[count - 1])
     } else {
         cartesian(&w.ctrl[w.n - 1])
@@ -1539,18 +1961,38 @@ mod tests {
         let k = [0.0, 0.0, 0.0, 0.5, 1.0, 1.0];
         assert_eq!(e(1, &LINE4, &ONES4, &k), E::KnotMultiplicity { index: 2 });
 
-        // Two coincident control points at the clamped start: C'(0) = 0.
-        let mut p = LINE4;
-        p[1] = p[0];
+        // Two coincident control points at the clamped start or end: C' = 0 there,
+        // a curve like any other.
+        for (a, b) in [(1, 0), (2, 3)] {
+            let mut p = LINE4;
+            p[a] = p[b];
+            assert!(Nurbs::new(3, &p, &ONES4, &BEZ3).is_ok());
+        }
+        // A span whose control points all coincide stands still: no segment may
+        // hold one (and a program curve may not be all one).
+        let p = [[1.0, 2.0, 3.0]; 4];
         assert_eq!(e(3, &p, &ONES4, &BEZ3), E::ZeroSpeed { span: 3, u: 0.0 });
-        // ... and at the end.
-        let mut p = LINE4;
-        p[2] = p[3];
-        assert_eq!(e(3, &p, &ONES4, &BEZ3), E::ZeroSpeed { span: 3, u: 1.0 });
+        assert_eq!(
+            validate_program_curve(3, &p, &ONES4, &BEZ3).unwrap_err(),
+            E::ZeroSpeed { span: 3, u: 0.0 }
+        );
         // A linear span whose two points coincide.
         let p = [[0.0; 3], [1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]];
         let k = [0.0, 0.0, 0.3, 0.6, 1.0, 1.0];
-        assert!(matches!(e(1, &p, &ONES4, &k), E::ZeroSpeed { span: 2, .. }));
+        assert_eq!(e(1, &p, &ONES4, &k), E::ZeroSpeed { span: 2, u: 0.3 });
+        assert!(validate_program_curve(1, &p, &ONES4, &k).is_ok());
+        // Homogeneous coordinates that overflow.
+        let p = [
+            [1e300, 0.0, 0.0],
+            [-1e300, 1e300, 0.0],
+            [1e300, 1.0, 0.0],
+            [0.0; 3],
+        ];
+        let heavy = [1e10; 4];
+        assert!(matches!(
+            e(3, &p, &heavy, &BEZ3),
+            E::Overflow { span: 3, .. }
+        ));
 
         let c = Nurbs::non_rational(3, &LINE4, &BEZ3).unwrap();
         let out = E::ParameterOutOfRange { u: 0.0 };
@@ -1611,6 +2053,8 @@ mod tests {
         });
         assert!(m.contains("control point 9"), "{m}");
         let m = msg(NurbsError::ZeroSpeed { span: 4, u: 0.5 });
+        assert!(m.contains("knot 4") && m.contains("0.5"), "{m}");
+        let m = msg(NurbsError::Overflow { span: 4, u: 0.5 });
         assert!(m.contains("knot 4") && m.contains("0.5"), "{m}");
         let m = msg(NurbsError::KnotCount {
             expected: 8,
@@ -2162,5 +2606,149 @@ mod tests {
         });
         assert_eq!(res, Err(SplitError::Sink("full")));
         assert_eq!(calls, 2);
+    }
+
+    /// A long program curve (10,000 control points, parameters 0..9,997 as G6.2
+    /// programs number their knots): measuring it and finding parameters by arc
+    /// length must cost the same per segment at its end as at its start. Before
+    /// the rounding floors, the end cost several times more (2^16 rules a span in
+    /// the worst case): planning grew superlinearly with the curve.
+    #[test]
+    fn long_curves_cost_the_same_per_segment_at_both_ends() {
+        let (p, count) = (3, 10_000);
+        let pts: Vec<[f64; 3]> = (0..count)
+            .map(|i| {
+                let t = i as f64;
+                [0.5 * t, 5.0 * libm::sin(0.3 * t), 0.1 * libm::cos(0.7 * t)]
+            })
+            .collect();
+        let w: Vec<f64> = (0..count)
+            .map(|i| 1.0 + 0.3 * libm::sin(i as f64))
+            .collect();
+        let mut k = std::vec![0.0; p + 1];
+        k.extend((1..count - p).map(|i| i as f64));
+        k.extend(std::vec![(count - p) as f64; p + 1]);
+        let mut segs = Vec::new();
+        split_program_curve::<()>(p, &pts, &w, &k, 20, |s| {
+            segs.push(s);
+            Ok(())
+        })
+        .unwrap();
+        // Work of measuring a segment whole and of stepping along it by 0.03 mm
+        // (a law sample spacing) from a few places, as the planner does.
+        let work = |s: &Nurbs| {
+            let path = crate::path::Path::Nurbs(*s);
+            let (_, mut rules) = s.arc_length_counted(s.u_start(), s.u_end(), 1e-12);
+            for j in 0..8 {
+                let u = s.u_start() + (s.u_end() - s.u_start()) * (j as f64 / 8.0);
+                rules += path.param_at_arc_length_counted(u, 0.03).1;
+            }
+            rules
+        };
+        let n = segs.len();
+        let first: usize = segs[..20].iter().map(work).sum();
+        let last: usize = segs[n - 20..].iter().map(work).sum();
+        assert!(
+            (last as f64) <= 1.25 * first as f64,
+            "rules for the last 20 segments {last}, for the first 20 {first}"
+        );
+        // And the length is still resolved: the last segment against its copy
+        // moved to parameters near 0 (same geometry, exact knot shift).
+        let s = segs[n - 1];
+        let shift = s.u_start();
+        let moved: Vec<f64> = s.knots().iter().map(|x| x - shift).collect();
+        let pts: Vec<[f64; 3]> = (0..s.control_count()).map(|i| s.control_point(i)).collect();
+        let ws: Vec<f64> = (0..s.control_count()).map(|i| s.weight(i)).collect();
+        let t = Nurbs::new(p, &pts, &ws, &moved).unwrap();
+        let (a, b) = (
+            s.arc_length(s.u_start(), s.u_end(), 1e-12),
+            t.arc_length(t.u_start(), t.u_end(), 1e-12),
+        );
+        assert!(libm::fabs(a - b) <= 1e-10 * b, "{a} vs {b}");
+    }
+
+    #[test]
+    fn curvature_where_the_speed_vanishes_is_its_limit() {
+        // A repeated end control point: the curvature grows like 1/√s, and the
+        // limit is infinite.
+        let p = [[0.0; 3], [0.0; 3], [10.0, 0.0, 0.0], [10.0, 10.0, 0.0]];
+        let c = Nurbs::non_rational(3, &p, &BEZ3).unwrap();
+        assert!(c.is_stationary(0.0, Side::After));
+        assert_eq!(c.curvature(0.0, Side::After), f64::INFINITY);
+        assert!(c.eval(1e-6, 3).curvature() > 10.0 * c.eval(1e-4, 3).curvature());
+        // Where it moves, the ordinary value.
+        assert_eq!(c.curvature(0.5, Side::After), c.eval(0.5, 3).curvature());
+        // Degree 4, C'' ∥ C''' at the stationary start: a finite limit, which
+        // the curvature nearby approaches linearly.
+        let p = [
+            [0.0; 3],
+            [0.0; 3],
+            [1.0, 0.0, 0.0],
+            [2.5, 0.0, 0.0],
+            [3.0, 1.0, 0.0],
+        ];
+        let k = [0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0, 1.0];
+        let c = Nurbs::non_rational(4, &p, &k).unwrap();
+        assert!(c.is_stationary(0.0, Side::After));
+        // C'' = 12·(1, 0, 0), C = 24·(-1, 1, 0): |C×C| / (3|C''|³) = 1/18.
+        let lim = c.curvature(0.0, Side::After);
+        assert!((lim - 1.0 / 18.0).abs() <= 1e-6 / 18.0, "{lim}");
+        let near = |e: f64| (c.eval(e, 3).curvature() - lim).abs();
+        assert!(near(1e-5) <= 1e-3 * lim && near(1e-5) < near(1e-3), "{lim}");
+        // The same curve backwards, from before its end.
+        let back = c.reversed();
+        assert!(back.is_stationary(1.0, Side::Before));
+        let b = back.curvature(1.0, Side::Before);
+        assert!((b - lim).abs() <= 1e-6 * lim, "{b} vs {lim}");
+    }
+
+    #[test]
+    fn arc_length_inverts_from_a_stationary_point_at_the_usual_cost() {
+        // LinuxCNC's trident: the first control point repeats the start, C'(0) = 0.
+        let p = [
+            [10.0, 0.0, 0.0],
+            [10.0, 0.0, 0.0],
+            [20.0, 20.0, 0.0],
+            [12.0, 8.0, 0.0],
+            [10.0, 20.0, 0.0],
+            [8.0, 8.0, 0.0],
+            [0.0, 20.0, 0.0],
+            [10.0, 0.0, 0.0],
+        ];
+        let k = [0.0, 0.0, 0.0, 0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 5.0, 5.0, 5.0];
+        let c = Nurbs::non_rational(3, &p, &k).unwrap();
+        assert!(c.is_stationary(0.0, Side::After));
+        for ds in [1e-9, 1e-6, 1e-3, 0.1, 5.0] {
+            let (u, rules) = c.param_at_arc_length_counted(0.0, ds, 1e-12);
+            let back = c.arc_length(0.0, u, 1e-13);
+            assert!(
+                libm::fabs(back - ds) <= 1e-12 * (1.0 + ds),
+                "ds {ds}: {back}"
+            );
+            // A first guess from C'' lands close: a few Newton steps (bisecting
+            // from the range's end would take dozens).
+            let (_, one) = c.arc_length_counted(0.0, u, 1e-12);
+            assert!(
+                rules <= 6 * one.max(1),
+                "ds {ds}: {rules} rules, one length {one}"
+            );
+        }
+        // From an interior cusp (C' = 0 at u = 0.5 of a Bézier), past it.
+        let q = [
+            [0.0; 3],
+            [10.0, 10.0, 1.0],
+            [0.0, 10.0, 0.0],
+            [10.0, 0.0, 1.0],
+        ];
+        let c = Nurbs::non_rational(3, &q, &BEZ3).unwrap();
+        assert!(c.is_stationary(0.5, Side::After));
+        for ds in [1e-6, 0.5] {
+            let (u, _) = c.param_at_arc_length_counted(0.5, ds, 1e-12);
+            let back = c.arc_length(0.5, u, 1e-13);
+            assert!(
+                libm::fabs(back - ds) <= 1e-12 * (1.0 + ds),
+                "ds {ds}: {back}"
+            );
+        }
     }
 }

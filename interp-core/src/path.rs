@@ -290,6 +290,36 @@ impl Path {
         self.arc_length(self.u_start(), self.u_end())
     }
 
+    /// The parameter `u ≥ u0` at arc length `ds` past `u0` (at most `u_end`):
+    /// Newton on [`Path::arc_length`] inside a shrinking bracket, to what the
+    /// arithmetic resolves.
+    pub fn param_at_arc_length(&self, u0: f64, ds: f64) -> f64 {
+        self.param_at_arc_length_counted(u0, ds).0
+    }
+
+    /// [`Path::param_at_arc_length`] and the quadrature rules it spent (see
+    /// [`Nurbs::arc_length_counted`]; 0 for lines and arcs): the work, for
+    /// tests that guard its growth. A NURBS inverts itself
+    /// ([`Nurbs::param_at_arc_length_counted`], which also starts well where
+    /// C' vanishes).
+    pub fn param_at_arc_length_counted(&self, u0: f64, ds: f64) -> (f64, usize) {
+        if let Path::Nurbs(n) = self {
+            return n.param_at_arc_length_counted(u0, ds, ARC_LENGTH_TOL);
+        }
+        if ds <= 0.0 {
+            return (u0, 0);
+        }
+        // Lines and arcs: their lengths are closed forms.
+        crate::geom::invert_arc_length(
+            u0,
+            ds,
+            self.u_end(),
+            u0 + ds / self.eval(u0, 1).d1.norm(),
+            |ua, ub| (self.arc_length(ua, ub), 0),
+            |u| self.eval(u, 1).d1.norm(),
+        )
+    }
+
     /// Split at interior parameter `u` into two paths that are exactly the same geometry.
     pub fn split_at(&self, u: f64) -> Result<(Path, Path), SplitAtError> {
         if !(u > self.u_start() && u < self.u_end()) {

@@ -20,9 +20,10 @@
 //! [`PushError::Stale`].
 
 use crate::config::{ConfigError, InterpConfig};
-use crate::feed::{feed_limit, junction_speed, machine_limit};
+use crate::feed::{feed_limit, junction_speed, machine_limit, stationary_offset};
 use crate::geom::{Curve, Derivs, Vec3, golden_section_min};
 use crate::interp::{JOIN_TOLERANCE, MAX_PIECES, PushError, grid_multiple};
+use crate::nurbs::Side;
 use crate::path::{Block, Path};
 use crate::plan::{MAX_PROFILE, Segment};
 
@@ -234,7 +235,14 @@ impl BlockPlanner {
             return Err(PushError::Discontinuous { gap });
         }
         let mut pieces = [block.path; MAX_PIECES];
-        let n_pieces = split_at_tangent_breaks(&block.path, &mut pieces, cfg.tangent_tolerance)?;
+        let mut singular = [false; MAX_PIECES + 1];
+        let n_pieces = split_at_tangent_breaks(
+            &block.path,
+            &mut pieces,
+            cfg.tangent_tolerance,
+            cfg.chord_tolerance,
+            &mut singular,
+        )?;
         if let Some(r) = room
             && n_pieces > r.segments
         {
@@ -251,6 +259,18 @@ impl BlockPlanner {
                 return Err(PushError::Empty);
             }
             total += *len;
+        }
+        // Where a piece starts or ends at a stationary point (C' = 0), its laws
+        // are taken a tick's distance inside (feed::stationary_offset).
+        let mut windows = [(0.0, 0.0); MAX_PIECES];
+        for (k, w) in windows.iter_mut().enumerate().take(n_pieces) {
+            *w = law_window(
+                &pieces[k],
+                lengths[k],
+                (singular[k], singular[k + 1]),
+                block,
+                &cfg,
+            );
         }
         let h = self.h;
         let g_first = index_of(self.tail_s, h) - 1;
@@ -273,7 +293,7 @@ impl BlockPlanner {
         out.n_caps = n_caps;
         out.raw[..n_caps].fill(f64::INFINITY);
         out.raw_feed[..n_caps].fill(f64::INFINITY);
-        out.entry = block.path.eval(block.path.u_start(), 3);
+        out.entry = block.path.eval(windows[0].0, 3);
         out.n_segments = n_pieces;
         let mut s = self.tail_s;
         for (k, piece) in pieces[..n_pieces].iter().enumerate() {
@@ -289,18 +309,18 @@ impl BlockPlanner {
             };
             out.corner[k] = if k > 0 {
                 // A tangent break inside the block.
-                let left = pieces[k - 1].eval(pieces[k - 1].u_end(), 3);
-                let right = piece.eval(piece.u_start(), 3);
+                let left = pieces[k - 1].eval(windows[k - 1].1, 3);
+                let right = piece.eval(windows[k].0, 3);
                 junction_speed(&left, &right, &cfg)
             } else {
                 f64::INFINITY
             };
-            sample_laws(&seg, &cfg, out);
+            sample_laws(&seg, windows[k], &cfg, out);
             s += seg.length;
             out.segments[k] = Some(seg);
         }
         let last = &pieces[n_pieces - 1];
-        out.exit = last.eval(last.u_end(), 3);
+        out.exit = last.eval(windows[n_pieces - 1].1, 3);
         out.exact_stop = block.blending == crate::path::Blending::ExactStop;
         out.end = block.path.end_point();
         out.s1 = s;
@@ -315,7 +335,11 @@ impl BlockPlanner {
 /// is on a node). A curvature peak can fall between samples, so every local
 /// minimum of the sampled law is refined by a golden-section search between
 /// its neighbours, and the refined value lowers the intervals it may lie in.
-fn sample_laws(seg: &Segment, cfg: &InterpConfig, profile: &mut PlannedBlock) {
+///
+/// The laws are evaluated with the parameter clamped into `window` (see
+/// [`law_window`]).
+fn sample_laws(seg: &Segment, window: (f64, f64), cfg: &InterpConfig, profile: &mut PlannedBlock) {
+    let (u_lo, u_hi) = window;
     // Law samples stay `profile_step / law_samples_per_interval` apart however
     // long the period (a long period only widens the grid), so no feature of
     // the curve hides between samples.
@@ -324,7 +348,7 @@ fn sample_laws(seg: &Segment, cfg: &InterpConfig, profile: &mut PlannedBlock) {
     let path = &seg.path;
     // The machine laws (index 0) and the override-scaled feed laws (index 1).
     let law = |u: f64, which: usize| {
-        let d = path.eval(u, 3);
+        let d = path.eval(u.clamp(u_lo, u_hi), 3);
         if which == 0 {
             machine_limit(&d, cfg, 1.0)
         } else {
@@ -348,16 +372,15 @@ fn sample_laws(seg: &Segment, cfg: &InterpConfig, profile: &mut PlannedBlock) {
     let k0 = libm::ceil(seg.s0 / hs) as i64;
     let k1 = libm::floor(seg.s1() / hs) as i64;
     let (mut u_prev, mut x_prev) = (path.u_start(), seg.s0);
-    let u_end = path.u_end();
     // Per law, the last two samples: (k, u, value).
     let mut w1: [Option<(i64, f64, f64)>; 2] = [None; 2];
     let mut w2: [Option<(i64, f64, f64)>; 2] = [None; 2];
     for k in k0..=k1 {
         let x = k as f64 * hs;
-        let u = invert_arc_length(path, u_prev, x - x_prev, u_end);
+        let u = path.param_at_arc_length(u_prev, x - x_prev);
         let g = k.div_euclid(m);
         // One evaluation for both laws at the sample.
-        let d = path.eval(u, 3);
+        let d = path.eval(u.clamp(u_lo, u_hi), 3);
         let both = [
             machine_limit(&d, cfg, 1.0),
             feed_limit(&d, seg.feed, seg.mrr.as_ref(), cfg),
@@ -418,48 +441,75 @@ fn sample_laws(seg: &Segment, cfg: &InterpConfig, profile: &mut PlannedBlock) {
 /// Golden-section steps refining a sampled law minimum (bracket shrinks by 0.618 each).
 const GOLDEN_ITERS: usize = 40;
 
-/// The parameter `u ≥ u0` at arc length `ds` past `u0` (Newton with a bracket).
-fn invert_arc_length(path: &Path, u0: f64, ds: f64, u_end: f64) -> f64 {
-    if ds <= 0.0 {
-        return u0;
-    }
-    let (mut lo, mut hi) = (u0, u_end);
-    let mut u = (u0 + ds / path.eval(u0, 1).d1.norm()).clamp(lo, hi);
-    for _ in 0..60 {
-        let f = path.arc_length(u0, u) - ds;
-        if libm::fabs(f) <= 1e-13 * (1.0 + ds) {
-            break;
-        }
-        if f > 0.0 {
-            hi = u;
-        } else {
-            lo = u;
-        }
-        let mut next = u - f / path.eval(u, 1).d1.norm();
-        if !(next > lo && next < hi) {
-            next = 0.5 * (lo + hi);
-        }
-        u = next;
-    }
-    u
+/// The parameters between which the laws of `path` (of length `len`, a piece
+/// of `block`) are evaluated: its whole range, narrowed by [`stationary_offset`]
+/// at an end that is `singular` (the curve stops or turns back there: the
+/// curvature is in general infinite, or as good as, and no tick sees it).
+fn law_window(
+    path: &Path,
+    len: f64,
+    singular: (bool, bool),
+    block: &Block,
+    cfg: &InterpConfig,
+) -> (f64, f64) {
+    let (ua, ub) = (path.u_start(), path.u_end());
+    let limit = |u: f64| {
+        let d = path.eval(u, 3);
+        machine_limit(&d, cfg, 1.0).min(feed_limit(&d, block.feed, block.mrr.as_ref(), cfg))
+    };
+    let lo = if singular.0 {
+        let d = stationary_offset(cfg, 0.5 * len, |x| limit(path.param_at_arc_length(ua, x)));
+        path.param_at_arc_length(ua, d)
+    } else {
+        ua
+    };
+    let hi = if singular.1 {
+        let d = stationary_offset(cfg, 0.5 * len, |x| {
+            limit(path.param_at_arc_length(ua, len - x))
+        });
+        path.param_at_arc_length(ua, len - d)
+    } else {
+        ub
+    };
+    (lo, hi)
 }
 
-/// Cut a NURBS at interior knots of full multiplicity where the tangent
-/// turns by more than `tol` (a corner inside one block). Lines and arcs are
-/// one piece. Returns the number of pieces written.
+/// Cut a NURBS where the tangent breaks: at interior knots of full
+/// multiplicity where it turns by more than `tol` (a corner inside one
+/// block), and where the curve stops or turns back
+/// ([`Nurbs::for_each_stationary`]: C' = 0, a cusp where the tangent reverses,
+/// a corner, or a point where the curvature blows up; or a hairpin that is a
+/// cusp to within `near`). Those are marked in `singular` (one flag per piece
+/// boundary, the block's ends included, which are marked where the curve is
+/// stationary): the pieces' laws are taken a tick inside them
+/// ([`law_window`]) and their junction is priced like a corner's. Lines and
+/// arcs are one piece. Returns the number of pieces written.
 pub(crate) fn split_at_tangent_breaks(
     path: &Path,
     out: &mut [Path; MAX_PIECES],
     tol: f64,
+    near: f64,
+    singular: &mut [bool; MAX_PIECES + 1],
 ) -> Result<usize, PushError> {
     out[0] = *path;
+    singular.fill(false);
     let Path::Nurbs(n) = path else {
         return Ok(1);
     };
+    let (ua, ub) = (n.u_start(), n.u_end());
+    singular[0] = n.is_stationary(ua, Side::After);
+    // Cut parameters and whether each stops or turns the curve back (more than
+    // MAX_PIECES - 1 is an error either way).
+    let mut cuts = [(0.0f64, false); 2 * MAX_PIECES];
+    let mut n_cuts = 0;
+    let mut add = |u: f64, stops: bool| {
+        if n_cuts < cuts.len() {
+            cuts[n_cuts] = (u, stops);
+        }
+        n_cuts += 1;
+    };
     let p = n.degree();
     let knots = n.knots();
-    let (ua, ub) = (n.u_start(), n.u_end());
-    let mut count = 1;
     let mut i = p + 1;
     while i < knots.len() - p - 1 {
         let u = knots[i];
@@ -468,28 +518,39 @@ pub(crate) fn split_at_tangent_breaks(
             mult += 1;
         }
         if u > ua && u < ub && mult >= p {
-            // Left and right tangents at a C0 knot.
-            // Just before the knot (evaluation at the knot takes the right span).
-            let prev_knot = knots[..i]
-                .iter()
-                .rev()
-                .find(|&&k| k < u)
-                .copied()
-                .unwrap_or(ua);
-            let left = n.eval(u - (u - prev_knot) * 1e-9, 1).d1;
-            let right = n.eval(u, 1).d1;
-            let cos = left.dot(&right) / (left.norm() * right.norm());
-            if !(cos >= libm::cos(tol)) {
-                if count >= MAX_PIECES {
-                    return Err(PushError::TooManyCorners);
-                }
-                let (a, b) = out[count - 1].split_at(u).map_err(PushError::Split)?;
-                out[count - 1] = a;
-                out[count] = b;
-                count += 1;
+            // The one-sided tangents at a C0 knot.
+            let left = n.tangent(u, Side::Before);
+            let right = n.tangent(u, Side::After);
+            if !(left.dot(&right) >= libm::cos(tol)) {
+                add(u, false);
             }
         }
         i += mult;
     }
+    n.for_each_stationary(near, |u| add(u, true));
+    if n_cuts > cuts.len() {
+        return Err(PushError::TooManyCorners);
+    }
+    let cuts = &mut cuts[..n_cuts];
+    cuts.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+    let mut count = 1;
+    let mut last = ua;
+    for &(u, stops) in cuts.iter() {
+        if u <= last {
+            // A stationary corner knot, found twice.
+            singular[count - 1] |= stops;
+            continue;
+        }
+        if count >= MAX_PIECES {
+            return Err(PushError::TooManyCorners);
+        }
+        let (a, b) = out[count - 1].split_at(u).map_err(PushError::Split)?;
+        out[count - 1] = a;
+        out[count] = b;
+        singular[count] = stops;
+        count += 1;
+        last = u;
+    }
+    singular[count] = n.is_stationary(ub, Side::Before);
     Ok(count)
 }

@@ -5,165 +5,43 @@
 //! which also checks geomdl's rational derivatives against finite differences
 //! and exact rational arithmetic. Curves: random 3-D curves of degree 1..=5
 //! (polynomial and rational, double interior knots, two with > 26 control
-//! points), an exact rational-quadratic circle and the LinuxCNC butterfly.
+//! points), an exact rational-quadratic circle, the LinuxCNC butterfly, and
+//! curves that stop: LinuxCNC's G5.2 examples whose first point repeats the
+//! start (C'(0) = 0), rational curves of degree 1..=5 with repeated control
+//! points at the ends and inside and a span that stands still, a double knot at
+//! a join with coincident points, and a cusp inside a span. Where C' = 0 the
+//! fixture lists the parameter (exactly) and geomdl's one-sided tangents.
 //!
-//! Curves with more than `MAX_CTRL - 6` control points are cut with
-//! `split_program_curve`; a parameter is evaluated on the segment whose range
-//! contains it, the right one at a split point (geomdl's spans are
-//! `knots[i] <= u < knots[i+1]`, so its derivatives at knots are right-sided),
-//! the last one at the curve end.
+//! Curves with more than `MAX_CTRL - 6` control points, or with a span that
+//! stands still, are cut with `split_program_curve`; a parameter is evaluated
+//! on the segment whose range contains it, the right one at a split point
+//! (geomdl's spans are `knots[i] <= u < knots[i+1]`, so its derivatives at knots
+//! are right-sided), the last one at the curve end. Inside a span that stands
+//! still (left out by the split) only the point is compared.
 //!
 //! Tolerances: point `1e-9 * max(1, |p|)` mm; derivative k `1e-9 * max(1, |C^(k)|)`;
 //! curvature `1e-9 * max(kappa, 1e-3 * |C''| / |C'|^2)` (the floor only matters on
-//! straight pieces, where kappa is rounding noise on both sides); arc length
-//! `1e-9` relative.
+//! straight pieces, where kappa is rounding noise on both sides; not compared
+//! where C' = 0 or, rounding, next to it); arc length `1e-9` relative.
 
 mod common;
 
+use common::geomdl::{MAX_SEGMENT_CTRL, load, segment_for};
 use interp_core::geom::{Curve, Derivs, Vec3};
-use interp_core::nurbs::{MAX_CTRL, Nurbs};
-use serde_json::Value;
-
-const FIXTURE: &str = include_str!("fixtures/geomdl_curves.json");
+use interp_core::nurbs::{Nurbs, Side};
 
 const POINT_TOL: f64 = 1e-9;
 const DERIV_TOL: f64 = 1e-9;
 const CURVATURE_TOL: f64 = 1e-9;
 const LENGTH_TOL: f64 = 1e-9;
-/// Longest program curve handed to `Nurbs::new` directly.
-const MAX_SEGMENT_CTRL: usize = MAX_CTRL - 6;
-
-struct Sample {
-    u: f64,
-    p: Vec3,
-    d: [Vec3; 3],
-    curvature: f64,
-}
-
-struct RefCurve {
-    name: String,
-    degree: usize,
-    points: Vec<[f64; 3]>,
-    weights: Vec<f64>,
-    knots: Vec<f64>,
-    length: f64,
-    /// `(ua, ub, length)`
-    partial_lengths: Vec<(f64, f64, f64)>,
-    samples: Vec<Sample>,
-}
-
-fn num(v: &Value) -> f64 {
-    v.as_f64()
-        .unwrap_or_else(|| panic!("fixture: expected a number, found {v}"))
-}
-
-fn nums(v: &Value) -> Vec<f64> {
-    v.as_array()
-        .unwrap_or_else(|| panic!("fixture: expected an array, found {v}"))
-        .iter()
-        .map(num)
-        .collect()
-}
-
-fn vec3(v: &Value) -> Vec3 {
-    let a = nums(v);
-    assert_eq!(a.len(), 3, "fixture: expected 3 coordinates");
-    Vec3::new(a[0], a[1], a[2])
-}
-
-fn load() -> Vec<RefCurve> {
-    let doc: Value = serde_json::from_str(FIXTURE).expect("fixture is valid JSON");
-    assert_eq!(doc["geomdl_version"], "5.4.0");
-    doc["curves"]
-        .as_array()
-        .expect("fixture: curves")
-        .iter()
-        .map(|c| RefCurve {
-            name: c["name"].as_str().expect("name").to_owned(),
-            degree: c["degree"].as_u64().expect("degree") as usize,
-            points: c["points"]
-                .as_array()
-                .expect("points")
-                .iter()
-                .map(|p| {
-                    let v = vec3(p);
-                    [v.x, v.y, v.z]
-                })
-                .collect(),
-            weights: nums(&c["weights"]),
-            knots: nums(&c["knots"]),
-            length: num(&c["length"]),
-            partial_lengths: c["partial_lengths"]
-                .as_array()
-                .expect("partial_lengths")
-                .iter()
-                .map(|r| {
-                    let r = nums(r);
-                    (r[0], r[1], r[2])
-                })
-                .collect(),
-            samples: c["samples"]
-                .as_array()
-                .expect("samples")
-                .iter()
-                .map(|s| Sample {
-                    u: num(&s["u"]),
-                    p: vec3(&s["p"]),
-                    d: [vec3(&s["d1"]), vec3(&s["d2"]), vec3(&s["d3"])],
-                    curvature: num(&s["curvature"]),
-                })
-                .collect(),
-        })
-        .collect()
-}
-
-impl RefCurve {
-    fn u_start(&self) -> f64 {
-        self.knots[self.degree]
-    }
-
-    fn u_end(&self) -> f64 {
-        self.knots[self.knots.len() - self.degree - 1]
-    }
-
-    /// The curve as interp-core segments (one unless it is long).
-    fn segments(&self) -> Vec<Nurbs> {
-        if self.points.len() > MAX_SEGMENT_CTRL {
-            common::split_segments(
-                self.degree,
-                &self.points,
-                &self.weights,
-                &self.knots,
-                MAX_SEGMENT_CTRL,
-            )
-        } else {
-            vec![
-                Nurbs::new(self.degree, &self.points, &self.weights, &self.knots)
-                    .unwrap_or_else(|e| panic!("{}: Nurbs::new refused it: {e:?}", self.name)),
-            ]
-        }
-    }
-
-    /// Multiplicity of `u` if it is a knot strictly inside the range, else 0.
-    fn interior_multiplicity(&self, u: f64) -> usize {
-        if u <= self.u_start() || u >= self.u_end() {
-            return 0;
-        }
-        self.knots.iter().filter(|&&k| k == u).count()
-    }
-}
-
-/// The segment that evaluates `u`: the one with `u_start <= u < u_end`, the last at the end.
-fn segment_for(segments: &[Nurbs], u: f64) -> &Nurbs {
-    let last = segments.last().expect("at least one segment");
-    if u >= last.u_start() {
-        return last;
-    }
-    segments
-        .iter()
-        .find(|s| s.u_start() <= u && u < s.u_end())
-        .unwrap_or_else(|| panic!("no segment contains u = {u}"))
-}
+/// One-sided tangents at stationary points: geomdl's come from chords of 1e-7
+/// of the span, whose direction is off by about that much.
+const TANGENT_TOL: f64 = 1e-5;
+/// Curvature is compared where |C'| is above this times the largest
+/// coordinate over the knot span's length.
+const SPEED_RESOLUTION: f64 = 1e-6;
+/// A zero of C' inside a span is found to this fraction of the span.
+const STATIONARY_U_TOL: f64 = 1e-9;
 
 /// `|a - b| / max(floor, |b|)`
 fn rel(a: Vec3, b: Vec3, floor: f64) -> f64 {
@@ -193,7 +71,7 @@ fn segments_tile_the_parameter_range() {
     for c in load() {
         let segs = c.segments();
         let n = c.points.len();
-        let expected_split = n > MAX_SEGMENT_CTRL;
+        let expected_split = n > MAX_SEGMENT_CTRL || !c.still_spans.is_empty();
         assert_eq!(
             segs.len() > 1,
             expected_split,
@@ -201,15 +79,31 @@ fn segments_tile_the_parameter_range() {
             c.name,
             segs.len()
         );
-        assert_eq!(segs[0].u_start(), c.u_start(), "{}: start", c.name);
-        assert_eq!(segs[segs.len() - 1].u_end(), c.u_end(), "{}: end", c.name);
+        // Spans that stand still at the ends are left out too.
+        assert_eq!(segs[0].u_start(), c.moving_start(), "{}: start", c.name);
+        assert_eq!(
+            segs[segs.len() - 1].u_end(),
+            c.moving_end(),
+            "{}: end",
+            c.name
+        );
         for w in segs.windows(2) {
-            assert_eq!(
-                w[0].u_end(),
-                w[1].u_start(),
-                "{}: gap between segments",
-                c.name
-            );
+            // Segments meet, except across spans that stand still, at their point.
+            if w[0].u_end() != w[1].u_start() {
+                let gap = (w[0].u_end(), w[1].u_start());
+                assert!(
+                    c.still_spans.iter().any(|&(a, b)| a >= gap.0 && b <= gap.1)
+                        && c.still_spans
+                            .iter()
+                            .filter(|&&(a, b)| a >= gap.0 && b <= gap.1)
+                            .map(|&(a, b)| b - a)
+                            .sum::<f64>()
+                            == gap.1 - gap.0,
+                    "{}: gap {gap:?} between segments is no still span",
+                    c.name
+                );
+                assert_eq!(w[0].end_point(), w[1].start_point(), "{}", c.name);
+            }
             assert!(w[0].u_start() < w[0].u_end(), "{}: empty segment", c.name);
         }
     }
@@ -236,7 +130,18 @@ fn points_derivatives_and_curvature_match_geomdl() {
         }
         let mut worst = [0.0f64; 5];
         for s in &c.samples {
-            let seg = segment_for(&segs, s.u);
+            let Some(seg) = segment_for(&segs, s.u) else {
+                // Inside a span that stands still: the point is where the curve waits.
+                let at = match segs.iter().rfind(|g| g.u_end() <= s.u) {
+                    Some(g) => g.end_point(),
+                    None => segs[0].start_point(),
+                };
+                let e = (at - s.p).norm() / s.p.norm().max(1.0);
+                if e > POINT_TOL {
+                    failures.push(format!("{} u={:?}: still point {e:.3e} off", c.name, s.u));
+                }
+                continue;
+            };
             let got: Derivs = seg.eval(s.u, 3);
             let m = c.interior_multiplicity(s.u);
             let where_ = format!(
@@ -282,18 +187,26 @@ fn points_derivatives_and_curvature_match_geomdl() {
                 }
             }
 
-            // Curvature uses C' and C''.
+            // Curvature uses C' and C'' (and is a limit where C' = 0).
+            let Some(want) = s.curvature else {
+                continue;
+            };
             if m > 0 && 2 + m > c.degree {
+                continue;
+            }
+            // Next to a stationary point C' is a difference of nearly equal
+            // terms on both sides, and so is the curvature (~ 1/|C'|): compared
+            // only where |C'| is well above the coordinates' rounding per span.
+            if s.d[0].norm() < SPEED_RESOLUTION * c.big() / c.span_length(s.u) {
                 continue;
             }
             let kappa = got.curvature();
             let scale = s.d[1].norm() / s.d[0].norm_squared();
-            let e = (kappa - s.curvature).abs() / s.curvature.max(1e-3 * scale);
+            let e = (kappa - want).abs() / want.max(1e-3 * scale);
             worst[4] = worst[4].max(e);
             if e > CURVATURE_TOL {
                 failures.push(format!(
-                    "{where_}: curvature {kappa:?} vs geomdl {:?} (rel {e:.3e})",
-                    s.curvature
+                    "{where_}: curvature {kappa:?} vs geomdl {want:?} (rel {e:.3e})"
                 ));
             }
         }
@@ -350,6 +263,72 @@ fn arc_length_matches_reference() {
     assert!(
         failures.is_empty(),
         "{} arc length mismatches:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
+}
+
+/// Every parameter where the curve stops is found, with its one-sided
+/// tangents, and none elsewhere (every fixture curve is asked, the ones that
+/// never stop included).
+#[test]
+fn stationary_points_and_their_tangents_match_geomdl() {
+    let mut failures = Vec::new();
+    for c in load() {
+        let segs = c.segments();
+        // Ours: each segment's ends where it stops, and what it finds inside.
+        let mut found: Vec<(f64, &Nurbs)> = Vec::new();
+        for g in &segs {
+            if g.is_stationary(g.u_start(), Side::After) {
+                found.push((g.u_start(), g));
+            }
+            g.for_each_stationary(0.0, |u| found.push((u, g)));
+            if g.is_stationary(g.u_end(), Side::Before) {
+                found.push((g.u_end(), g));
+            }
+        }
+        // A joint of two segments where the curve stops is found from both.
+        found.dedup_by(|a, b| a.0 == b.0);
+        let want: Vec<f64> = c.stationary.iter().map(|s| s.u).collect();
+        let got: Vec<f64> = found.iter().map(|f| f.0).collect();
+        let span = c.u_end() - c.u_start();
+        let same = want.len() == got.len()
+            && want
+                .iter()
+                .zip(&got)
+                .all(|(a, b)| (a - b).abs() <= STATIONARY_U_TOL * span);
+        if !same {
+            failures.push(format!("{}: stops at {got:?}, geomdl at {want:?}", c.name));
+            continue;
+        }
+        for (s, &(u, g)) in c.stationary.iter().zip(&found) {
+            // At a joint the tangent before belongs to the segment before.
+            let before_seg = segs.iter().find(|h| h.u_start() < u && u <= h.u_end());
+            for (side, want, seg) in [
+                (Side::Before, s.before, before_seg),
+                (Side::After, s.after, Some(g)),
+            ] {
+                let (Some(want), Some(seg)) = (want, seg) else {
+                    continue;
+                };
+                let t = seg.tangent(u, side);
+                if (t - want).norm() > TANGENT_TOL {
+                    failures.push(format!(
+                        "{} u={u:?} {side:?}: tangent {} vs geomdl {}",
+                        c.name,
+                        fmt(t),
+                        fmt(want)
+                    ));
+                }
+            }
+        }
+        if c.stops() {
+            eprintln!("{:<34} stops at {got:?}", c.name);
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "{} mismatches:\n{}",
         failures.len(),
         failures.join("\n")
     );

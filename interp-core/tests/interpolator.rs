@@ -605,3 +605,105 @@ fn config_validation_names_the_field() {
         Err(ConfigError::OutOfRange("chord-tolerance"))
     );
 }
+
+/// Curves whose derivative vanishes at a point run exactly: a repeated first
+/// control point (LinuxCNC's G5.2 examples), a double knot whose control
+/// points coincide (tangent continuous), and a cusp inside a span (the tangent
+/// reverses: passed at rest, then continued). Every tick keeps the limits.
+#[test]
+fn points_where_the_derivative_vanishes_are_run_through() {
+    let cfg = InterpConfig::default();
+    let feed = 50.0;
+    // LinuxCNC's trident (XY), C'(0) = 0.
+    let trident = Nurbs::non_rational(
+        3,
+        &[
+            [10.0, 0.0, 0.0],
+            [10.0, 0.0, 0.0],
+            [20.0, 20.0, 0.0],
+            [12.0, 8.0, 0.0],
+            [10.0, 20.0, 0.0],
+            [8.0, 8.0, 0.0],
+            [0.0, 20.0, 0.0],
+            [10.0, 0.0, 0.0],
+        ],
+        &[0.0, 0.0, 0.0, 0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 5.0, 5.0, 5.0],
+    )
+    .unwrap();
+    // C' = 0 at the double knot u = 2, the points around it collinear.
+    let join = Nurbs::new(
+        3,
+        &[
+            [0.0, 0.0, 0.0],
+            [10.0, 5.0, 0.0],
+            [20.0, 5.0, 1.0],
+            [30.0, 10.0, 1.0],
+            [30.0, 10.0, 1.0],
+            [36.0, 13.0, 1.0],
+            [50.0, 4.0, 2.0],
+            [60.0, 0.0, 2.0],
+        ],
+        &[1.0, 1.5, 0.75, 1.0, 2.0, 1.0, 1.25, 1.0],
+        &[0.0, 0.0, 0.0, 0.0, 1.0, 2.0, 2.0, 3.0, 4.0, 4.0, 4.0, 4.0],
+    )
+    .unwrap();
+    // A cusp at t = 1/2.
+    let cusp = Nurbs::non_rational(
+        3,
+        &[
+            [0.0, 0.0, 0.0],
+            [10.0, 10.0, 1.0],
+            [0.0, 10.0, 0.0],
+            [10.0, 0.0, 1.0],
+        ],
+        &[0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0],
+    )
+    .unwrap();
+    for (name, curve, stop) in [
+        ("trident", trident, None),
+        ("join", join, Some(None)),
+        ("cusp", cusp, Some(Some(cusp.eval(0.5, 0).p))),
+    ] {
+        let blocks = [Block::new(1, Path::Nurbs(curve), feed)];
+        let (sps, stats) = run(cfg, &blocks);
+        if name == "cusp" {
+            // The curvature is infinite at the cusp, and the laws within a
+            // quarter tick of it are those a quarter tick away
+            // (feed::stationary_offset): the tick before and after the cusp
+            // exceed the pointwise law, so only the kinematics are checked.
+            check_kinematics(&cfg, curve.start_point(), &sps);
+            assert_eq!(v3(&sps.last().unwrap().axes), curve.end_point());
+        } else {
+            check_properties(&cfg, &blocks, &sps);
+        }
+        assert_eq!(stats.brake_overruns, 0, "{name}");
+        // The slowest tick inside the curve (away from its ends).
+        let inner = &sps[sps.len() / 20..sps.len() * 19 / 20];
+        let slowest = inner
+            .iter()
+            .min_by(|a, b| a.feed.total_cmp(&b.feed))
+            .unwrap();
+        // It leaves the stationary start at once: 1 mm within 0.1 s.
+        let first_mm = sps.iter().position(|s| s.s >= 1.0).unwrap();
+        assert!(
+            first_mm as f64 * cfg.period <= 0.1,
+            "{name}: {first_mm} ticks"
+        );
+        match stop {
+            // At rest on the cusp itself.
+            Some(Some(p)) => {
+                assert!(slowest.feed <= 1e-9 * feed, "{name}: {slowest:?}");
+                assert!(
+                    (v3(&slowest.axes) - p).norm() <= 1e-9,
+                    "{name}: {slowest:?}"
+                );
+            }
+            // Never stops: the tangent is continuous there. (It slows down:
+            // the curvature grows like 1/√s towards the join, and the laws are
+            // taken a fraction of a tick from it; 2.06 mm/s here.)
+            Some(None) => assert!(slowest.feed >= 0.02 * feed, "{name}: {slowest:?}"),
+            // The trident's tips are tight turns, slow but not cusps.
+            None => assert!(slowest.feed > 0.0, "{name}: {slowest:?}"),
+        }
+    }
+}

@@ -4,7 +4,10 @@
 //! `cargo bench -p planner --bench setup` runs the paper's size (the
 //! 288-triangle teapot on 1,280 cells, best of 5). Add `-- large` for 20,480
 //! cells × ~100,000 triangles (one run, minutes), or `-- cavity` for the
-//! overhanging spherical pocket of the tests. All cores are used (rayon).
+//! overhanging spherical pocket of the tests, `-- medium` for the 6,208-
+//! triangle teapot on 5,120 cells; add `compare` to run the exhaustive
+//! search (every cell evaluated) alternately with the bounded one and check
+//! they agree. All cores are used (rayon).
 
 use std::time::Instant;
 
@@ -56,25 +59,60 @@ fn run(name: &str, part: &TriMesh, cells: usize, repeats: usize) {
     if std::env::args().any(|a| a == "map-only") {
         return;
     }
+    // `compare`: the bounded search and the exhaustive one (every cell
+    // evaluated) side by side, alternating (A B A B), same answer asserted.
+    let compare = std::env::args().any(|a| a == "compare");
+    let exhaustive = SetupConfig {
+        probe_cells: 0,
+        ..config
+    };
     for (label, kind) in [
         ("C,A search", MachineType::CA),
         ("A,B search", MachineType::AB),
     ] {
-        let mut times = Vec::new();
+        let (mut times, mut times_ex) = (Vec::new(), Vec::new());
         let mut last = None;
         for _ in 0..repeats {
             let t = Instant::now();
-            last = Some(search_setup(&map, &sphere, kind, &ranges, &config, &report));
+            let p = search_setup(&map, &sphere, kind, &ranges, &config, &report);
             times.push(t.elapsed().as_secs_f64());
+            if compare {
+                let t = Instant::now();
+                let e = search_setup(&map, &sphere, kind, &ranges, &exhaustive, &report);
+                times_ex.push(t.elapsed().as_secs_f64());
+                assert_eq!(
+                    (p.mar.cell, p.mar.placement.key()),
+                    (e.mar.cell, e.mar.placement.key()),
+                    "{label}: bounded and exhaustive MAR differ"
+                );
+                assert_eq!(
+                    p.setup.map(|s| (s.cell, s.placement.key())),
+                    e.setup.map(|s| (s.cell, s.placement.key())),
+                    "{label}: bounded and exhaustive setups differ"
+                );
+            }
+            last = Some(p);
         }
         let p = last.expect("at least one run");
+        let o = p.setup.as_ref().unwrap_or(&p.mar);
         println!(
-            "  {label}     : {:9.3} s  ({} PVC classes, feasible {}, MAR {:.1?}°)",
+            "  {label}     : {:9.3} s  ({} PVC classes, {} of {} cells evaluated, feasible {}, MAR {:.1?}°, gap to bound {:.2e} rad², {:?} equivalent)",
             best(&times),
             p.pvc_classes,
+            p.evaluated,
+            p.cells,
             p.feasible,
-            p.mar.placement.required.degrees()
+            p.mar.placement.required.degrees(),
+            o.placement.area - o.lower_bound.0,
+            o.equivalent,
         );
+        if compare {
+            println!(
+                "  {label} exhaustive: {:9.3} s  (times {times:.3?} vs {times_ex:.3?}; ratio {:.2})",
+                best(&times_ex),
+                best(&times_ex) / best(&times)
+            );
+        }
     }
 }
 

@@ -188,10 +188,12 @@ fn truncated_and_corrupted_traces_report_what_they_recovered() {
     // A flipped byte is never read silently: either reading fails, or it hit
     // a field that changes nothing read (an index or a time range), and the
     // trace reads back whole.
-    let mut damaged = 0;
-    for k in 1..20 {
+    // Flips spread over the whole file; most land in chunk data (the rest in
+    // indexes and summaries), so most must be caught.
+    let (flips, mut damaged) = (40, 0);
+    for k in 1..flips {
         let mut bad = bytes.clone();
-        bad[n * k / 20] ^= 0x40;
+        bad[n * k / flips] ^= 0x40;
         match Trace::from_bytes(&bad) {
             // Damage found by the CRC or the decompressor, or a message that
             // no longer decodes: both name where.
@@ -199,10 +201,14 @@ fn truncated_and_corrupted_traces_report_what_they_recovered() {
                 assert!(!e.to_string().is_empty());
                 damaged += 1;
             }
-            Ok(t) => assert_eq!(t.setpoints, full.setpoints, "flip at {}", n * k / 20),
+            Ok(t) => assert_eq!(t.setpoints, full.setpoints, "flip at {}", n * k / flips),
         }
     }
-    assert!(damaged > 10, "only {damaged} of 19 flips detected");
+    assert!(
+        2 * damaged > flips,
+        "only {damaged} of {} flips detected",
+        flips - 1
+    );
     // Not an MCAP at all, and empty.
     assert!(matches!(
         Trace::from_bytes(b"hello, world, not an mcap file"),

@@ -345,8 +345,8 @@ impl Cutter {
 /// The non-real-time path of one program's blocks, in order: each input
 /// block is checked and cut into segments ([`Program::expand`] does the
 /// same), and the segments go through the `G64 P` stage
-/// (`interp_core::smooth::Smoother`: collinear merge, round-off drop,
-/// compression of runs of short moves into NURBS, corner blends) whose
+/// (`interp_core::smooth::Smoother`: round-off drop; under `G64`, collinear
+/// merge, compression of runs of short moves into NURBS, corner blends) whose
 /// output is what `BlockPlanner::plan` gets. The daemon's control plane
 /// sends each program's blocks through one of these; `interpd simulate`
 /// and replay run the same stage over the same segments (`traces::sim`),

@@ -4,18 +4,20 @@
 //! same [`ConfigMsg`] ⇒ the same setpoints, bit for bit. The driving order is
 //! part of that contract: blocks are pushed in order; when the interpolator
 //! refuses one because its queue or look-ahead is full, it ticks once and the
-//! push is tried again; after the last block, `finish()` and tick until done.
+//! push is tried again (the block planned once, its commit retried: the same
+//! as `push`); after the last block, `finish()` and tick until done.
 //!
 //! Between the program and the interpolator runs the `G64 P` stage
 //! (`interp_core::smooth::Smoother`, window `DEFAULT_WINDOW`) of a
 //! [`Pipeline`], as in the daemon's control plane: every expanded block is
 //! pushed into it, and every block it releases goes to the interpolator at
-//! once; at the end, `Pipeline::finish` releases the rest. The trace records the program's own blocks, so a replay re-runs the
-//! stage and gets the same segments.
+//! once; at the end, `Pipeline::finish` releases the rest. The trace records
+//! the program's own blocks, so a replay re-runs the stage and gets the same
+//! segments.
 
 use interp_core::interp::{DEFAULT_QUEUE, PushError};
 use interp_core::smooth::SmoothStats;
-use interp_core::{Block, InterpConfig, Interpolator, RunState, Setpoint};
+use interp_core::{Block, InterpConfig, Interpolator, PlannedBlock, RunState, Setpoint};
 use serde::{Deserialize, Serialize};
 
 use crate::blocks::{BlockError, Expanded, Pipeline, Program};
@@ -208,15 +210,25 @@ pub fn run<E>(
     let mut released = Vec::new();
     let mut segments = 0usize;
     let mut faulted = false;
-    // Pushes one released block into the interpolator, ticking while its queue is full.
-    let push = |ip: &mut Interpolator,
-                last: &mut Setpoint,
-                sink: &mut dyn FnMut(SimItem<'_>) -> Result<(), E>,
-                seg: &Block,
-                eb: &crate::blocks::ExpandedBlock|
+    let mut plan = Box::new(PlannedBlock::new());
+    // Pushes one released block into the interpolator, ticking while its
+    // queue is full. Plan once, then retry only the commit: `push` is
+    // exactly plan then commit, and while only ticks happen the plan stays
+    // valid. Planning again on every tick the queue is full measured the
+    // block's length each time (most of a long program's run time).
+    let mut push = |ip: &mut Interpolator,
+                    last: &mut Setpoint,
+                    sink: &mut dyn FnMut(SimItem<'_>) -> Result<(), E>,
+                    seg: &Block,
+                    eb: &crate::blocks::ExpandedBlock|
      -> Result<bool, SimError<E>> {
+        let planned = ip.planner().plan(seg, &mut plan);
         loop {
-            match ip.push(seg) {
+            let pushed = match planned {
+                Ok(()) => ip.commit(&plan),
+                Err(e) => Err(e),
+            };
+            match pushed {
                 Ok(()) => return Ok(true),
                 Err(PushError::Full { .. } | PushError::ProfileFull)
                     if ip.queued_segments() > 0 =>

@@ -3,6 +3,8 @@
 
 pub use interp_core::samples::butterfly;
 
+pub mod geomdl;
+
 use interp_core::geom::Vec3;
 use interp_core::nurbs::{Nurbs, split_program_curve};
 use interp_core::path::Block;

@@ -11,27 +11,45 @@
 //!    triangles (found through a BVH) onto the cells around the patch, which
 //!    gives exactly the ray-cast map (the tool's own volume is ignored, as in
 //!    the paper);
-//! 3. [`search`]: every cell `C_i` is tried as the tool axis (coarse to fine
-//!    on spheres finer than `4 ×` [`SetupConfig::coarse_cells`]); Group II patches
-//!    (not reachable from `C_i`, eq. 3) are represented by their MD points
-//!    (eq. 4); the C,A fan search (eq. 5–13) or the A,B spherical-rectangle
-//!    search over their convex hull (eq. 14–21) sizes the FTM⁵ that holds
-//!    them. The least-area placement that fits the machine is the setup; if
-//!    none fits, the least-area one overall gives the minimum axis ranges
-//!    (MAR) to ask for.
+//! 3. [`search`], [`fan`], [`rect`]: for a cell `C_i` as the tool axis, the
+//!    Group II patches (not reachable from `C_i`, eq. 3) are represented by
+//!    their MD points (eq. 4); the C,A fan search (eq. 5–13, exact over every
+//!    fan placement) or the A,B spherical-rectangle search (eq. 14–21,
+//!    certified over every turn of the rectangle) sizes the least FTM⁵ that
+//!    holds them;
+//! 4. `optimum`: the least over every cell, with lower bounds that rule
+//!    cells out without evaluating them, certified. The least-area placement
+//!    that fits the machine is the setup; if none fits, the least-area one
+//!    overall gives the minimum axis ranges (MAR) to ask for.
 //!
 //! See `docs/planner-setup.md`.
 
+pub mod fan;
 pub mod machine;
+mod optimum;
+pub mod rect;
 pub mod samples;
 pub mod search;
 pub mod sphere;
 pub mod visibility;
 
-use std::sync::atomic::{AtomicUsize, Ordering};
+/// Helpers the fan and rectangle searches' unit tests share.
+#[cfg(test)]
+mod test_support {
+    use super::AxisRanges;
+    use nalgebra::Vector3;
 
-use nalgebra::Vector3;
-use rayon::prelude::*;
+    /// Axis ranges from degrees.
+    pub(crate) fn ranges(deg: [f64; 4]) -> AxisRanges {
+        AxisRanges::from_degrees(deg[0], deg[1], deg[2], deg[3]).unwrap()
+    }
+
+    /// The unit direction at `tilt_deg` from +Z, `azimuth_deg` from +X.
+    pub(crate) fn dir(tilt_deg: f64, azimuth_deg: f64) -> Vector3<f64> {
+        let (t, a) = (tilt_deg.to_radians(), azimuth_deg.to_radians());
+        Vector3::new(t.sin() * a.cos(), t.sin() * a.sin(), t.cos())
+    }
+}
 
 pub use machine::{AxisRanges, MachineConfig, MachineType, RotaryAxis};
 pub use search::Placement;
@@ -53,10 +71,15 @@ pub struct SetupConfig {
     /// Slack when comparing needed and available ranges, degrees. Default
     /// 1e-9 (round-off only).
     pub fit_tolerance_deg: f64,
-    /// Cells of the coarse sphere of the coarse-to-fine search, used when
-    /// the sphere has more than 4× as many; 0 tries every cell. Default
-    /// 1,280 (f = 8): the paper's size is searched exhaustively.
-    pub coarse_cells: usize,
+    /// Cells of a coarse sphere whose nearest cells are evaluated first to
+    /// seed the lower bounds of the search; 0 (or a sphere with at most 4×
+    /// as many cells) evaluates every cell exactly. The answer does not
+    /// depend on it, only the time. Default 320.
+    pub probe_cells: usize,
+    /// Setups whose area is within what `equivalent_cells` cell spacings
+    /// more on both range sums of the best would add are reported as
+    /// equivalent to it (a flat optimum). Default 1.
+    pub equivalent_cells: f64,
 }
 
 impl Default for SetupConfig {
@@ -65,7 +88,8 @@ impl Default for SetupConfig {
             cells: 1200,
             grazing_margin_deg: 0.0,
             fit_tolerance_deg: 1e-9,
-            coarse_cells: 1280,
+            probe_cells: 320,
+            equivalent_cells: 1.0,
         }
     }
 }
@@ -93,11 +117,10 @@ pub enum SetupError {
 pub enum Phase {
     /// Ray casting, counted in patches.
     Visibility,
-    /// Setup search, counted in candidate tool axes (cells): every cell,
-    /// or the coarse candidates of a coarse-to-fine search.
+    /// Lower bounds of the setup search, counted in the cells of the round.
     Search,
-    /// Refinement rounds of a coarse-to-fine search, counted in the cells
-    /// of the round.
+    /// Exact evaluations of the setup search (probes, then the cells the
+    /// bounds could not rule out), counted in the cells of the round.
     Refine,
 }
 
@@ -124,9 +147,12 @@ pub struct SetupPlan {
     /// The least-area placement overall: its ranges are the minimum axis
     /// ranges (MAR) the part needs on this machine type.
     pub mar: SetupOrientation,
+    /// Tool axes (cells) evaluated exactly; the others were ruled out by a
+    /// lower bound.
+    pub evaluated: usize,
 }
 
-/// One placement with the bookkeeping of its candidate.
+/// One placement with the bookkeeping of its candidate and its certificate.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SetupOrientation {
     /// The placement (tool axis, rotary-axis directions, ranges, area).
@@ -137,6 +163,17 @@ pub struct SetupOrientation {
     pub group_ii_classes: usize,
     /// Distinct MD points.
     pub md_points: usize,
+    /// No placement on this map has a smaller key (area rad², then sum of
+    /// ranges rad): `placement.area − lower_bound.0` is how far from the
+    /// optimum the answer can be (0 but for the A,B turn's tolerance).
+    pub lower_bound: (f64, f64),
+    /// Other tool axes whose area is within `equivalent_tolerance` of this
+    /// one's (a flat optimum), and the largest angle from this tool axis to
+    /// theirs (radians); `None` when not searched for (the MAR of a part
+    /// that fits).
+    pub equivalent: Option<(usize, f64)>,
+    /// The area tolerance of `equivalent`, rad².
+    pub equivalent_tolerance: f64,
 }
 
 fn check(
@@ -205,36 +242,9 @@ pub fn plan_setup(
     ))
 }
 
-/// The result of trying one cell as the tool axis.
-#[derive(Debug, Clone, Copy)]
-struct Candidate {
-    /// Least-area placement.
-    best: SetupOrientation,
-    /// Least-area placement that fits the machine.
-    fit: Option<SetupOrientation>,
-}
-
-/// The better of two optional placements: smaller key, ties to the lower
-/// cell index, so the answer does not depend on the thread schedule or on
-/// the order candidates are tried in.
-fn better(a: Option<SetupOrientation>, b: Option<SetupOrientation>) -> Option<SetupOrientation> {
-    match (a, b) {
-        (Some(x), Some(y)) => {
-            if (y.placement.key(), y.cell) < (x.placement.key(), x.cell) {
-                Some(y)
-            } else {
-                Some(x)
-            }
-        }
-        (x, None) => x,
-        (None, y) => y,
-    }
-}
-
-/// The search of §4 on a computed map. Every cell is tried as the tool axis
-/// when the sphere has at most `4 ×` [`SetupConfig::coarse_cells`] cells
-/// (or `coarse_cells` is 0); on finer spheres the search is coarse to fine
-/// (see [`SetupConfig::coarse_cells`]).
+/// The search of §4 on a computed map: every cell is a candidate tool axis,
+/// and the least key over all of them is found and certified (see
+/// `optimum`).
 pub fn search_setup(
     map: &VisibilityMap,
     sphere: &GeodesicSphere,
@@ -251,198 +261,40 @@ pub fn search_setup(
         .filter(|(_, c)| c.is_none())
         .map(|(j, _)| j)
         .collect();
-    let cells = sphere.cells();
-    let tol = config.fit_tolerance_deg.to_radians();
-    let resolution = sphere.spacing() / 2.0;
-    let evaluate = |i: usize, s: &mut SearchScratch| -> Candidate {
-        let group_ii = search::md_cells(&classes, cells, i, &mut s.md_walk);
-        s.md.clear();
-        s.md.extend(s.md_walk.md.iter().map(|&c| cells[c as usize]));
-        let p = &cells[i];
-        let (best, fit) = match kind {
-            MachineType::CA => search::fan_search(p, &s.md, ranges, tol, &mut s.fan),
-            MachineType::AB => search::rect_search(p, &s.md, ranges, tol, resolution, &mut s.rect),
-        };
-        let wrap = |placement: Placement| SetupOrientation {
-            placement,
-            cell: i,
-            group_ii_classes: group_ii,
-            md_points: s.md.len(),
-        };
-        Candidate {
-            best: wrap(best),
-            fit: fit.map(wrap),
-        }
-    };
     // Whether one direction reaches every reachable patch: the cells in all
     // cones (exact, whatever the search tries).
     let common = classes.common_cells();
-    let three_axis = !common.is_empty();
-    let coarse = (config.coarse_cells > 0 && cells.len() > COARSE_FACTOR * config.coarse_cells)
-        .then(|| GeodesicSphere::with_at_least(config.coarse_cells).ok())
-        .flatten();
-    let (mar, setup) = match coarse {
-        None => {
-            let all: Vec<usize> = (0..cells.len()).collect();
-            let found = evaluate_all(&all, &evaluate, Phase::Search, progress);
-            found.iter().fold((None, None), |(m, f), c| {
-                (better(m, Some(c.best)), better(f, c.fit))
-            })
-        }
-        Some(coarse) => coarse_to_fine(sphere, &coarse, &common, &evaluate, progress),
+    let problem = optimum::Problem {
+        map,
+        classes: &classes,
+        sphere,
+        kind,
+        ranges,
+        tol: config.fit_tolerance_deg.to_radians(),
+        equivalent: config.equivalent_cells.max(0.0) * sphere.spacing(),
+        probe_cells: config.probe_cells,
     };
-    let feasible = setup.is_some() && unreachable_patches.is_empty();
+    let out = optimum::search(&problem, &common, progress);
+    let orientation = |o: &optimum::Optimum| SetupOrientation {
+        placement: o.placement,
+        cell: o.cell,
+        group_ii_classes: o.group_ii,
+        md_points: o.md_points,
+        lower_bound: o.lower_bound,
+        equivalent: o.equivalent,
+        equivalent_tolerance: o.tolerance,
+    };
+    let setup = out.fit.as_ref().map(orientation);
     SetupPlan {
         machine_type: kind,
-        cells: cells.len(),
+        cells: sphere.len(),
         patches: map.patches(),
         pvc_classes: classes.classes,
-        unreachable_patches,
-        three_axis,
-        feasible,
+        unreachable_patches: unreachable_patches.clone(),
+        three_axis: !common.is_empty(),
+        feasible: setup.is_some() && unreachable_patches.is_empty(),
         setup,
-        mar: mar.expect("a sphere has cells"),
+        mar: orientation(&out.mar),
+        evaluated: out.evaluated,
     }
-}
-
-/// The coarse-to-fine search is used when the sphere has more than this
-/// many times [`SetupConfig::coarse_cells`] cells.
-const COARSE_FACTOR: usize = 4;
-/// Best coarse candidates refined, per objective (MAR and fitting setup).
-const REFINE_SEEDS: usize = 6;
-/// Radius of the first refinement around a coarse seed, in coarse spacings.
-const SEED_RADIUS_COARSE: f64 = 1.0;
-/// Radius of each hill-climbing step around the current best, in fine
-/// spacings.
-const CLIMB_RADIUS_FINE: f64 = 2.0;
-
-/// Per-thread memory of the search.
-#[derive(Debug, Default)]
-struct SearchScratch {
-    md_walk: search::Scratch,
-    fan: search::FanScratch,
-    rect: search::RectScratch,
-    md: Vec<Vector3<f64>>,
-}
-
-/// Tries the cells `which` in parallel.
-fn evaluate_all(
-    which: &[usize],
-    evaluate: &(dyn Fn(usize, &mut SearchScratch) -> Candidate + Sync),
-    phase: Phase,
-    progress: &(dyn Fn(Phase, usize, usize) + Sync),
-) -> Vec<Candidate> {
-    /// Candidates per progress report.
-    const PROGRESS_EVERY: usize = 64;
-    let done = AtomicUsize::new(0);
-    which
-        .par_iter()
-        .map_init(SearchScratch::default, |s, &i| {
-            let c = evaluate(i, s);
-            let n = done.fetch_add(1, Ordering::Relaxed) + 1;
-            if n.is_multiple_of(PROGRESS_EVERY) || n == which.len() {
-                progress(phase, n, which.len());
-            }
-            c
-        })
-        .collect()
-}
-
-/// Coarse to fine: the fine cells nearest to the `coarse` sphere's cells
-/// (and every cell that alone reaches all patches, `common`) are tried
-/// first; then, for the least-area placement overall (MAR) and the
-/// least-area one that fits, every fine cell within a coarse spacing of the
-/// best [`REFINE_SEEDS`] coarse candidates, then hill climbing: all cells
-/// within [`CLIMB_RADIUS_FINE`] fine spacings of the best so far, until the
-/// best stays. Each cell is evaluated exactly as the exhaustive search
-/// does, so the answer is the exhaustive one whenever the optimum lies in
-/// the basin of a seed (checked against the exhaustive search in the tests).
-fn coarse_to_fine(
-    sphere: &GeodesicSphere,
-    coarse: &GeodesicSphere,
-    common: &[usize],
-    evaluate: &(dyn Fn(usize, &mut SearchScratch) -> Candidate + Sync),
-    progress: &(dyn Fn(Phase, usize, usize) + Sync),
-) -> (Option<SetupOrientation>, Option<SetupOrientation>) {
-    let cells = sphere.cells();
-    let mut tried: Vec<Option<Candidate>> = vec![None; cells.len()];
-    let mut first: Vec<usize> = coarse
-        .cells()
-        .par_iter()
-        .map(|d| {
-            (0..cells.len())
-                .max_by(|&a, &b| cells[a].dot(d).total_cmp(&cells[b].dot(d)))
-                .expect("a sphere has cells")
-        })
-        .collect();
-    first.extend_from_slice(common);
-    first.sort_unstable();
-    first.dedup();
-    let run = |which: &[usize], phase: Phase, tried: &mut Vec<Option<Candidate>>| {
-        let todo: Vec<usize> = which
-            .iter()
-            .copied()
-            .filter(|&i| tried[i].is_none())
-            .collect();
-        for (i, c) in todo
-            .iter()
-            .zip(evaluate_all(&todo, evaluate, phase, progress))
-        {
-            tried[*i] = Some(c);
-        }
-    };
-    run(&first, Phase::Search, &mut tried);
-    let within = |centre: usize, radius: f64| -> Vec<usize> {
-        let cos_r = radius.cos();
-        let c = cells[centre];
-        (0..cells.len())
-            .filter(|&i| cells[i].dot(&c) >= cos_r)
-            .collect()
-    };
-    type Pick = fn(&Candidate) -> Option<SetupOrientation>;
-    let objectives: [Pick; 2] = [|c| Some(c.best), |c| c.fit];
-    for pick in objectives {
-        // Seeds: the best coarse candidates for this objective.
-        let mut ranked: Vec<SetupOrientation> = first
-            .iter()
-            .filter_map(|&i| tried[i].as_ref().and_then(pick))
-            .collect();
-        ranked.sort_by(|a, b| {
-            (a.placement.key(), a.cell)
-                .partial_cmp(&(b.placement.key(), b.cell))
-                .expect("keys are finite")
-        });
-        let mut near: Vec<usize> = ranked
-            .iter()
-            .take(REFINE_SEEDS)
-            .flat_map(|s| within(s.cell, SEED_RADIUS_COARSE * coarse.spacing()))
-            .collect();
-        near.sort_unstable();
-        near.dedup();
-        run(&near, Phase::Refine, &mut tried);
-        // Hill climbing from the best so far.
-        let best_of = |tried: &[Option<Candidate>]| {
-            tried
-                .iter()
-                .flatten()
-                .filter_map(pick)
-                .fold(None, |b, c| better(b, Some(c)))
-        };
-        let mut best = best_of(&tried);
-        while let Some(b) = best {
-            run(
-                &within(b.cell, CLIMB_RADIUS_FINE * sphere.spacing()),
-                Phase::Refine,
-                &mut tried,
-            );
-            let next = best_of(&tried);
-            if next.map(|n| n.cell) == Some(b.cell) {
-                break;
-            }
-            best = next;
-        }
-    }
-    tried.iter().flatten().fold((None, None), |(m, f), c| {
-        (better(m, Some(c.best)), better(f, c.fit))
-    })
 }

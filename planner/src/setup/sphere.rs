@@ -24,10 +24,26 @@ pub enum SphereError {
 }
 
 /// A triangulated unit sphere.
+///
+/// Cell `i` is the spherical triangle `corners(i)` (great-circle edges: the
+/// central projection of a flat triangle of the subdivided icosahedron), and
+/// its direction `cells()[i]` is the normalised mean of the three corners.
+/// The sphere of frequency `2f` subdivides each cell of frequency `f` into
+/// four ([`GeodesicSphere::children`]).
 #[derive(Debug, Clone)]
 pub struct GeodesicSphere {
     frequency: usize,
     cells: Vec<Dir>,
+    /// Unit vertices of the triangulation.
+    vertices: Vec<Dir>,
+    /// Corner vertices of each cell, counter-clockwise seen from outside.
+    corners: Vec<[u32; 3]>,
+    /// Cells sharing a vertex with cell `i`: `touching[touch_start[i]..touch_start[i + 1]]`.
+    touch_start: Vec<u32>,
+    touching: Vec<u32>,
+    /// Cells sharing an edge with each cell (the one across the edge
+    /// opposite corner `k`, for `k = 0, 1, 2`).
+    across: Vec<[u32; 3]>,
 }
 
 impl GeodesicSphere {
@@ -48,6 +64,18 @@ impl GeodesicSphere {
         let f = f.max(1);
         let (verts, faces) = icosahedron();
         let mut cells = Vec::with_capacity(20 * f * f);
+        let mut corners = Vec::with_capacity(20 * f * f);
+        let mut vertices: Vec<Dir> = Vec::new();
+        // Vertices on the icosahedron's edges are shared by two faces: weld
+        // them by their grid position, quantised well below the spacing.
+        let mut index: std::collections::HashMap<[i64; 3], u32> = std::collections::HashMap::new();
+        let mut vertex = |d: Dir| -> u32 {
+            let q = d.map(|x| (x * 1e9).round() as i64);
+            *index.entry([q.x, q.y, q.z]).or_insert_with(|| {
+                vertices.push(d);
+                (vertices.len() - 1) as u32
+            })
+        };
         let ff = f as f64;
         for [ia, ib, ic] in faces {
             let (a, b, c) = (verts[ia], verts[ib], verts[ic]);
@@ -57,17 +85,131 @@ impl GeodesicSphere {
             };
             for i in 0..f {
                 for j in 0..f - i {
-                    cells.push((p(i, j) + p(i + 1, j) + p(i, j + 1)).normalize());
+                    let tri = [p(i, j), p(i + 1, j), p(i, j + 1)];
+                    cells.push((tri[0] + tri[1] + tri[2]).normalize());
+                    corners.push(tri.map(&mut vertex));
                     if i + j + 1 < f {
-                        cells.push((p(i + 1, j) + p(i + 1, j + 1) + p(i, j + 1)).normalize());
+                        let tri = [p(i + 1, j), p(i + 1, j + 1), p(i, j + 1)];
+                        cells.push((tri[0] + tri[1] + tri[2]).normalize());
+                        corners.push(tri.map(&mut vertex));
                     }
                 }
             }
         }
+        // Vertex → cells, then each cell's neighbours.
+        let mut at_vertex: Vec<Vec<u32>> = vec![Vec::new(); vertices.len()];
+        for (i, c) in corners.iter().enumerate() {
+            for &v in c {
+                at_vertex[v as usize].push(i as u32);
+            }
+        }
+        let mut touch_start = Vec::with_capacity(cells.len() + 1);
+        let mut touching = Vec::with_capacity(cells.len() * 12);
+        let mut across = Vec::with_capacity(cells.len());
+        for (i, c) in corners.iter().enumerate() {
+            touch_start.push(touching.len() as u32);
+            let start = touching.len();
+            for &v in c {
+                touching.extend(at_vertex[v as usize].iter().filter(|&&n| n as usize != i));
+            }
+            touching[start..].sort_unstable();
+            let mut k = start;
+            for r in start..touching.len() {
+                if r == start || touching[r] != touching[k - 1] {
+                    touching[k] = touching[r];
+                    k += 1;
+                }
+            }
+            touching.truncate(k);
+            let mut edge = [u32::MAX; 3];
+            for (k, slot) in edge.iter_mut().enumerate() {
+                let (v1, v2) = (c[(k + 1) % 3], c[(k + 2) % 3]);
+                *slot = at_vertex[v1 as usize]
+                    .iter()
+                    .copied()
+                    .find(|&n| n as usize != i && corners[n as usize].contains(&v2))
+                    .expect("a closed triangulation: every edge has two cells");
+            }
+            across.push(edge);
+        }
+        touch_start.push(touching.len() as u32);
         Self {
             frequency: f,
             cells,
+            vertices,
+            corners,
+            touch_start,
+            touching,
+            across,
         }
+    }
+
+    /// The three corners of cell `i` (unit vectors, counter-clockwise seen
+    /// from outside).
+    pub fn corners(&self, i: usize) -> [Dir; 3] {
+        self.corners[i].map(|v| self.vertices[v as usize])
+    }
+
+    /// The cells sharing at least a vertex with cell `i` (9 to 12 of them).
+    pub fn touching(&self, i: usize) -> &[u32] {
+        &self.touching[self.touch_start[i] as usize..self.touch_start[i + 1] as usize]
+    }
+
+    /// The three cells sharing an edge with cell `i`.
+    pub fn across(&self, i: usize) -> [u32; 3] {
+        self.across[i]
+    }
+
+    /// The four cells of the sphere of frequency `2f` that tile cell `i` of
+    /// this one (frequency `f`).
+    pub fn children(&self, i: usize) -> [usize; 4] {
+        let f = self.frequency;
+        let per_face = f * f;
+        let (face, mut k) = (i / per_face, i % per_face);
+        // Cells of a face run over rows i = 0..f, each with an up cell per
+        // j and a down cell after each up cell but the last.
+        let mut row = 0;
+        while k >= 2 * (f - row) - 1 {
+            k -= 2 * (f - row) - 1;
+            row += 1;
+        }
+        let (j, down) = (k / 2, k % 2 == 1);
+        // Index of the up (or down) cell (a, b) on a face of frequency g.
+        let index = |g: usize, a: usize, b: usize, dn: bool| {
+            let before: usize = (0..a).map(|r| 2 * (g - r) - 1).sum();
+            face * g * g + before + 2 * b + usize::from(dn)
+        };
+        let g = 2 * f;
+        let (a, b) = (2 * row, 2 * j);
+        if down {
+            [
+                index(g, a + 1, b, true),
+                index(g, a + 1, b + 1, true),
+                index(g, a, b + 1, true),
+                index(g, a + 1, b + 1, false),
+            ]
+        } else {
+            [
+                index(g, a, b, false),
+                index(g, a + 1, b, false),
+                index(g, a, b + 1, false),
+                index(g, a, b, true),
+            ]
+        }
+    }
+
+    /// The largest angle from a cell's direction to its corners, radians: a
+    /// cap of this radius around a cell's direction holds the whole cell.
+    pub fn cell_radius(&self) -> f64 {
+        (0..self.cells.len())
+            .map(|i| {
+                let d = self.cells[i];
+                self.corners(i)
+                    .iter()
+                    .map(|c| c.cross(&d).norm().atan2(c.dot(&d)))
+                    .fold(0.0, f64::max)
+            })
+            .fold(0.0, f64::max)
     }
 
     /// Subdivision frequency `f`.
@@ -163,6 +305,84 @@ mod tests {
                 .map(|c| c.dot(d).clamp(-1.0, 1.0).acos())
                 .fold(f64::INFINITY, f64::min);
             assert!(best < s.spacing(), "gap {best} ≥ spacing {}", s.spacing());
+        }
+    }
+
+    #[test]
+    fn cells_tile_the_sphere_with_neighbours_and_children() {
+        for f in [1, 3, 8] {
+            let s = GeodesicSphere::with_frequency(f);
+            let m = s.len();
+            // Euler: V − E + F = 2 with E = 3F/2.
+            assert_eq!(s.vertices.len() + m - 3 * m / 2, 2, "f = {f}");
+            let radius = s.cell_radius();
+            for i in 0..m {
+                let c = s.corners(i);
+                // Counter-clockwise seen from outside, direction inside.
+                assert!(c[0].dot(&c[1].cross(&c[2])) > 0.0);
+                for k in 0..3 {
+                    let e = c[k].cross(&c[(k + 1) % 3]);
+                    assert!(e.dot(&s.cells()[i]) > 0.0);
+                }
+                // Edge neighbours share two corners and are mutual.
+                for (k, n) in s.across(i).iter().enumerate() {
+                    let n = *n as usize;
+                    assert!(s.across(n).contains(&(i as u32)));
+                    assert!(s.corners[n].contains(&s.corners[i][(k + 1) % 3]));
+                    assert!(s.corners[n].contains(&s.corners[i][(k + 2) % 3]));
+                }
+                let t = s.touching(i);
+                assert!((9..=12).contains(&t.len()), "{}", t.len());
+                for n in t {
+                    let d = s.cells()[*n as usize]
+                        .dot(&s.cells()[i])
+                        .clamp(-1.0, 1.0)
+                        .acos();
+                    assert!(d < 4.0 * radius);
+                }
+            }
+            // Children: the four cells of frequency 2f inside each cell.
+            let fine = GeodesicSphere::with_frequency(2 * f);
+            let mut seen = vec![false; fine.len()];
+            for i in 0..m {
+                let c = s.corners(i);
+                for k in s.children(i) {
+                    assert!(!std::mem::replace(&mut seen[k], true));
+                    let d = fine.cells()[k];
+                    for e in 0..3 {
+                        assert!(
+                            c[e].cross(&c[(e + 1) % 3]).dot(&d) > 0.0,
+                            "f {f} cell {i} child {k}"
+                        );
+                    }
+                }
+            }
+            assert!(seen.iter().all(|&x| x));
+        }
+    }
+
+    #[test]
+    fn the_cell_nearest_a_direction_outside_a_set_has_a_neighbour_outside_it() {
+        // For any cell c and any cell p that is neither c nor touches it, some
+        // cell touching c is strictly nearer p: so the cell of a set nearest
+        // a cell outside it always touches a cell outside the set (the MD
+        // point of eq. 4 lies on its cone's boundary).
+        for f in [2, 5, 8] {
+            let s = GeodesicSphere::with_frequency(f);
+            let d = s.cells();
+            for c in 0..s.len() {
+                let t = s.touching(c);
+                for p in 0..s.len() {
+                    if p == c || t.contains(&(p as u32)) {
+                        continue;
+                    }
+                    let own = d[c].dot(&d[p]);
+                    assert!(
+                        t.iter().any(|&n| d[n as usize].dot(&d[p]) > own),
+                        "f {f}: cell {c} is a local nearest to {p}"
+                    );
+                }
+            }
         }
     }
 }

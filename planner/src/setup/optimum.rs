@@ -1,0 +1,666 @@
+//! The search over tool axes (the paper's loop over the cells `C_i`) with a
+//! certificate of optimality.
+//!
+//! The key of a tool axis (the least key of its placements, eq. 13 or 21)
+//! can only grow when MD points are added: a placement that holds every MD
+//! point holds any subset of them. So the key computed from the MD points of
+//! a subset `S` of the classes is a **lower bound** of the tool axis's key,
+//! and so is "no placement fits" for the fitting objective. The search:
+//!
+//! 1. evaluates exactly (every class, [`md_cells`] then the fan or rectangle
+//!    search) the cells nearest those of a coarse sphere, and the cells
+//!    that see every patch;
+//! 2. puts into `S` the classes whose MD points bind the placements found
+//!    (on a fan edge or at a fan's full tilt, on a rectangle edge);
+//! 3. bounds every other cell from `S` (MD points found on each class's
+//!    boundary cells, see [`Boundary`]), then evaluates exactly, least
+//!    bound first, every cell whose bound does not rule it out, growing `S`
+//!    and re-bounding as it goes.
+//!
+//! It stops when every cell is either evaluated exactly or bounded above the
+//! threshold: above the best key for the objective not shown, and above the
+//! best area plus the equivalence tolerance for the one shown, so that the
+//! setups equivalent to the best are all known. The answer is then the least
+//! over every cell (ties to the lower index); the least bound over all cells
+//! is returned as the certificate.
+
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use nalgebra::Vector3;
+use rayon::prelude::*;
+
+use super::Phase;
+use super::fan::{FanScratch, fan_search};
+use super::machine::{AxisRanges, MachineType};
+use super::rect::{RectScratch, rect_search};
+use super::search::{
+    Key, Placement, PvcClasses, Scratch, Solved, angle, can_beat, md_cells, nearer,
+};
+use super::sphere::GeodesicSphere;
+use super::visibility::VisibilityMap;
+
+type V3 = Vector3<f64>;
+
+/// Cells of a class boundary list grouped under one bounding cap.
+const CHUNK: usize = 16;
+/// MD points within this many cell spacings of binding a placement are
+/// kept as its binding points.
+const BINDING_SLACK: f64 = 1.0;
+/// The bound of a cell uses the binding classes of this many exactly
+/// evaluated cells nearest it.
+const NEAREST_SOURCES: usize = 6;
+/// The A,B search stops splitting turns of `R1` narrower than the cell
+/// spacing over this: the MD points are only known to a cell, and the key's
+/// loss is then at most about `2·spacing/16·(Φ + Θ)`, an eighth of the
+/// equivalence tolerance of one cell.
+const TURN_DIVISOR: f64 = 16.0;
+/// Relative tolerance when ruling a cell out against the best key.
+const RULE_OUT_REL_TOL: f64 = 1e-9;
+
+/// The exact result for one tool axis.
+#[derive(Debug, Clone)]
+pub(super) struct Evaluation {
+    pub solved: Solved,
+    pub group_ii: usize,
+    pub md_points: usize,
+    /// Classes whose MD points bind `solved.best` or `solved.fit`.
+    binding: Vec<u32>,
+}
+
+/// The boundary of one class's cone: its cells that touch a cell outside
+/// it, in chunks of [`CHUNK`] under bounding caps. The cone cell nearest a
+/// direction outside the cone is one of them (the sphere has no other local
+/// nearest cells: `sphere::tests`), so MD points can be found here alone.
+#[derive(Debug)]
+struct Boundary {
+    cells: Vec<u32>,
+    /// Per chunk: cap centre, cos and sin of its radius.
+    caps: Vec<(V3, f64, f64)>,
+}
+
+impl Boundary {
+    fn new(map: &VisibilityMap, patch: usize, sphere: &GeodesicSphere) -> Self {
+        let row = map.pvc(patch);
+        let open = |c: usize| row[c / 64] >> (c % 64) & 1 == 1;
+        let cells: Vec<u32> = (0..sphere.len())
+            .filter(|&c| open(c) && sphere.touching(c).iter().any(|&n| !open(n as usize)))
+            .map(|c| c as u32)
+            .collect();
+        let dirs = sphere.cells();
+        // Compact chunks: split along the widest coordinate, recursively.
+        let mut cells = cells;
+        split_compact(&mut cells, dirs);
+        let caps = cells
+            .chunks(CHUNK)
+            .map(|chunk| {
+                let sum: V3 = chunk.iter().map(|&c| dirs[c as usize]).sum();
+                let centre = if sum.norm() > 1e-12 {
+                    sum.normalize()
+                } else {
+                    dirs[chunk[0] as usize]
+                };
+                let cos_r = chunk
+                    .iter()
+                    .map(|&c| dirs[c as usize].dot(&centre))
+                    .fold(1.0, f64::min);
+                // Widened a little so that round-off never drops a cell.
+                let r = cos_r.clamp(-1.0, 1.0).acos() + 1e-9;
+                (centre, r.cos(), r.sin())
+            })
+            .collect();
+        Self { cells, caps }
+    }
+
+    /// The boundary cell first in the order of [`nearer`] from `p`.
+    fn nearest(&self, p: &V3, dirs: &[V3], bounds: &mut Vec<f64>) -> u32 {
+        // Upper bound of p·d over each chunk's cap.
+        bounds.clear();
+        let mut first = 0;
+        for (k, (centre, cos_r, sin_r)) in self.caps.iter().enumerate() {
+            let c = p.dot(centre);
+            let b = if c >= *cos_r {
+                1.0
+            } else {
+                c * cos_r + (1.0 - c * c).max(0.0).sqrt() * sin_r
+            };
+            bounds.push(b + 1e-12);
+            if b > bounds[first] - 1e-12 {
+                first = k;
+            }
+        }
+        let mut best = self.cells[first * CHUNK];
+        let scan = |k: usize, best: &mut u32| {
+            for &c in &self.cells[k * CHUNK..((k + 1) * CHUNK).min(self.cells.len())] {
+                if nearer(p, dirs, c, *best) {
+                    *best = c;
+                }
+            }
+        };
+        scan(first, &mut best);
+        let mut top = dirs[best as usize].dot(p);
+        for k in 0..self.caps.len() {
+            if k != first && bounds[k] >= top {
+                scan(k, &mut best);
+                top = dirs[best as usize].dot(p);
+            }
+        }
+        best
+    }
+}
+
+/// Orders `cells` so that runs of [`CHUNK`] are compact: sorted along the
+/// coordinate of widest spread, halved (at a multiple of `CHUNK`), and each
+/// half ordered the same way.
+fn split_compact(cells: &mut [u32], dirs: &[V3]) {
+    if cells.len() <= CHUNK {
+        return;
+    }
+    let (mut lo, mut hi) = (V3::repeat(f64::INFINITY), V3::repeat(f64::NEG_INFINITY));
+    for &c in cells.iter() {
+        lo = lo.inf(&dirs[c as usize]);
+        hi = hi.sup(&dirs[c as usize]);
+    }
+    let axis = (hi - lo).imax();
+    cells.sort_unstable_by(|&a, &b| {
+        dirs[a as usize][axis]
+            .total_cmp(&dirs[b as usize][axis])
+            .then(a.cmp(&b))
+    });
+    let half = (cells.len() / 2).div_ceil(CHUNK) * CHUNK;
+    let (a, b) = cells.split_at_mut(half.min(cells.len()));
+    split_compact(a, dirs);
+    split_compact(b, dirs);
+}
+
+/// Per-thread memory.
+#[derive(Debug, Default)]
+struct Work {
+    walk: Scratch,
+    fan: FanScratch,
+    rect: RectScratch,
+    md: Vec<V3>,
+    cells: Vec<u32>,
+    bounds: Vec<f64>,
+}
+
+/// What the search needs to know about the problem.
+pub(super) struct Problem<'a> {
+    pub map: &'a VisibilityMap,
+    pub classes: &'a PvcClasses,
+    pub sphere: &'a GeodesicSphere,
+    pub kind: MachineType,
+    pub ranges: &'a AxisRanges,
+    /// Fit slack, radians.
+    pub tol: f64,
+    /// Equivalence tolerance: ranges within this (radians) of the best's.
+    pub equivalent: f64,
+    /// Cells of the coarse sphere whose nearest cells are evaluated first;
+    /// 0: evaluate every cell exactly.
+    pub probe_cells: usize,
+}
+
+/// The best tool axis for one objective, with its certificate.
+#[derive(Debug, Clone)]
+pub(super) struct Optimum {
+    pub cell: usize,
+    pub placement: Placement,
+    pub group_ii: usize,
+    pub md_points: usize,
+    /// No tool axis of the map has a key below this.
+    pub lower_bound: Key,
+    /// Other tool axes whose key's area is within `tolerance` of the best's
+    /// and the largest angle from the best's tool axis to theirs; `None`
+    /// when not searched for (the MAR of a part that fits).
+    pub equivalent: Option<(usize, f64)>,
+    pub tolerance: f64,
+}
+
+/// The answer of [`search`].
+#[derive(Debug, Clone)]
+pub(super) struct Outcome {
+    pub mar: Optimum,
+    pub fit: Option<Optimum>,
+    pub evaluated: usize,
+}
+
+impl Problem<'_> {
+    /// The fan or rectangle search over `w.md`.
+    fn solve(&self, p: &V3, w: &mut Work) -> Solved {
+        match self.kind {
+            MachineType::CA => fan_search(p, &w.md, self.ranges, self.tol, &mut w.fan),
+            MachineType::AB => rect_search(
+                p,
+                &w.md,
+                self.ranges,
+                self.tol,
+                self.sphere.spacing() / TURN_DIVISOR,
+                &mut w.rect,
+            ),
+        }
+    }
+
+    /// Every class, exactly.
+    fn evaluate(&self, i: usize, w: &mut Work) -> Evaluation {
+        let dirs = self.sphere.cells();
+        let group_ii = md_cells(self.classes, dirs, i, &mut w.walk);
+        w.md.clear();
+        w.md.extend(w.walk.md.iter().map(|&c| dirs[c as usize]));
+        let p = &dirs[i];
+        let solved = self.solve(p, w);
+        let mut binding = Vec::new();
+        for pl in [Some(solved.best), solved.fit].into_iter().flatten() {
+            for k in binding_points(self.kind, &pl, &w.md, BINDING_SLACK * self.sphere.spacing()) {
+                binding.push(w.walk.md_class[k]);
+            }
+        }
+        binding.sort_unstable();
+        binding.dedup();
+        Evaluation {
+            solved,
+            group_ii,
+            md_points: w.md.len(),
+            binding,
+        }
+    }
+
+    /// The classes `subset` only (their boundaries in `boundaries`): lower
+    /// bounds of the keys.
+    fn bound(
+        &self,
+        i: usize,
+        subset: &[u32],
+        boundaries: &[Option<Boundary>],
+        w: &mut Work,
+    ) -> (Key, Option<Key>) {
+        let dirs = self.sphere.cells();
+        let p = &dirs[i];
+        w.cells.clear();
+        for &k in subset {
+            if !self.map.visible(self.classes.reps[k as usize], i) {
+                let b = boundaries[k as usize]
+                    .as_ref()
+                    .expect("built before bounding");
+                w.cells.push(b.nearest(p, dirs, &mut w.bounds));
+            }
+        }
+        w.cells.sort_unstable();
+        w.cells.dedup();
+        w.md.clear();
+        w.md.extend(w.cells.iter().map(|&c| dirs[c as usize]));
+        let s = self.solve(p, w);
+        (s.best_lower, s.fit_lower)
+    }
+}
+
+/// The MD points (indices into `md`) on the edge of the FTM of `pl`: at a
+/// fan's full tilt or on its side (C,A), at an extreme turn or latitude
+/// (A,B). Growing the subset of the bounds with their classes makes the
+/// bounds tight near this tool axis.
+fn binding_points(kind: MachineType, pl: &Placement, md: &[V3], slack: f64) -> Vec<usize> {
+    // Angles within this of an edge count as on it (radians): a little more
+    // than round-off, so that the points that bind at nearby tool axes are
+    // taken too.
+    let on_edge = slack.max(1e-7);
+    let p = pl.tool_axis;
+    let r = &pl.required;
+    let mut out = Vec::new();
+    match kind {
+        MachineType::CA => {
+            use std::f64::consts::{PI, TAU};
+            // Longitude from the basis great circle (C at zero); the fan of
+            // positive tilt (φᴸ) spans [−θˢ, θᴸ], the other (φˢ) the same
+            // turned by π.
+            let u = pl.axis_2.cross(&p);
+            let wrap = |a: f64| (a + PI).rem_euclid(TAU) - PI;
+            let in_fan = |l: f64| l >= -r.theta_s - on_edge && l <= r.theta_l + on_edge;
+            let edge = |l: f64| (l + r.theta_s).abs() < on_edge || (l - r.theta_l).abs() < on_edge;
+            for (k, v) in md.iter().enumerate() {
+                let l = v.dot(&pl.axis_2).atan2(v.dot(&u));
+                let b = angle(&p, v);
+                let (pos, neg) = (wrap(l), wrap(l - PI));
+                // A point both fans reach is the larger tilt's.
+                let at_tilt = (in_fan(pos) && b >= r.phi_l - on_edge)
+                    || (in_fan(neg) && !in_fan(pos) && b >= r.phi_s - on_edge);
+                if at_tilt || edge(pos) || edge(neg) {
+                    out.push(k);
+                }
+            }
+        }
+        MachineType::AB => {
+            let r1 = pl.axis_1;
+            let (mut a, mut b) = ([0.0f64; 2], [0.0f64; 2]);
+            let turns: Vec<(f64, f64)> = md
+                .iter()
+                .map(|v| {
+                    let alpha = p.cross(v).dot(&r1).atan2(p.dot(v));
+                    let beta = v.dot(&r1).clamp(-1.0, 1.0).asin();
+                    a = [a[0].max(alpha), a[1].max(-alpha)];
+                    b = [b[0].max(beta), b[1].max(-beta)];
+                    (alpha, beta)
+                })
+                .collect();
+            for (k, &(alpha, beta)) in turns.iter().enumerate() {
+                if alpha >= a[0] - on_edge
+                    || -alpha >= a[1] - on_edge
+                    || beta >= b[0] - on_edge
+                    || -beta >= b[1] - on_edge
+                {
+                    out.push(k);
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Calls `f` on every cell of `which` in parallel with per-thread memory,
+/// reporting progress.
+fn par_map<T: Send>(
+    which: &[usize],
+    f: &(dyn Fn(usize, &mut Work) -> T + Sync),
+    phase: Phase,
+    progress: &(dyn Fn(Phase, usize, usize) + Sync),
+) -> Vec<T> {
+    /// Cells per progress report.
+    const PROGRESS_EVERY: usize = 64;
+    let done = AtomicUsize::new(0);
+    which
+        .par_iter()
+        .map_init(Work::default, |w, &i| {
+            let out = f(i, w);
+            let n = done.fetch_add(1, Ordering::Relaxed) + 1;
+            if n.is_multiple_of(PROGRESS_EVERY) || n == which.len() {
+                progress(phase, n, which.len());
+            }
+            out
+        })
+        .collect()
+}
+
+/// `δ·(Φ + Θ) + δ²`: how much the area grows when both range sums of the
+/// key's placement grow by `δ` — the area tolerance of "equivalent".
+fn tolerance(key: Key, delta: f64) -> f64 {
+    // key.1 = Φ + Θ, the two range sums; their product is at most area.
+    delta * key.1 + delta * delta
+}
+
+/// The least key of each objective over every cell of the sphere, with a
+/// certificate (see the module doc).
+pub(super) fn search(
+    prob: &Problem,
+    common: &[usize],
+    progress: &(dyn Fn(Phase, usize, usize) + Sync),
+) -> Outcome {
+    let dirs = prob.sphere.cells();
+    let m = dirs.len();
+    let trace = std::env::var_os("INTERPD_SETUP_TRACE").is_some();
+    let mut exact: Vec<Option<Evaluation>> = vec![None; m];
+    // Lower bounds (trivial before any bound is computed), and the angle
+    // (as a cosine) to the farthest source each bound used: a new source
+    // nearer than that can tighten it.
+    let mut lower: Vec<(Key, Option<Key>)> = vec![((0.0, 0.0), Some((0.0, 0.0))); m];
+    let mut reach: Vec<f64> = vec![2.0; m];
+    let mut sources: Vec<usize> = Vec::new();
+    let mut boundaries: Vec<Option<Boundary>> = (0..prob.classes.classes).map(|_| None).collect();
+    let evaluate = |i: usize, w: &mut Work| prob.evaluate(i, w);
+    let run_exact = |which: &[usize], exact: &mut Vec<Option<Evaluation>>| {
+        for (&i, e) in which
+            .iter()
+            .zip(par_map(which, &evaluate, Phase::Refine, progress))
+        {
+            exact[i] = Some(e);
+        }
+    };
+    // 1. Probes (or everything).
+    let probes: Vec<usize> = if prob.probe_cells == 0 || prob.probe_cells * 4 >= m {
+        (0..m).collect()
+    } else {
+        let coarse = GeodesicSphere::with_at_least(prob.probe_cells).expect("valid count");
+        let mut first: Vec<usize> = coarse
+            .cells()
+            .par_iter()
+            .map(|d| {
+                (0..m)
+                    .max_by(|&a, &b| dirs[a].dot(d).total_cmp(&dirs[b].dot(d)).then(b.cmp(&a)))
+                    .expect("a sphere has cells")
+            })
+            .collect();
+        first.extend_from_slice(common);
+        first.sort_unstable();
+        first.dedup();
+        first
+    };
+    run_exact(&probes, &mut exact);
+    sources.extend_from_slice(&probes);
+    let best_of = |exact: &[Option<Evaluation>], fit: bool| -> Option<(usize, Key)> {
+        exact
+            .iter()
+            .enumerate()
+            .filter_map(|(i, e)| {
+                let e = e.as_ref()?;
+                let pl = if fit { e.solved.fit? } else { e.solved.best };
+                Some((i, pl.key()))
+            })
+            .min_by(|a, b| {
+                a.1.partial_cmp(&b.1)
+                    .expect("finite keys")
+                    .then(a.0.cmp(&b.0))
+            })
+    };
+    // The classes a cell's bound uses: those binding at its nearest
+    // sources; and the cosine of the angle to the farthest of them.
+    let subset_of =
+        |i: usize, sources: &[usize], exact: &[Option<Evaluation>]| -> (Vec<u32>, f64) {
+            let mut near: Vec<(f64, usize)> = sources
+                .iter()
+                .map(|&s| (dirs[s].dot(&dirs[i]), s))
+                .collect();
+            let k = NEAREST_SOURCES.min(near.len());
+            if k < near.len() {
+                near.select_nth_unstable_by(k, |a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+            }
+            near.truncate(k);
+            let far = near.iter().map(|x| x.0).fold(1.0, f64::min);
+            let mut classes: Vec<u32> = near
+                .iter()
+                .flat_map(|&(_, s)| {
+                    exact[s]
+                        .as_ref()
+                        .expect("sources are evaluated")
+                        .binding
+                        .iter()
+                        .copied()
+                })
+                .collect();
+            classes.sort_unstable();
+            classes.dedup();
+            (classes, far)
+        };
+    // Whether a cell is ruled out for the objective shown with equivalents
+    // (`wide`) or only for the optimum.
+    let thresholds = |exact: &[Option<Evaluation>], mar_wide: bool| {
+        let mar = best_of(exact, false).map(|(_, k)| k);
+        let fit = best_of(exact, true).map(|(_, k)| k);
+        (mar, fit, mar_wide)
+    };
+    let open = |i: usize, lower: &[(Key, Option<Key>)], t: &(Option<Key>, Option<Key>, bool)| {
+        let (lm, lf) = lower[i];
+        let mar_open = match t.0 {
+            None => true,
+            Some(k) if t.2 => lm.0 <= k.0 + tolerance(k, prob.equivalent),
+            Some(k) => can_beat(lm, k, RULE_OUT_REL_TOL),
+        };
+        let fit_open = match (lf, t.1) {
+            (None, _) => false,
+            (Some(_), None) => true,
+            (Some(l), Some(k)) => l.0 <= k.0 + tolerance(k, prob.equivalent),
+        };
+        mar_open || fit_open
+    };
+    // Cells whose bound a new source may tighten.
+    let mut stale: Vec<bool> = vec![true; m];
+    let mut rounds = 0;
+    // Two phases: equivalents of the fitting setup (and the MAR optimum);
+    // then, if nothing fits, equivalents of the MAR.
+    for mar_wide in [false, true] {
+        if mar_wide && best_of(&exact, true).is_some() {
+            break;
+        }
+        let mut batch = 2 * rayon::current_num_threads().max(1);
+        loop {
+            rounds += 1;
+            let t = thresholds(&exact, mar_wide);
+            let mut cand: Vec<usize> = (0..m)
+                .filter(|&i| exact[i].is_none() && open(i, &lower, &t))
+                .collect();
+            if cand.is_empty() {
+                break;
+            }
+            // Re-bound the open cells a new source is near.
+            let rebound: Vec<usize> = cand.iter().copied().filter(|&i| stale[i]).collect();
+            if !rebound.is_empty() {
+                let subsets: Vec<(Vec<u32>, f64)> = rebound
+                    .par_iter()
+                    .map(|&i| subset_of(i, &sources, &exact))
+                    .collect();
+                let mut need: Vec<u32> = subsets
+                    .iter()
+                    .flat_map(|s| s.0.iter().copied())
+                    .filter(|&k| boundaries[k as usize].is_none())
+                    .collect();
+                need.sort_unstable();
+                need.dedup();
+                let built: Vec<Boundary> = need
+                    .par_iter()
+                    .map(|&k| Boundary::new(prob.map, prob.classes.reps[k as usize], prob.sphere))
+                    .collect();
+                if trace {
+                    eprintln!(
+                        "  built {} boundaries, subsets avg {:.1} classes",
+                        built.len(),
+                        subsets.iter().map(|s| s.0.len()).sum::<usize>() as f64
+                            / subsets.len() as f64
+                    );
+                }
+                for (k, b) in need.into_iter().zip(built) {
+                    boundaries[k as usize] = Some(b);
+                }
+                let f =
+                    |n: usize, w: &mut Work| prob.bound(rebound[n], &subsets[n].0, &boundaries, w);
+                let idx: Vec<usize> = (0..rebound.len()).collect();
+                for (n, l) in par_map(&idx, &f, Phase::Search, progress)
+                    .into_iter()
+                    .enumerate()
+                {
+                    let i = rebound[n];
+                    lower[i] = l;
+                    reach[i] = subsets[n].1;
+                    stale[i] = false;
+                }
+                cand.retain(|&i| open(i, &lower, &t));
+                if cand.is_empty() {
+                    continue;
+                }
+            }
+            // Least bound first.
+            let key_of = |i: usize| {
+                let (lm, lf) = lower[i];
+                lf.map_or(lm, |f| if f < lm { f } else { lm })
+            };
+            cand.sort_by(|&a, &b| {
+                key_of(a)
+                    .partial_cmp(&key_of(b))
+                    .expect("finite")
+                    .then(a.cmp(&b))
+            });
+            if trace {
+                eprintln!(
+                    "round {rounds}: open {} sources {} batch {batch} best {:?} fit {:?}",
+                    cand.len(),
+                    sources.len(),
+                    t.0,
+                    t.1
+                );
+            }
+            cand.truncate(batch);
+            run_exact(&cand, &mut exact);
+            // The new sources may tighten the bounds of cells nearer them
+            // than those cells' farthest source.
+            sources.extend_from_slice(&cand);
+            let new = &cand;
+            stale
+                .par_iter_mut()
+                .enumerate()
+                .filter(|(i, _)| exact[*i].is_none())
+                .for_each(|(i, s)| {
+                    if !*s && new.iter().any(|&c| dirs[c].dot(&dirs[i]) > reach[i]) {
+                        *s = true;
+                    }
+                });
+            batch = (batch * 3 / 2).min(512);
+        }
+    }
+    let evaluated = exact.iter().filter(|e| e.is_some()).count();
+    if trace {
+        eprintln!("evaluated {evaluated} of {m} in {rounds} rounds");
+    }
+    let complete_mar = best_of(&exact, true).is_none();
+    let optimum = |fit: bool| -> Option<Optimum> {
+        let (cell, key) = best_of(&exact, fit)?;
+        let e = exact[cell].as_ref().expect("evaluated");
+        let placement = if fit {
+            e.solved.fit.expect("fits")
+        } else {
+            e.solved.best
+        };
+        let tol = tolerance(key, prob.equivalent);
+        let mut equivalent = 0;
+        let mut spread = 0.0f64;
+        let mut lower_bound = key;
+        for (i, x) in exact.iter().enumerate() {
+            let l = match x {
+                Some(x) => {
+                    let (pl, l) = if fit {
+                        (x.solved.fit, x.solved.fit_lower)
+                    } else {
+                        (Some(x.solved.best), Some(x.solved.best_lower))
+                    };
+                    if let Some(pl) = pl
+                        && i != cell
+                        && pl.area <= key.0 + tol
+                    {
+                        equivalent += 1;
+                        spread = spread.max(angle(&dirs[cell], &dirs[i]));
+                    }
+                    l
+                }
+                None => {
+                    if fit {
+                        lower[i].1
+                    } else {
+                        Some(lower[i].0)
+                    }
+                }
+            };
+            if let Some(l) = l
+                && l < lower_bound
+            {
+                lower_bound = l;
+            }
+        }
+        Some(Optimum {
+            cell,
+            placement,
+            group_ii: e.group_ii,
+            md_points: e.md_points,
+            lower_bound,
+            equivalent: (fit || complete_mar).then_some((equivalent, spread)),
+            tolerance: tol,
+        })
+    };
+    Outcome {
+        mar: optimum(false).expect("every sphere has cells"),
+        fit: optimum(true),
+        evaluated,
+    }
+}
