@@ -16,6 +16,7 @@ pub mod config;
 pub mod feed;
 pub mod geom;
 pub mod interp;
+pub mod kinematics;
 pub mod metrics;
 pub mod nurbs;
 pub mod path;
