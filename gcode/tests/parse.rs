@@ -843,3 +843,63 @@ G6.2 K1
     };
     assert!(n.rotary.is_empty() && n.orientation.is_fixed());
 }
+
+/// The five-axis example of docs/gcode.md reads as it says.
+#[test]
+fn the_documented_five_axis_example() {
+    use gcode::{Orientation, ToolControl};
+    let text = "G21 G90 G94 F1200
+G0 X0 Y0 Z50 A0 C0        ; rotary positioning (TCP off)
+G43.4 H1                  ; tool tip in the workpiece frame, A C given
+G1 X10 Y0 Z5 A30 C0
+G1 X10 Y10 Z5 A30 C90
+G43.5 H1                  ; tool tip with a tool vector
+G1 X20 Y10 Z5 I0.5 J0 K0.866
+G49
+G6.2 P3 X20 Y10 Z5 A0 C0 R1 K0   ; rotary coordinates on NURBS control points
+     X30 Y20 Z5 A15 C45 R1 K0
+     X40 Y10 Z5 A30 C90 R1 K0
+G6.2 K1
+G6.2 K1
+G6.2 K1
+M2
+";
+    let b = blocks(text);
+    let kinds: Vec<&str> = b
+        .iter()
+        .map(|k| match k {
+            BlockKind::Rapid(m) if m.orientation.is_fixed() => "G0",
+            BlockKind::Linear(m) => match m.orientation {
+                Orientation::TcpRotary { .. } => "G1 tcp-rotary",
+                Orientation::TcpVector { .. } => "G1 tcp-vector",
+                Orientation::Axes { .. } => "G1 axes",
+                Orientation::Fixed => "G1",
+            },
+            BlockKind::Nurbs(n) if matches!(n.orientation, Orientation::Axes { .. }) => "G6.2 axes",
+            BlockKind::ToolControl(ToolControl::RotaryAngles { offset: Some(1) }) => "G43.4 H1",
+            BlockKind::ToolControl(ToolControl::ToolVector { offset: Some(1) }) => "G43.5 H1",
+            BlockKind::ToolControl(ToolControl::Off) => "G49",
+            BlockKind::ProgramEnd => "M2",
+            other => panic!("{other:?}"),
+        })
+        .collect();
+    // After G43.5 the rotary axes are unknown, so the curve's first point
+    // (A0 C0) is reached by LinuxCNC's straight move first.
+    assert_eq!(
+        kinds,
+        [
+            "G0",
+            "G43.4 H1",
+            "G1 tcp-rotary",
+            "G1 tcp-rotary",
+            "G43.5 H1",
+            "G1 tcp-vector",
+            "G49",
+            "G1 axes",
+            "G6.2 axes",
+            "M2"
+        ]
+    );
+    let BlockKind::Nurbs(n) = &b[8] else { panic!() };
+    assert_eq!(n.rotary[1], [Some(15.0), None, Some(45.0)]);
+}

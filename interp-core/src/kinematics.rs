@@ -1669,5 +1669,20 @@ mod tests {
         assert!(bad.to_string().contains("not a 5-axis machine"), "{bad}");
         let text = serde_json::to_string(&s).unwrap();
         assert!(text.contains("\"W/caxyBz/T\""), "{text}");
+        // The TOML example of docs/kinematics.md.
+        let s: MachineSpec = toml::from_str(
+            r#"
+chain = "W/caxyBz/T"          # table-table C,A
+tool-length = 120.0           # mm, default 0
+rotary-centres = [[0, 0, -150], [0, 0, 0], [0, 0, 0]]   # A, B, C at home, mm; default origin
+rotary-ranges = [{ min = -30, max = 120 }, { min = 0, max = 0 }, { min = -inf, max = inf }]
+pole-tolerance = 1e-9         # rad, default 1e-9
+"#,
+        )
+        .unwrap();
+        assert_eq!(s.rotary_centres[0], [0.0, 0.0, -150.0]);
+        assert_eq!(s.rotary_ranges[2], RotaryRange::UNLIMITED);
+        assert_eq!(s.tool_length, 120.0);
+        assert!(Machine::new(s).is_ok());
     }
 }
