@@ -1060,6 +1060,8 @@ impl Parser {
         }
         let rotary_words = w.has(b'a') || w.has(b'b') || w.has(b'c');
         let axes = w.has(b'x') || w.has(b'y') || w.has(b'z') || rotary_words;
+        // Under G43.5 a G0/G1 may turn the tool alone (I J K only).
+        let vector_words = self.vector_words(w);
         if rotary_words && matches!(self.tool_control, ToolControl::ToolVector { .. }) {
             return err(
                 w.col(b'a').max(w.col(b'b')).max(w.col(b'c')),
@@ -1101,7 +1103,7 @@ impl Parser {
                         );
                     }
                     // LinuxCNC moves (by zero) on an explicit G0/G1 without axis words.
-                    Some(Motion::Rapid) if axes || explicit => {
+                    Some(Motion::Rapid) if axes || explicit || vector_words => {
                         let end = self.target(w, self.pos);
                         let orientation = self.move_orientation(w, "G0", &mut use_word)?;
                         self.push(
@@ -1114,7 +1116,7 @@ impl Parser {
                         );
                         self.pos = end;
                     }
-                    Some(Motion::Linear) if axes || explicit => {
+                    Some(Motion::Linear) if axes || explicit || vector_words => {
                         self.check_feed(w, motion_code.map_or(0, |m| m.1), "G1")?;
                         let end = self.target(w, self.pos);
                         let orientation = self.move_orientation(w, "G1", &mut use_word)?;
@@ -1197,10 +1199,17 @@ impl Parser {
         Ok(true)
     }
 
+    /// I J K on a line under G43.5 (a tool vector for G0/G1).
+    fn vector_words(&self, w: &Words) -> bool {
+        matches!(self.tool_control, ToolControl::ToolVector { .. })
+            && (w.has(b'i') || w.has(b'j') || w.has(b'k'))
+    }
+
     /// The motion code a line without one will run (for the G93 F check).
     fn motion_code_if_moving(&self, w: &Words) -> Option<u32> {
         let axes = AXIS_WORDS.into_iter().any(|c| w.has(c));
-        if !axes {
+        let vector = self.vector_words(w) && matches!(self.motion, Some(Motion::Linear));
+        if !(axes || vector) {
             return None;
         }
         Some(match self.motion? {

@@ -707,6 +707,7 @@ G43.5 H2
 G1 X1 I0 J0 K1        ; the first vector (before it: the machine's)
 G1 X2                 ; keeps it
 G1 X3 I1              ; J, K omitted: 0
+I0 J1 K0              ; modal G1: the tool turns, the tip stays
 G49
 G1 X4 A0 B0 C0        ; the rotary axes were steered by G43.5: unknown until set
 G93 G1 X5 A90 F2
@@ -765,16 +766,27 @@ G93 G1 X5 A90 F2
             end: Some([1.0, 0.0, 0.0])
         })
     );
-    assert_eq!(b[9], BlockKind::ToolControl(ToolControl::Off));
+    let BlockKind::Linear(m) = &b[9] else {
+        panic!("{:?}", b[9])
+    };
+    assert_eq!((m.start, m.end), ([3.0, 2.0, 3.0], [3.0, 2.0, 3.0]));
     assert_eq!(
-        orientation(&b[10]),
+        m.orientation,
+        Orientation::TcpVector {
+            start: Some([1.0, 0.0, 0.0]),
+            end: Some([0.0, 1.0, 0.0])
+        }
+    );
+    assert_eq!(b[10], BlockKind::ToolControl(ToolControl::Off));
+    assert_eq!(
+        orientation(&b[11]),
         Some(Orientation::Axes {
             start: [None; 3],
             end: s([0.0; 3])
         })
     );
-    let BlockKind::Linear(m) = &b[11] else {
-        panic!("{:?}", b[11])
+    let BlockKind::Linear(m) = &b[12] else {
+        panic!("{:?}", b[12])
     };
     assert_eq!(m.feed, Feed::InverseTime(2.0));
     assert_eq!(
@@ -784,7 +796,12 @@ G93 G1 X5 A90 F2
             end: s([90.0, 0.0, 0.0])
         }
     );
-    assert_eq!(b.len(), 12);
+    assert_eq!(b.len(), 13);
+    // In G93 a tool turn alone needs its F too.
+    assert!(matches!(
+        parse("G43.5\nG93 G1 X1 I1 F2\nI0 J1").unwrap_err().kind,
+        ParseErrorKind::MissingArgument(_)
+    ));
     // Programs without rotary words or TCP read as before.
     assert!(
         blocks("G0 X1\nG1 Y2 F100\nG2 X2 Y3 I1 J0\n")
