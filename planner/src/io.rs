@@ -136,6 +136,7 @@ impl ClProgram {
             approach_clearance: APPROACH_CLEARANCE,
             plunge_feed: self.plunge_feed.unwrap_or(feed),
             feed,
+            blend_tolerance: None,
         }
     }
 }
@@ -187,6 +188,10 @@ pub struct Moves {
     pub plunge_feed: f64,
     /// Feed along the paths, mm/min.
     pub feed: f64,
+    /// `G64 P` written at the start: the controller may leave the written
+    /// polylines by this much (mm) to run dense moves at speed; `None`: no
+    /// path-control word (the controller's own mode).
+    pub blend_tolerance: Option<f64>,
 }
 
 /// Builds a program path by path: a rapid across at the safe height, a rapid
@@ -203,11 +208,18 @@ pub struct PathWriter {
 impl PathWriter {
     /// An empty program moving as `moves` says.
     pub fn new(moves: Moves) -> Self {
-        PathWriter {
+        let mut w = PathWriter {
             blocks: Vec::new(),
             at: None,
             moves,
+        };
+        if let Some(p) = moves.blend_tolerance {
+            w.push(gcode::BlockKind::PathControl(gcode::PathControl::Blend {
+                path_tolerance: Some(p),
+                naive_cam_tolerance: None,
+            }));
         }
+        w
     }
 
     fn push(&mut self, kind: gcode::BlockKind) {
@@ -346,6 +358,7 @@ mod tests {
                 safe_z: 20.0,
                 approach_clearance: APPROACH_CLEARANCE,
                 plunge_feed: 300.0,
+                blend_tolerance: None,
                 feed: 1200.0
             }
         );
@@ -413,6 +426,7 @@ mod tests {
             safe_z: 20.0,
             approach_clearance: APPROACH_CLEARANCE,
             plunge_feed: 300.0,
+            blend_tolerance: None,
             feed: 800.0,
         };
         let text = write_g62(&[(pts[0], f.clone())], moves);
