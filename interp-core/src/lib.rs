@@ -17,6 +17,7 @@ pub mod feed;
 pub mod fit;
 pub mod geom;
 pub mod interp;
+pub mod kinematics;
 pub mod metrics;
 pub mod nurbs;
 pub mod path;

@@ -60,6 +60,16 @@ pub fn read_cl_program(text: &str) -> Result<ClProgram, ClReadError> {
     let p3 = |p: [f64; 3]| P3::new(p[0], p[1], p[2]);
     let mut top = |z: f64| top_z = Some(top_z.map_or(z, |t| t.max(z)));
     for block in &program.blocks {
+        if !block
+            .kind
+            .orientation()
+            .is_none_or(gcode::Orientation::is_fixed)
+        {
+            return Err(ClReadError::Unsupported {
+                line: block.line,
+                what: "five-axis motion (A/B/C words or G43.4/G43.5)",
+            });
+        }
         match &block.kind {
             BlockKind::Linear(m) => {
                 top(m.start[2]);
@@ -222,7 +232,11 @@ impl PathWriter {
         // it as one rapid to the point above the first path.
         let start = self.at.unwrap_or(end);
         if start != end {
-            self.push(gcode::BlockKind::Rapid(gcode::RapidMove { start, end }));
+            self.push(gcode::BlockKind::Rapid(gcode::RapidMove {
+                start,
+                end,
+                orientation: gcode::Orientation::Fixed,
+            }));
         }
         self.at = Some(end);
     }
@@ -233,6 +247,7 @@ impl PathWriter {
             start,
             end,
             feed: gcode::Feed::PerMinute(feed),
+            orientation: gcode::Orientation::Fixed,
         }));
         self.at = Some(end);
     }
@@ -262,6 +277,8 @@ impl PathWriter {
             weights: b.weights.clone(),
             knots: b.knots.clone(),
             feed,
+            orientation: gcode::Orientation::Fixed,
+            rotary: Vec::new(),
         }));
         self.at = b.control_points.last().copied();
     }
@@ -311,6 +328,16 @@ mod tests {
         assert!(read_cl_program("G1 X0 Y0 Z0 F1\nX1 Y$\n").is_err());
         let e = read_cl_program("G0 X0 Y0 Z1\nG93 G1 X1 F2\n").unwrap_err();
         assert!(e.to_string().contains("line 2"), "{e}");
+        // A CL path is three-axis: a rotary move or TCP is not dropped silently.
+        for text in [
+            "G0 X0 Y0 Z1\nG1 X1 A30 F100\n",
+            "G0 X0 Y0 Z1\nG43.4\nG1 X1 F100\n",
+        ] {
+            let e = read_cl_program(text).unwrap_err();
+            assert!(e.to_string().contains("five-axis"), "{e}");
+        }
+        // A B C that stay where they are change nothing.
+        assert!(read_cl_program("G0 X0 Y0 Z1 A0 C0\nG1 X1 F100\nX2\n").is_ok());
     }
 
     /// Between paths the tool rises straight up to the safe height, crosses
