@@ -65,6 +65,14 @@ fn plan_raster_refuses_bad_feeds_clearances_and_tolerances_naming_the_flag() {
             "--clearance must be a finite number >= 0",
         ),
         (
+            &["--blend-tolerance=-0.001"][..],
+            "--blend-tolerance must be a finite number of mm >= 0",
+        ),
+        (
+            &["--blend-tolerance", "nan"][..],
+            "--blend-tolerance must be a finite number of mm >= 0",
+        ),
+        (
             &["--chord-tolerance", "1e-15"][..],
             "--chord-tolerance 0.000000000000001 mm is below what f64 resolves",
         ),
@@ -79,5 +87,12 @@ fn plan_raster_refuses_bad_feeds_clearances_and_tolerances_naming_the_flag() {
     assert!(ok, "{err}");
     let text = std::fs::read_to_string(&out).unwrap();
     assert!(text.contains("F1200"), "{text}");
+    // Dense moves run at speed: G64 P (1 µm by default) before any move;
+    // `--blend-tolerance 0` leaves the controller's exact path.
+    assert!(text.contains("G64 P0.001"), "{text}");
+    let (ok, err) = run(&["--blend-tolerance", "0"]);
+    assert!(ok, "{err}");
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(!text.contains("G64"), "{text}");
     std::fs::remove_dir_all(&dir).ok();
 }

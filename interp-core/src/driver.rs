@@ -85,6 +85,10 @@ pub struct Driver {
     emitted: u64,
     /// The last error of planning done on the caller's behalf.
     last_error: Option<PushError>,
+    /// The last block pushed and the segments it needs: a block refused
+    /// for room is offered again every tick, and finding a NURBS's tangent
+    /// breaks measures it.
+    split_memo: Option<(Block, usize)>,
 }
 
 impl Driver {
@@ -99,6 +103,7 @@ impl Driver {
             finish_sent: false,
             emitted: 0,
             last_error: None,
+            split_memo: None,
         })
     }
 
@@ -166,17 +171,24 @@ impl Driver {
         if self.planner.has_pending() {
             return Err(PushError::Pending);
         }
-        // Room for its segments, checked before planning (cheap: no length).
-        let cfg = self.planner.config();
-        let mut paths = [block.path; MAX_PIECES];
-        let mut singular = [false; MAX_PIECES + 1];
-        let needed = split_at_tangent_breaks(
-            &block.path,
-            &mut paths,
-            cfg.tangent_tolerance,
-            cfg.chord_tolerance,
-            &mut singular,
-        )?;
+        // Room for its segments, checked before planning.
+        let needed = match &self.split_memo {
+            Some((b, n)) if b == block => *n,
+            _ => {
+                let cfg = self.planner.config();
+                let mut paths = [block.path; MAX_PIECES];
+                let mut singular = [false; MAX_PIECES + 1];
+                let n = split_at_tangent_breaks(
+                    &block.path,
+                    &mut paths,
+                    cfg.tangent_tolerance,
+                    cfg.chord_tolerance,
+                    &mut singular,
+                )?;
+                self.split_memo = Some((*block, n));
+                n
+            }
+        };
         if needed > st.free_segments {
             return Err(PushError::Full {
                 needed,
@@ -243,19 +255,14 @@ impl Driver {
             return None;
         }
         self.plan.finish = false;
-        if self.planner.has_pending() {
-            if st.free_segments < MAX_PIECES {
-                return None;
-            }
+        if self.planner.has_pending() && st.free_segments >= MAX_PIECES {
             self.sync(st);
-            return match self.planner.plan_pending(&mut self.plan) {
-                Ok(()) => Some(self.emit()),
-                // Not yet: the look-ahead reaches far enough for now.
-                Err(e) => {
-                    self.last_error = Some(e);
-                    None
-                }
-            };
+            match self.planner.plan_pending(&mut self.plan) {
+                Ok(()) => return Some(self.emit()),
+                // Not yet: the look-ahead reaches far enough for now (what
+                // else is due, e.g. a resumed hold, still is).
+                Err(e) => self.last_error = Some(e),
+            }
         }
         if parts_only {
             return None;
@@ -298,19 +305,65 @@ impl Driver {
         None
     }
 
-    /// Commit everything due into `exec` (the single-threaded drivers:
-    /// between ticks).
-    pub fn drive<const Q: usize>(&mut self, exec: &mut Executor<Q>) {
-        self.drive_due(exec, false);
+    /// Commit everything due into `exec` (between ticks). Every plan
+    /// offered to `exec` is shown to `sink` first (see [`PlanSink`]).
+    pub fn drive<const Q: usize>(&mut self, exec: &mut Executor<Q>, sink: PlanSink<'_>) {
+        self.drive_due(exec, false, sink);
     }
 
-    /// Commit the due parts of a long block into `exec` (before a push).
-    pub fn drive_parts<const Q: usize>(&mut self, exec: &mut Executor<Q>) {
-        self.drive_due(exec, true);
+    /// Queue `block` into `exec`: the due parts of a long block first, then
+    /// its plan (see [`Self::push`]). All or nothing for `block`.
+    pub fn push_into<const Q: usize>(
+        &mut self,
+        exec: &mut Executor<Q>,
+        block: &Block,
+        sink: PlanSink<'_>,
+    ) -> Result<(), PushError> {
+        if !exec.status().finished {
+            self.drive_due(exec, true, sink);
+        }
+        let plan = self.push(&exec.status(), block)?;
+        sink(plan);
+        exec.commit(plan)
     }
 
-    fn drive_due<const Q: usize>(&mut self, exec: &mut Executor<Q>, parts_only: bool) {
+    /// The program ends with what is pushed into `exec` (see [`Self::finish`]).
+    pub fn finish_into<const Q: usize>(&mut self, exec: &mut Executor<Q>, sink: PlanSink<'_>) {
+        self.finish();
+        self.drive_due(exec, false, sink);
+    }
+
+    /// Leave a feed hold in `exec`: once at rest, the speed is planned
+    /// again from there.
+    pub fn resume_into<const Q: usize>(&mut self, exec: &mut Executor<Q>, sink: PlanSink<'_>) {
+        exec.resume();
+        self.drive_due(exec, false, sink);
+    }
+
+    /// Set the feed override (see [`Self::set_feed_override`]) and commit
+    /// the plan it makes into `exec`.
+    pub fn set_feed_override_into<const Q: usize>(
+        &mut self,
+        exec: &mut Executor<Q>,
+        value: f64,
+        sink: PlanSink<'_>,
+    ) -> Result<(), OverrideError> {
+        let st = exec.status();
+        if let Some(plan) = self.set_feed_override(&st, value)? {
+            sink(plan);
+            let _ = exec.commit(plan);
+        }
+        Ok(())
+    }
+
+    fn drive_due<const Q: usize>(
+        &mut self,
+        exec: &mut Executor<Q>,
+        parts_only: bool,
+        sink: PlanSink<'_>,
+    ) {
         while let Some(plan) = self.due(&exec.status(), parts_only) {
+            sink(plan);
             if let Err(e) = exec.commit(plan) {
                 self.last_error = Some(e);
                 break;
@@ -318,6 +371,12 @@ impl Driver {
         }
     }
 }
+
+/// Shown every plan a [`Driver`] offers its executor, in order, before the
+/// executor gets it. An executor elsewhere (the service's real-time thread)
+/// that is offered the same plans and commands at the same ticks gives the
+/// same setpoints bit for bit. `&mut |_| {}` when there is no such copy.
+pub type PlanSink<'a> = &'a mut dyn FnMut(&PlannedBlock);
 
 impl<const Q: usize> Executor<Q> {
     /// What the planning side needs to know (see [`ExecStatus`]).

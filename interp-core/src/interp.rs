@@ -323,7 +323,10 @@ impl<const Q: usize> Executor<Q> {
     }
     /// Path speed, mm/s.
     pub fn speed(&self) -> f64 {
-        self.v
+        match &self.stop {
+            Some((stop, t, _)) => stop.at(*t).1,
+            None => self.v,
+        }
     }
     /// A feed hold or abort stop is running or done (the plan is left).
     pub fn is_stopping(&self) -> bool {
@@ -939,8 +942,7 @@ impl<const Q: usize> Interpolator<Q> {
 
     /// Marks the end of the program: reaching the end of the queue then means `Done`.
     pub fn finish(&mut self) {
-        self.driver.finish();
-        self.driver.drive(&mut self.exec);
+        self.driver.finish_into(&mut self.exec, &mut |_| {});
     }
 
     /// Feed hold (see [`Executor::feed_hold`]).
@@ -950,8 +952,7 @@ impl<const Q: usize> Interpolator<Q> {
 
     /// Leave a feed hold: once at rest, the speed is planned again from there.
     pub fn resume(&mut self) {
-        self.exec.resume();
-        self.driver.drive(&mut self.exec);
+        self.driver.resume_into(&mut self.exec, &mut |_| {});
     }
 
     /// Abort (see [`Executor::abort`]); the planner follows once the machine is idle.
@@ -962,11 +963,8 @@ impl<const Q: usize> Interpolator<Q> {
     /// Set the feed override (see [`Driver::set_feed_override`]); the speed
     /// is planned again from the next piece on.
     pub fn set_feed_override(&mut self, value: f64) -> Result<(), OverrideError> {
-        let st = self.exec.status();
-        if let Some(plan) = self.driver.set_feed_override(&st, value)? {
-            let _ = self.exec.commit(plan);
-        }
-        Ok(())
+        self.driver
+            .set_feed_override_into(&mut self.exec, value, &mut |_| {})
     }
 
     /// Arc length at which the machine would come to rest if a feed hold
@@ -980,13 +978,7 @@ impl<const Q: usize> Interpolator<Q> {
     /// look-ahead's part is accepted whole; its later parts are planned as
     /// the machine moves on (in `push`, `finish` and `tick`).
     pub fn push(&mut self, block: &Block) -> Result<(), PushError> {
-        if !self.exec.status().finished {
-            // The parts of a long block before the next one.
-            self.driver.drive_parts(&mut self.exec);
-        }
-        let st = self.exec.status();
-        let plan = self.driver.push(&st, block)?;
-        self.exec.commit(plan)
+        self.driver.push_into(&mut self.exec, block, &mut |_| {})
     }
 
     /// Queue a plan made by another planner (see [`Executor::commit`]).
@@ -998,7 +990,7 @@ impl<const Q: usize> Interpolator<Q> {
     /// due is done and committed (non-real-time work: real-time callers drive
     /// [`Executor`] instead).
     pub fn tick(&mut self) -> Setpoint {
-        self.driver.drive(&mut self.exec);
+        self.driver.drive(&mut self.exec, &mut |_| {});
         self.exec.tick()
     }
 }

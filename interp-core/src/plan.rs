@@ -586,15 +586,17 @@ impl Window {
     }
 
     /// Where a re-solve of everything ahead of the machine starts (a new
-    /// feed override): the first piece strictly after `machine`, or the rest
-    /// point it still rests on (see [`Self::freeze`]).
+    /// feed override, a resumed hold): the first piece strictly after
+    /// `machine`, or `machine` itself when the machine rests there.
     pub fn freeze_after(&self, machine: f64, machine_at_rest: bool) -> Freeze {
         let d = &self.data;
         if d.n_pieces == 0 {
             return Freeze::Rest(d.origin);
         }
-        if d.pieces[0].rest_start && machine_at_rest && machine <= d.pieces[0].x0 {
-            return Freeze::Rest(d.pieces[0].x0);
+        if machine_at_rest {
+            // At rest (where a hold stopped it, or on a rest point of the
+            // plan): planned again from that point.
+            return Freeze::Rest(machine.max(d.pieces[0].x0));
         }
         let mut f = 1;
         while f < d.n_pieces && d.pieces[f].x0 <= machine {
@@ -656,7 +658,9 @@ impl Window {
     ///
     /// If the program cannot be planned through the end of the current plan
     /// (the linear program fails), that end is kept as a rest point and the
-    /// rest planned from it: always feasible, since the current plan stops there.
+    /// rest planned from it: always feasible, since the current plan stops
+    /// there. Without `fallback`, such a failure is returned instead (and
+    /// nothing changes).
     pub fn solve(
         &mut self,
         freeze: Freeze,
@@ -664,9 +668,10 @@ impl Window {
         ovr: f64,
         lift: Option<(f64, Stop)>,
         keep_from: f64,
+        fallback: bool,
     ) -> Result<usize, PlanError> {
         let (n, prev, origin) = (self.data.n_pieces, self.data.prev, self.data.origin);
-        let r = self.solve_inner(freeze, end, ovr, lift, keep_from);
+        let r = self.solve_inner(freeze, end, ovr, lift, keep_from, fallback);
         if r.is_err() {
             // Nothing changed: the plan as it was (the backup holds its pieces).
             let d = &mut self.data;
@@ -685,6 +690,7 @@ impl Window {
         ovr: f64,
         lift: Option<(f64, Stop)>,
         keep_from: f64,
+        fallback: bool,
     ) -> Result<usize, PlanError> {
         // The current plan, to fall back on (it comes to rest at its end).
         let backup_n = self.data.n_pieces;
@@ -700,18 +706,25 @@ impl Window {
         };
         let (first, changed, from_x, rest) = match freeze {
             Freeze::At(f) => {
-                // Keep pieces f−1 (as is) and f (its coefficient): move them to 0 and 1.
-                let keep = f - 1;
+                // Keep pieces f−1 (as is) and f (its coefficient), and the
+                // ones from the machine's on: a later re-solve from the
+                // machine (a new override) starts from them. Those behind
+                // the machine go.
                 let d = &mut self.data;
-                if keep > 0 {
-                    let q = d.pieces[keep - 1];
-                    d.prev = (q.h(), q.d);
-                    d.pieces.copy_within(keep..d.n_pieces, 0);
-                    d.n_pieces -= keep;
+                let mut drop = 0;
+                while drop + 1 < f && d.pieces[drop].x1 <= keep_from {
+                    drop += 1;
                 }
-                let x2 = d.pieces[1].x1;
+                if drop > 0 {
+                    let q = d.pieces[drop - 1];
+                    d.prev = (q.h(), q.d);
+                    d.pieces.copy_within(drop..d.n_pieces, 0);
+                    d.n_pieces -= drop;
+                }
+                let f = f - drop;
+                let x2 = d.pieces[f].x1;
                 let rest = d.stops[..d.n_stops].contains(&x2);
-                (2, 1, x2, rest)
+                (f + 1, f, x2, rest)
             }
             Freeze::Rest(x) => {
                 let d = &mut self.data;
@@ -756,6 +769,7 @@ impl Window {
                     self.commit_region(freeze, keep_from, from_x);
                     return Ok(changed);
                 }
+                Err(e @ PlanError::Solver(_)) if !fallback => return Err(e),
                 Err(PlanError::Solver(_)) if !fell_back && old_end > from_x => {
                     if !self.insert_stop(old_end) {
                         return Err(PlanError::Full);

@@ -158,6 +158,9 @@ pub struct BlockPlanner {
     planned_to: f64,
     /// The program's end was given ([`Self::finish`]): plans reach the end of the queue.
     finished: bool,
+    /// The last block measured and its length: a block refused for room is
+    /// offered again every tick, and a NURBS's length costs a quadrature.
+    length_memo: Option<(Block, f64)>,
 }
 
 impl BlockPlanner {
@@ -183,6 +186,7 @@ impl BlockPlanner {
             ovr: 1.0,
             planned_to: tail_s,
             finished: false,
+            length_memo: None,
         })
     }
     /// The configuration it plans for.
@@ -269,7 +273,7 @@ impl BlockPlanner {
         }
         let freeze = self.freeze();
         let end = self.tail_s;
-        self.solve_into(freeze, end, None, out)?;
+        self.solve_into(freeze, end, None, true, out)?;
         self.planned_to = end;
         Ok(())
     }
@@ -300,7 +304,14 @@ impl BlockPlanner {
         if !(gap <= JOIN_TOLERANCE) {
             return Err(PushError::Discontinuous { gap });
         }
-        let length = block.path.length();
+        let length = match &self.length_memo {
+            Some((b, l)) if b == block => *l,
+            _ => {
+                let l = block.path.length();
+                self.length_memo = Some((*block, l));
+                l
+            }
+        };
         if !(length > 0.0 && length.is_finite()) {
             return Err(PushError::Empty);
         }
@@ -361,16 +372,31 @@ impl BlockPlanner {
         let freeze = self.window.freeze_after(self.machine, self.machine_at_rest);
         // The speed and acceleration the plan has at the freeze point: the
         // new feed limit may not fall below what braking from there allows.
-        let lift = match freeze {
-            Freeze::At(f) => {
-                let p = self.window.piece(f);
-                let (a, j) = (self.cfg.planned_accel(), self.cfg.max_path_jerk);
-                Some((p.x0, Stop::new(p.speed(0.0), p.accel(0.0), a, j)))
-            }
-            Freeze::Rest(_) => None,
-        };
         let end = self.planned_to;
-        self.solve_into(freeze, end, lift, out)
+        let Freeze::At(f) = freeze else {
+            return self.solve_into(freeze, end, None, true, out);
+        };
+        // The new feed limit may not fall below what braking allows from
+        // where the unknowns start (the end of the kept freeze piece `f`),
+        // from the fastest and most accelerating state the kept piece
+        // allows there (the knot's value also depends on the next unknown).
+        // The spline follows a braking curve only approximately: if the
+        // linear program cannot, brake more gently (the override takes a
+        // little longer to take effect) rather than keep the old plan.
+        let p = self.window.piece(f);
+        let v0 = libm::sqrt(p.e0.max(p.d).max(p.e1).max(0.0));
+        let a0 = p.accel(0.0).max(p.accel(p.h)).max(0.0);
+        let (a, j) = (self.cfg.planned_accel(), self.cfg.planned_jerk());
+        let mut r = Ok(());
+        for (k, gentle) in LIFT_SOFTENING.iter().enumerate() {
+            let stop = Stop::new(v0, a0, a * gentle, j * gentle);
+            let last = k + 1 == LIFT_SOFTENING.len();
+            r = self.solve_into(freeze, end, Some((p.x1(), stop)), last, out);
+            if !matches!(r, Err(PushError::Schedule)) {
+                break;
+            }
+        }
+        r
     }
 
     fn freeze(&self) -> Freeze {
@@ -382,11 +408,12 @@ impl BlockPlanner {
         freeze: Freeze,
         end: f64,
         lift: Option<(f64, Stop)>,
+        fallback: bool,
         out: &mut PlannedBlock,
     ) -> Result<(), PushError> {
         let from = self
             .window
-            .solve(freeze, end, self.ovr, lift, self.machine)
+            .solve(freeze, end, self.ovr, lift, self.machine, fallback)
             .map_err(|e| match e {
                 PlanError::Full => PushError::ProfileFull,
                 PlanError::Solver(_) => PushError::Schedule,
@@ -517,7 +544,7 @@ impl BlockPlanner {
         let end = if self.finished { s } else { mark.min(s) };
         let r = if end > self.planned_to + SLIVER * h {
             let freeze = self.freeze();
-            self.solve_into(freeze, end, None, out).map(|()| {
+            self.solve_into(freeze, end, None, true, out).map(|()| {
                 self.planned_to = end;
             })
         } else {
@@ -695,7 +722,9 @@ fn sample_laws(
                 if which == 0 && v_min.is_finite() {
                     // Where a curvature peak lies: a per-axis sample there too.
                     let u_min = u_min.clamp(u_lo, u_hi);
-                    let s_min = seg.s0 + path.arc_length(path.u_start(), u_min);
+                    // From the bracket's start (at arc length ka·hs), not
+                    // the block's: linear, not quadratic, in the block.
+                    let s_min = ka as f64 * hs + path.arc_length(ua, u_min);
                     sample(w, s_min, &path.eval(u_min, 3));
                 }
             }
@@ -713,6 +742,8 @@ fn sample_laws(
         let (ua, ub) = (n.u_start(), n.u_end());
         let mut i = p + 1;
         let mut prev = ua;
+        // Arc length at `at_u`, carried from knot to knot.
+        let (mut at_u, mut at_s) = (ua, seg.s0);
         while i < knots.len() - p - 1 {
             let u = knots[i];
             let mut mult = 1;
@@ -723,7 +754,9 @@ fn sample_laws(
                 let left = n.eval(u - (u - prev) * 1e-9, 3);
                 let right = n.eval(u, 3);
                 let v = junction_speed(&left, &right, cfg);
-                let g = index_of(seg.s0 + path.arc_length(ua, u), h);
+                at_s += path.arc_length(at_u, u);
+                at_u = u;
+                let g = index_of(at_s, h);
                 for gi in [g - 1, g, g + 1] {
                     lower(w, gi, 0, v);
                 }
@@ -749,6 +782,10 @@ pub(crate) fn axis_jerk_may_bind(smp: &AxisSample, ax: usize, l2: f64, cfg: &Int
 
 /// Golden-section steps refining a sampled law minimum (bracket shrinks by 0.618 each).
 const GOLDEN_ITERS: usize = 40;
+
+/// Braking rates (fractions of the planned acceleration and jerk) a new
+/// override's braking curve is tried with, steepest first.
+const LIFT_SOFTENING: [f64; 4] = [1.0, 0.5, 0.25, 0.1];
 
 /// The parameters between which the laws of `path` (of length `len`, a piece
 /// of `block`) are evaluated: its whole range, narrowed by [`stationary_offset`]

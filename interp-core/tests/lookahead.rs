@@ -484,30 +484,28 @@ fn a_closed_curve_in_one_block_is_traversed_whole() {
 }
 
 /// Streams `blocks` one every `gap` ticks (the first before any tick) to the
-/// end: through `push`, or as the daemon does: an [`Executor`] ticking on its
-/// own and a [`Driver`] fed with its status, whose plans are committed
-/// between ticks.
+/// end: through `push`, or as the service does: an [`Executor`] and a
+/// [`Driver`] planning for it (the control plane's copy), every plan they
+/// make also offered, at the same tick, to a second executor (the real-time
+/// thread's), whose setpoints are returned (and checked to be the copy's).
 fn stream(cfg: InterpConfig, blocks: &[Block], gap: usize, separate: bool) -> Vec<Setpoint> {
     let mut ip = Box::new(Interpolator::<256>::new(cfg, start_of(blocks)).unwrap());
     let s = start_of(blocks);
     let mut exec = Box::new(Executor::<256>::new(cfg, s).unwrap());
+    let mut rt = Box::new(Executor::<256>::new(cfg, s).unwrap());
     let mut driver = Box::new(Driver::new(cfg, Vec3::new(s[0], s[1], s[2]), 0.0).unwrap());
+    // Plans made before the current tick, for the real-time copy.
+    let mut sent: Vec<Box<PlannedBlock>> = Vec::new();
     let mut next = 0;
     let mut sps = Vec::new();
     let mut due = 0;
     for t in 0..2_000_000 {
+        let mut sink = |p: &PlannedBlock| sent.push(Box::new(p.clone()));
         if next < blocks.len() && t >= due {
             // A block that does not fit yet is offered again next tick.
             let queued = if separate {
-                // The parts of a long block first, as `Interpolator::push` does.
-                while let Some(plan) = driver.next_part(&exec.status()) {
-                    exec.commit(plan).unwrap();
-                }
-                match driver.push(&exec.status(), &blocks[next]) {
-                    Ok(plan) => {
-                        exec.commit(plan).unwrap();
-                        true
-                    }
+                match driver.push_into(&mut exec, &blocks[next], &mut sink) {
+                    Ok(()) => true,
                     Err(PushError::ProfileFull | PushError::Full { .. } | PushError::Pending) => {
                         false
                     }
@@ -521,10 +519,7 @@ fn stream(cfg: InterpConfig, blocks: &[Block], gap: usize, separate: bool) -> Ve
                 due = t + gap;
                 if next == blocks.len() {
                     if separate {
-                        driver.finish();
-                        while let Some(plan) = driver.next(&exec.status()) {
-                            exec.commit(plan).unwrap();
-                        }
+                        driver.finish_into(&mut exec, &mut sink);
                     } else {
                         ip.finish();
                     }
@@ -532,10 +527,19 @@ fn stream(cfg: InterpConfig, blocks: &[Block], gap: usize, separate: bool) -> Ve
             }
         }
         let sp = if separate {
-            while let Some(plan) = driver.next(&exec.status()) {
-                exec.commit(plan).unwrap();
+            driver.drive(&mut exec, &mut sink);
+            let sp = exec.tick();
+            for p in sent.drain(..) {
+                let _ = rt.commit(&p);
             }
-            exec.tick()
+            let mirrored = rt.tick();
+            assert_eq!(
+                mirrored.axes.map(f64::to_bits),
+                sp.axes.map(f64::to_bits),
+                "tick {t}: the real-time copy left the planner's"
+            );
+            assert_eq!(mirrored.feed.to_bits(), sp.feed.to_bits());
+            mirrored
         } else {
             ip.tick()
         };

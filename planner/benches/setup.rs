@@ -7,7 +7,8 @@
 //! overhanging spherical pocket of the tests, `-- medium` for the 6,208-
 //! triangle teapot on 5,120 cells; add `compare` to run the exhaustive
 //! search (every cell evaluated) alternately with the bounded one and check
-//! they agree. All cores are used (rayon).
+//! they agree; add `centres` to test the cells at their centres only (no
+//! exact cell test). All cores are used (rayon).
 
 use std::time::Instant;
 
@@ -31,6 +32,7 @@ fn run(name: &str, part: &TriMesh, cells: usize, repeats: usize) {
     let sphere = GeodesicSphere::with_at_least(cells).expect("valid cell count");
     let config = SetupConfig {
         cells,
+        exact_cells: !std::env::args().any(|a| a == "centres"),
         ..SetupConfig::default()
     };
     let ranges = AxisRanges::from_degrees(90.0, 90.0, 180.0, 180.0).expect("valid ranges");

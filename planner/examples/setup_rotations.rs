@@ -15,24 +15,13 @@ use std::time::Instant;
 
 use nalgebra::{Point3, Rotation3, Unit, Vector3};
 use planner::mesh::{TriMesh, WeldOptions};
+use planner::setup::samples::random_rotation;
 use planner::setup::{AxisRanges, MachineConfig, SetupConfig, plan_setup};
 
 fn rotation(spec: &str) -> Rotation3<f64> {
     let (axis, rest) = spec.split_at(1);
     if axis == "r" {
-        // xorshift from the seed: axis uniform on the sphere, angle uniform.
-        let mut s: u64 = rest.parse::<u64>().expect("seed") * 2_654_435_761 + 1;
-        let mut next = || {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            (s >> 11) as f64 / (1u64 << 53) as f64
-        };
-        let z = 2.0 * next() - 1.0;
-        let t = std::f64::consts::TAU * next();
-        let r = (1.0 - z * z).sqrt();
-        let a = Vector3::new(r * t.cos(), r * t.sin(), z);
-        return Rotation3::from_axis_angle(&Unit::new_normalize(a), std::f64::consts::PI * next());
+        return random_rotation(rest.parse().expect("seed"));
     }
     let deg: f64 = rest.parse().expect("degrees");
     let a = match axis {
@@ -80,9 +69,10 @@ fn main() {
         let d = o.placement.required.degrees();
         let (equivalent, spread) = o.equivalent.unwrap_or((0, 0.0));
         println!(
-            "{spec:>6}: feasible {} unreachable {} axis(part frame) ({:+.3},{:+.3},{:+.3}) req {:.2}/{:.2} {:.2}/{:.2} area {:.1} deg² (bound {:.1}), {} equivalent within {:.1}°, {} of {} cells evaluated ({:.2} s)",
+            "{spec:>6}: feasible {} unreachable {} narrow {} axis(part frame) ({:+.3},{:+.3},{:+.3}) req {:.2}/{:.2} {:.2}/{:.2} area {:.1} deg² (bound {:.1}), {} equivalent within {:.1}°, {} of {} cells evaluated ({:.2} s)",
             plan.feasible,
             plan.unreachable_patches.len(),
+            plan.narrow_patches.len(),
             back.x,
             back.y,
             back.z,

@@ -1,8 +1,9 @@
 //! The control plane (tokio, non-RT): listeners on loopback TCP and a Unix
 //! socket, one task per connection speaking the line protocol of
 //! [`crate::protocol`]. Blocks are parsed, checked and split here and handed
-//! to the RT thread through its SPSC queue; a full queue is back-pressure (the
-//! reply waits, so the client's writes stall), never a drop.
+//! to the planning thread ([`crate::service::sequencer`]) through its SPSC
+//! queue; a full queue is back-pressure (the reply waits, so the client's
+//! writes stall), never a drop.
 //!
 //! A program belongs to the connection that sent its first block (or
 //! `begin`) until it ends: `done`, an abort, or a fault. Another connection
@@ -17,13 +18,13 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use heapless::spsc::{Consumer, Producer};
-use interp_core::{BlockPlanner, PlannedBlock, RunState, Vec3};
+use interp_core::{Curve, RunState};
 use serde::{Deserialize, Serialize};
 use tokio::io::{AsyncBufRead, AsyncBufReadExt, AsyncRead, AsyncWrite, AsyncWriteExt, BufReader};
 
 use crate::protocol::{MAX_LINE_BYTES, Reply, Request, parse};
 use crate::service::publish::state_name;
-use crate::service::rt::{Command, Plan, PushFailure, RtStatus};
+use crate::service::rt::{Command, PushFailure, RtStatus, Segment};
 
 /// How long `abort` waits for the machine to come to rest before replying.
 pub const ABORT_WAIT: Duration = Duration::from_secs(30);
@@ -38,7 +39,7 @@ pub struct Control {
     pub programs: Mutex<Programs>,
     /// Command producer (short critical sections only).
     pub commands: Mutex<Producer<'static, Command>>,
-    /// Refused blocks reported by the RT thread.
+    /// Refused blocks reported by the planning thread.
     pub failures: Mutex<Consumer<'static, PushFailure>>,
     /// The RT thread's counters.
     pub status: Arc<RtStatus>,
@@ -131,15 +132,14 @@ impl Default for Programs {
     }
 }
 
-/// The streaming side: the RT thread's plan queue and where the next block starts.
+/// The streaming side: the planning thread's segment queue and where the
+/// next block starts.
 pub struct Stream {
-    /// Producer of the RT thread's queue of planned blocks.
-    pub blocks: Producer<'static, Plan>,
-    /// Plan buffers the RT thread handed back.
-    pub spent: Consumer<'static, Box<PlannedBlock>>,
-    /// Plans blocks against the end of what was accepted (the costly half of
-    /// `Interpolator::push`, kept off the RT thread).
-    pub planner: BlockPlanner,
+    /// Producer of the planning thread's queue of segments.
+    pub segments: Producer<'static, Segment>,
+    /// End of the last segment queued (after an abort: where the machine
+    /// stopped).
+    pub queued_to: [f64; 3],
     /// End of the last accepted block (`None`: where the machine is).
     pub tail: Option<[f64; 3]>,
     /// Id of the next interpolator segment (from 1 in each program).
@@ -148,9 +148,12 @@ pub struct Stream {
     pub index: u32,
     /// The program the fields above belong to.
     pub program: u32,
-    /// The program's pipeline (input blocks to segments), from `tail` with
-    /// ids from `next_id`; made again when those moved (abort, a refusal).
+    /// The program's pipeline (input blocks through the `G64 P` stage to
+    /// interpolator segments), made at its first block from the end of the
+    /// queue with ids from `next_id`.
     pub pipeline: Option<traces::Pipeline>,
+    /// The interpolator's configuration (the pipeline's stage runs under it).
+    pub interp: interp_core::InterpConfig,
 }
 
 impl core::fmt::Debug for Control {
@@ -219,6 +222,9 @@ pub struct StatusReply {
     pub line_errors: u64,
     /// Missed periods.
     pub overruns: u64,
+    /// Periods the RT thread waited for the planning thread (0 while the
+    /// planner keeps its lead; see `--plan-lead-ms`).
+    pub planner_late: u64,
     /// Ticks the recorder had no room for.
     pub recorder_drops: u64,
     /// Failed publishes.
@@ -335,9 +341,7 @@ impl Control {
         if s.tail.is_none() && self.status.published.load(Ordering::Acquire) > 0 {
             // Where the machine is (at rest: start, or after an abort), bit
             // for bit as the interpolator's queue end.
-            let p = self.status.position();
-            let at = f64::from_bits(self.status.s.load(Ordering::Acquire));
-            s.planner.resync(Vec3::new(p[0], p[1], p[2]), at);
+            s.queued_to = self.status.position();
         }
         s.program = program;
         s.next_id = 1;
@@ -345,9 +349,14 @@ impl Control {
         s.pipeline = None;
     }
 
-    /// Where the next block of the current program starts.
+    /// Where the next block of the current program starts: the end of the
+    /// last one it accepted, or (a new pipeline) the end of the queue, which
+    /// `follow` moved to where the machine is after an abort.
     fn next_start(&self, s: &Stream) -> [f64; 3] {
-        s.tail.unwrap_or_else(|| self.status.position())
+        match &s.pipeline {
+            Some(p) => p.tail(),
+            None => s.queued_to,
+        }
     }
 
     /// The current status.
@@ -392,6 +401,7 @@ impl Control {
             last_refusal: self.last_refusal.lock().ok().and_then(|l| l.clone()),
             line_errors: self.errors.load(Ordering::Acquire),
             overruns: s.overruns.load(Ordering::Acquire),
+            planner_late: s.planner_late.load(Ordering::Acquire),
             recorder_drops: s.recorder_drops.load(Ordering::Acquire),
             publish_failures: s.publish_failures.load(Ordering::Acquire),
         }
@@ -434,12 +444,30 @@ impl Control {
     }
 
     /// `end`: the owner's program ends after the blocks it sent.
+    /// The blocks the program's `G64 P` stage still holds are queued first.
     async fn end(&self, peer: &Peer) -> Result<Reply, String> {
+        let epoch = self.abort_epoch.load(Ordering::Acquire);
         let program = self.end_program(&mut self.lock_programs(), peer)?;
-        if let Some(p) = program {
-            self.command(Command::End(p)).await;
-        }
-        Ok(Reply::End)
+        let Some(p) = program else {
+            return Ok(Reply::End);
+        };
+        let mut s = self.stream.lock().await;
+        let pipeline = if s.program == p {
+            s.pipeline.take()
+        } else {
+            None
+        };
+        let flushed = match pipeline {
+            Some(mut pipeline) => {
+                let rest = pipeline.finish();
+                self.queue(&mut s, p, epoch, rest).await
+            }
+            None => Ok(()),
+        };
+        drop(s);
+        // The program ends after what was queued, even when the rest failed.
+        self.command(Command::End(p)).await;
+        flushed.map(|()| Reply::End)
     }
 
     /// The program `end` ends (`None`: it had ended already).
@@ -538,72 +566,79 @@ impl Control {
         }
     }
 
-    /// Parses, checks, plans and queues one block; waits while the RT queue is full.
+    /// Parses and checks one block and sends it through the program's
+    /// pipeline; plans and queues what the pipeline releases (waits while
+    /// the RT queue is full).
     async fn block(&self, b: &traces::InputBlock, peer: &Peer) -> Result<Reply, String> {
         let epoch = self.abort_epoch.load(Ordering::Acquire);
         let program = self.claim(&mut self.lock_programs(), peer)?;
         let mut s = self.stream.lock().await;
         self.follow(&mut s, program);
-        let start = self.next_start(&s);
-        let id = s.next_id;
+        let first = s.next_id;
         // Every block of the program passes through its one pipeline.
-        let mut pipeline = match s.pipeline.take() {
-            Some(p) if p.tail() == start && p.next_id() == id => p,
-            _ => traces::Pipeline::new(start, id, crate::protocol::PIECE_CTRL),
+        let pipeline = match s.pipeline.take() {
+            Some(p) => p,
+            None => traces::Pipeline::new(
+                self.next_start(&s),
+                first,
+                crate::protocol::PIECE_CTRL,
+                &s.interp,
+            )
+            .map_err(|e| format!("config: {e}"))?,
         };
-        let (pieces, info) = crate::protocol::expand(b, &mut pipeline)?;
+        // The stage may fit NURBS over its whole window: off the runtime's thread.
+        let block = b.clone();
+        let (pipeline, expanded) = tokio::task::spawn_blocking(move || {
+            let mut pipeline = pipeline;
+            let r = crate::protocol::expand(&block, &mut pipeline);
+            (pipeline, r)
+        })
+        .await
+        .map_err(|e| format!("expanding block {}: {e}", s.index + 1))?;
+        s.tail = Some(pipeline.tail());
         s.pipeline = Some(pipeline);
+        let (pieces, info) = expanded?;
+        // Recorded once accepted, before anything it released is queued: a
+        // replay sends the recorded blocks through the same pipeline.
+        self.record_block(s.index, b, info);
+        s.index += 1;
+        self.lock_programs().blocks += 1;
+        self.blocks_accepted.fetch_add(1, Ordering::AcqRel);
+        self.queue(&mut s, program, epoch, pieces).await?;
+        Ok(Reply::Block {
+            index: s.index,
+            first,
+            last: s.next_id.wrapping_sub(1),
+        })
+    }
+
+    /// Queues `pieces` (released by the program's pipeline, ids from
+    /// `s.next_id`) for the planning thread; waits while its queue is full.
+    /// A piece the look-ahead refuses is reported in the status
+    /// (`last_refusal`); the pieces after it are refused too (they do not
+    /// start where the queue ends).
+    async fn queue(
+        &self,
+        s: &mut Stream,
+        program: u32,
+        epoch: u64,
+        pieces: Vec<interp_core::Block>,
+    ) -> Result<(), String> {
         let n = pieces.len();
-        let end = pieces.last().map(|p| {
-            let e = interp_core::Curve::end_point(&p.path);
-            [e.x, e.y, e.z]
-        });
-        let mut info = Some(info);
         for (i, piece) in pieces.into_iter().enumerate() {
-            let buf = s
-                .spent
-                .dequeue()
-                .unwrap_or_else(|| Box::new(PlannedBlock::new()));
-            let planner = s.planner;
-            // Law sampling takes milliseconds for a long NURBS: off the
-            // runtime's thread, so status and hold are answered meanwhile.
-            let (planner, buf, planned) = tokio::task::spawn_blocking(move || {
-                let (mut planner, mut buf) = (planner, buf);
-                let r = planner.plan(&piece, &mut buf);
-                (planner, buf, r)
-            })
-            .await
-            .map_err(|e| format!("planning block {id}: {e}"))?;
-            if let Err(e) = planned {
-                if i > 0 {
-                    // The pieces before it are queued: the program goes on from there.
-                    let t = s.planner.tail();
-                    s.tail = Some([t.x, t.y, t.z]);
-                    s.next_id = id + i as u32;
-                }
-                return Err(format!(
-                    "block {id}: segment {} of {n}: {e} ({i} of {n} segments queued)",
-                    i + 1
-                ));
-            }
-            s.planner = planner;
-            if let Some(info) = info.take() {
-                // Recorded once its first segment is planned, before any of it
-                // is queued: a replay takes each block's segments from here as
-                // their commits come (an abort may flush some).
-                self.record_block(s.index, b, info);
-            }
-            let mut item = Plan {
+            let id = piece.id;
+            let end = piece.path.end_point();
+            let mut item = Segment {
                 program,
-                block: buf,
+                block: piece,
             };
             loop {
                 if self.abort_epoch.load(Ordering::Acquire) != epoch {
                     return Err(format!(
-                        "aborted while queueing block {id} ({i} of {n} pieces queued, flushed)"
+                        "aborted while queueing segment {id} ({i} of {n} segments queued, flushed)"
                     ));
                 }
-                match s.blocks.enqueue(item) {
+                match s.segments.enqueue(item) {
                     Ok(()) => break,
                     Err(back) => {
                         item = back;
@@ -611,17 +646,10 @@ impl Control {
                     }
                 }
             }
+            s.queued_to = [end.x, end.y, end.z];
+            s.next_id = id.wrapping_add(1);
         }
-        s.tail = end;
-        s.next_id = id + n as u32;
-        s.index += 1;
-        self.lock_programs().blocks += 1;
-        self.blocks_accepted.fetch_add(1, Ordering::AcqRel);
-        Ok(Reply::Block {
-            index: s.index,
-            first: id,
-            last: id + n as u32 - 1,
-        })
+        Ok(())
     }
 
     /// `peer` left: a program it owns loses its owner (another connection

@@ -107,7 +107,7 @@ pub fn main(args: &DemoArgs) -> Result<()> {
     })?;
     if !args.no_plots {
         let cfg = config(args);
-        let blocks = butterfly_blocks(args.feed)?;
+        let blocks = butterfly_blocks(args.feed, &cfg)?;
         let inp = crate::tools::demo_plots::PlotInput {
             cfg: &cfg,
             blocks: &blocks,
@@ -360,16 +360,17 @@ pub(crate) fn butterfly_request(feed_mm_min: f64) -> String {
     )
 }
 
-/// The butterfly as the service gets it: its protocol line parsed and split
-/// exactly as the control plane does, so both runs get the same blocks.
-fn butterfly_blocks(feed_mm_min: f64) -> Result<Vec<Block>> {
+/// The butterfly as the service gets it: its protocol line parsed, split
+/// and sent through the program pipeline (`G64 P` stage included) exactly
+/// as the control plane does, so both runs get the same blocks.
+fn butterfly_blocks(feed_mm_min: f64, cfg: &InterpConfig) -> Result<Vec<Block>> {
     let line = butterfly_request(feed_mm_min);
     let crate::protocol::Request::Block(b) =
         crate::protocol::parse(&line).map_err(|e| anyhow!("butterfly request: {e}"))?
     else {
         bail!("the butterfly request is not a block");
     };
-    crate::protocol::expand_from(&b, butterfly::START, FIRST_BLOCK_ID)
+    crate::protocol::expand_from(&b, butterfly::START, FIRST_BLOCK_ID, cfg)
         .map(|(blocks, _)| blocks)
         .map_err(|e| anyhow!("splitting the butterfly NURBS into blocks: {e}"))
 }
@@ -434,8 +435,9 @@ pub struct InterpStats {
     pub ticks: u64,
     /// Segments completed.
     pub segments_done: u64,
-    /// Ticks where the schedule wanted more deceleration than allowed (0 in a correct plan).
-    pub brake_overruns: u64,
+    /// Plans refused because the machine had passed where they start (0
+    /// when planning and execution are in step).
+    pub stale_plans: u64,
     /// Most Newton iterations in one tick.
     pub max_newton_iters: u32,
 }
@@ -522,7 +524,7 @@ impl Prepared {
         }
         let cfg = config(args);
         let feed = args.feed / 60.0;
-        let blocks = butterfly_blocks(args.feed)?;
+        let blocks = butterfly_blocks(args.feed, &cfg)?;
         let (first, last) = match (blocks.first(), blocks.last()) {
             (Some(f), Some(l)) => (f, l),
             _ => bail!("the butterfly gave no blocks"),
@@ -704,7 +706,7 @@ pub fn run(args: &DemoArgs, on_setpoint: impl FnMut(&Setpoint)) -> Result<Summar
         interpolator: InterpStats {
             ticks: stats.ticks,
             segments_done: stats.segments_done,
-            brake_overruns: stats.brake_overruns,
+            stale_plans: stats.stale_plans,
             max_newton_iters: stats.max_newton_iters,
         },
         csv: args.csv.clone(),
@@ -816,8 +818,8 @@ impl fmt::Display for Summary {
         let i = &self.interpolator;
         writeln!(
             f,
-            "  interp      {} ticks, {} segments done, {} brake overruns, max {} Newton iterations",
-            i.ticks, i.segments_done, i.brake_overruns, i.max_newton_iters
+            "  interp      {} ticks, {} segments done, {} stale plans, max {} Newton iterations",
+            i.ticks, i.segments_done, i.stale_plans, i.max_newton_iters
         )?;
         writeln!(f, "  digest      {}", self.setpoint_digest)?;
         if let Some(path) = &self.csv {
@@ -857,7 +859,7 @@ pub(crate) mod tests_support {
 
     /// The butterfly's interpolator blocks.
     pub(crate) fn blocks(args: &DemoArgs) -> Vec<Block> {
-        butterfly_blocks(args.feed).expect("the butterfly splits")
+        butterfly_blocks(args.feed, &config(args)).expect("the butterfly splits")
     }
 }
 

@@ -12,171 +12,30 @@
 //! a 5-axis machine (six keys). The twelve others are either **C,A type**
 //! (`r1 = c`: two symmetric fans around the C axis) or **A,B type** (two tilt
 //! axes: a spherical rectangle; `R1 = r1`, `R2 = r2`, the table of §3.3).
+//!
+//! The notation, the keys and their classification live in
+//! `interp_core::kinematics` (the interpolator's machine model reads the same
+//! chains); this module keeps the notation as given and the paper's ranges.
 
-use std::fmt;
 use std::str::FromStr;
 
-use nalgebra::{Rotation3, Unit, Vector3};
+pub use interp_core::kinematics::{Chain, ChainError, MachineType, RotaryAxis, RotaryKey};
 
-/// A rotary axis: rotation about x (A), y (B) or z (C) of the machine frame.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize)]
-pub enum RotaryAxis {
-    /// Rotation about x.
-    A,
-    /// Rotation about y.
-    B,
-    /// Rotation about z (the tool axis at home).
-    C,
-}
-
-impl RotaryAxis {
-    /// The axis direction in the machine's home frame.
-    pub fn direction(self) -> Vector3<f64> {
-        match self {
-            RotaryAxis::A => Vector3::x(),
-            RotaryAxis::B => Vector3::y(),
-            RotaryAxis::C => Vector3::z(),
-        }
-    }
-
-    fn letter(self) -> char {
-        match self {
-            RotaryAxis::A => 'a',
-            RotaryAxis::B => 'b',
-            RotaryAxis::C => 'c',
-        }
-    }
-
-    fn from_letter(c: char) -> Option<Self> {
-        match c {
-            'a' => Some(RotaryAxis::A),
-            'b' => Some(RotaryAxis::B),
-            'c' => Some(RotaryAxis::C),
-            _ => None,
-        }
-    }
-}
-
-/// The shape of FTM⁵ on the sphere (§3.2).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize)]
-pub enum MachineType {
-    /// C,A (or C,B): two fans symmetric about the C axis, which is the tool
-    /// axis at home. Φ is the tilt (A or B) range, Θ the C range.
-    CA,
-    /// A,B: a spherical rectangle; Φ is the range of `R1`, Θ that of `R2`.
-    AB,
-}
-
-/// Why a machine description was refused.
+/// Why a machine description was refused: the notation as given and the reason.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum MachineError {
-    /// Not of the form `W/…/T`.
-    #[error("machine `{0}`: expected W/<axes>/T, e.g. W/caxyBz/T")]
-    Syntax(String),
-    /// A character that is not one of `x y z a b c B`.
-    #[error(
-        "machine `{notation}`: character `{found}` at position {position} is not one of x y z a b c B"
-    )]
-    BadAxis {
-        /// The whole notation.
-        notation: String,
-        /// The character.
-        found: char,
-        /// 0-based position in the notation.
-        position: usize,
-    },
-    /// An axis occurs twice.
-    #[error("machine `{notation}`: axis `{axis}` occurs more than once")]
-    Repeated {
-        /// The whole notation.
-        notation: String,
-        /// The repeated axis.
-        axis: char,
-    },
-    /// Not exactly x, y, z, two rotary axes and the bed.
-    #[error("machine `{0}`: a 5-axis machine needs x, y, z, exactly two of a b c, and the bed B")]
-    Axes(String),
-    /// The last rotary axis is `c`: it only spins the tool about its own axis.
-    #[error(
-        "machine `{notation}` (rotary order `{key}`): the rotary axis next to the tool is c, which turns the tool about its own axis, so this is not a 5-axis machine"
-    )]
-    NotFiveAxis {
-        /// The whole notation.
-        notation: String,
-        /// The reduced key, e.g. `Bac`.
-        key: String,
-    },
+#[error("machine `{notation}`: {reason}")]
+pub struct MachineError {
+    /// The notation as given.
+    pub notation: String,
+    /// What is wrong with it.
+    pub reason: ChainError,
 }
 
 /// A five-axis machine configuration parsed from `W/…/T`.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct MachineConfig {
     notation: String,
-    key: RotaryKey,
-}
-
-/// The order of the two rotary axes and the bed from workpiece to tool, e.g.
-/// `caB`: one of the 18 keys of §3.2.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct RotaryKey {
-    /// The rotary axis nearer the workpiece (`r1`).
-    pub first: RotaryAxis,
-    /// The rotary axis nearer the tool (`r2`).
-    pub second: RotaryAxis,
-    /// Where the bed stands among the three symbols (0, 1 or 2).
-    pub bed_position: u8,
-}
-
-impl RotaryKey {
-    /// All 18 orderings of two distinct rotary axes and the bed.
-    pub fn all() -> Vec<RotaryKey> {
-        use RotaryAxis::*;
-        let mut keys = Vec::with_capacity(18);
-        for (first, second) in [(A, B), (B, A), (B, C), (C, B), (C, A), (A, C)] {
-            for bed_position in 0..3 {
-                keys.push(RotaryKey {
-                    first,
-                    second,
-                    bed_position,
-                });
-            }
-        }
-        keys
-    }
-
-    /// The machine type, or `None` for the six orderings that are not 5-axis
-    /// machines (the rotary axis next to the tool is `c`).
-    pub fn machine_type(&self) -> Option<MachineType> {
-        if self.second == RotaryAxis::C {
-            None
-        } else if self.first == RotaryAxis::C {
-            Some(MachineType::CA)
-        } else {
-            Some(MachineType::AB)
-        }
-    }
-
-    /// The tool axis in the machine's home frame for joint angles `q1` (of
-    /// `first`) and `q2` (of `second`), radians: `R_{r1}(q1)·R_{r2}(q2)·ẑ` (eq. 2).
-    pub fn ftm5(&self, q1: f64, q2: f64) -> Vector3<f64> {
-        let r1 = Rotation3::from_axis_angle(&Unit::new_unchecked(self.first.direction()), q1);
-        let r2 = Rotation3::from_axis_angle(&Unit::new_unchecked(self.second.direction()), q2);
-        r1 * r2 * Vector3::z()
-    }
-}
-
-impl fmt::Display for RotaryKey {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let mut rot = [self.first.letter(), self.second.letter()].into_iter();
-        for i in 0..3u8 {
-            if i == self.bed_position {
-                f.write_str("B")?;
-            } else if let Some(c) = rot.next() {
-                write!(f, "{c}")?;
-            }
-        }
-        Ok(())
-    }
+    chain: Chain,
 }
 
 impl MachineConfig {
@@ -185,22 +44,25 @@ impl MachineConfig {
         &self.notation
     }
 
+    /// The parsed chain.
+    pub fn chain(&self) -> &Chain {
+        &self.chain
+    }
+
     /// The reduced rotary key, e.g. `caB`.
     pub fn key(&self) -> RotaryKey {
-        self.key
+        self.chain.key()
     }
 
     /// C,A or A,B.
     pub fn machine_type(&self) -> MachineType {
-        self.key
-            .machine_type()
-            .expect("checked when parsed: only 5-axis keys are stored")
+        self.chain.machine_type()
     }
 
     /// The machine axes that play the roles of the paper's rotary axes: for a
     /// C,A type `(C, tilt axis)`, for an A,B type `(R1, R2)` (§3.3 table).
     pub fn roles(&self) -> (RotaryAxis, RotaryAxis) {
-        (self.key.first, self.key.second)
+        self.chain.roles()
     }
 }
 
@@ -209,53 +71,10 @@ impl FromStr for MachineConfig {
 
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         let notation = s.trim().to_string();
-        let inner = notation
-            .strip_prefix("W/")
-            .and_then(|r| r.strip_suffix("/T"))
-            .ok_or_else(|| MachineError::Syntax(notation.clone()))?;
-        let mut seen = Vec::new();
-        let mut rotary = Vec::new();
-        let mut bed = None;
-        let mut linear = 0;
-        for (i, ch) in inner.chars().enumerate() {
-            let position = i + 2;
-            if !matches!(ch, 'x' | 'y' | 'z' | 'a' | 'b' | 'c' | 'B') {
-                return Err(MachineError::BadAxis {
-                    notation: notation.clone(),
-                    found: ch,
-                    position,
-                });
-            }
-            if seen.contains(&ch) {
-                return Err(MachineError::Repeated {
-                    notation: notation.clone(),
-                    axis: ch,
-                });
-            }
-            seen.push(ch);
-            if ch == 'B' {
-                bed = Some((rotary.len()) as u8);
-            } else if let Some(r) = RotaryAxis::from_letter(ch) {
-                rotary.push(r);
-            } else {
-                linear += 1;
-            }
+        match notation.parse::<Chain>() {
+            Ok(chain) => Ok(MachineConfig { notation, chain }),
+            Err(reason) => Err(MachineError { notation, reason }),
         }
-        let (Some(bed_position), [first, second], 3) = (bed, rotary.as_slice(), linear) else {
-            return Err(MachineError::Axes(notation));
-        };
-        let key = RotaryKey {
-            first: *first,
-            second: *second,
-            bed_position,
-        };
-        if key.machine_type().is_none() {
-            return Err(MachineError::NotFiveAxis {
-                notation,
-                key: key.to_string(),
-            });
-        }
-        Ok(MachineConfig { notation, key })
     }
 }
 
@@ -367,67 +186,6 @@ mod tests {
     use super::*;
 
     #[test]
-    fn eighteen_orderings_six_excluded_twelve_classified() {
-        let keys = RotaryKey::all();
-        let names: std::collections::BTreeSet<String> =
-            keys.iter().map(|k| k.to_string()).collect();
-        assert_eq!(names.len(), 18);
-        let excluded: std::collections::BTreeSet<String> = keys
-            .iter()
-            .filter(|k| k.machine_type().is_none())
-            .map(|k| k.to_string())
-            .collect();
-        let expect_excluded: std::collections::BTreeSet<String> =
-            ["bcB", "bBc", "Bbc", "acB", "aBc", "Bac"]
-                .map(String::from)
-                .into();
-        assert_eq!(excluded, expect_excluded);
-        let of_type = |t| -> std::collections::BTreeSet<String> {
-            keys.iter()
-                .filter(|k| k.machine_type() == Some(t))
-                .map(|k| k.to_string())
-                .collect()
-        };
-        // The paper's C,A list repeats `caB`; the sixth member is `cbB`.
-        assert_eq!(
-            of_type(MachineType::CA),
-            ["caB", "cbB", "cBb", "cBa", "Bca", "Bcb"]
-                .map(String::from)
-                .into()
-        );
-        assert_eq!(
-            of_type(MachineType::AB),
-            ["abB", "baB", "aBb", "bBa", "Bab", "Bba"]
-                .map(String::from)
-                .into()
-        );
-    }
-
-    #[test]
-    fn excluded_orderings_cannot_move_the_tool_with_the_c_joint() {
-        for key in RotaryKey::all()
-            .into_iter()
-            .filter(|k| k.machine_type().is_none())
-        {
-            for q1 in [-1.0, 0.3, 2.0] {
-                let base = key.ftm5(q1, 0.0);
-                for q2 in [-2.5, 0.7, 1.4] {
-                    assert!((key.ftm5(q1, q2) - base).norm() < 1e-12, "{key}");
-                }
-            }
-        }
-        // The paper's worked example: Bac gives (0, −sΦ, cΦ).
-        let bac: RotaryKey = RotaryKey {
-            first: RotaryAxis::A,
-            second: RotaryAxis::C,
-            bed_position: 0,
-        };
-        let phi: f64 = 0.4;
-        let v = bac.ftm5(phi, 1.1);
-        assert!((v - Vector3::new(0.0, -phi.sin(), phi.cos())).norm() < 1e-12);
-    }
-
-    #[test]
     fn r1_r2_table_of_section_3_3() {
         for (notation, r1) in [
             ("W/abxyzB/T", RotaryAxis::A),
@@ -454,28 +212,25 @@ mod tests {
 
     #[test]
     fn bad_notation_is_named() {
-        assert!(matches!(
-            "caxyBz".parse::<MachineConfig>(),
-            Err(MachineError::Syntax(_))
-        ));
-        assert!(matches!(
-            "W/caxyBq/T".parse::<MachineConfig>(),
-            Err(MachineError::BadAxis {
+        let reason = |n: &str| n.parse::<MachineConfig>().unwrap_err().reason;
+        assert_eq!(reason("caxyBz"), ChainError::Syntax);
+        assert_eq!(
+            reason("W/caxyBq/T"),
+            ChainError::BadAxis {
                 position: 7,
-                found: 'q',
-                ..
-            })
-        ));
-        assert!(matches!(
-            "W/caxxBz/T".parse::<MachineConfig>(),
-            Err(MachineError::Repeated { axis: 'x', .. })
-        ));
-        assert!(matches!(
-            "W/cxyBz/T".parse::<MachineConfig>(),
-            Err(MachineError::Axes(_))
-        ));
-        let err = "W/xyBzac/T".parse::<MachineConfig>().unwrap_err();
-        assert!(matches!(err, MachineError::NotFiveAxis { ref key, .. } if key == "Bac"));
+                found: 'q'
+            }
+        );
+        assert_eq!(reason("W/caxxBz/T"), ChainError::Repeated { axis: 'x' });
+        assert_eq!(reason("W/cxyBz/T"), ChainError::Axes);
+        let err = " W/xyBzac/T".parse::<MachineConfig>().unwrap_err();
+        assert!(matches!(err.reason, ChainError::NotFiveAxis { key } if key.to_string() == "Bac"));
+        let msg = err.to_string();
+        assert!(
+            msg.starts_with("machine `W/xyBzac/T`: rotary order `Bac`")
+                && msg.ends_with("not a 5-axis machine"),
+            "{msg}"
+        );
     }
 
     #[test]

@@ -68,6 +68,11 @@ pub struct SetupConfig {
     /// Directions within this angle of a patch's tangent plane do not reach
     /// it, degrees. Default 0: any direction strictly outside the patch.
     pub grazing_margin_deg: f64,
+    /// A cell is in a patch's cone when any of its directions reaches the
+    /// patch, tested exactly (default); off, only its centre direction is
+    /// tested, and cones narrower than the cell spacing can fall between
+    /// the centres.
+    pub exact_cells: bool,
     /// Slack when comparing needed and available ranges, degrees. Default
     /// 1e-9 (round-off only).
     pub fit_tolerance_deg: f64,
@@ -87,6 +92,7 @@ impl Default for SetupConfig {
         Self {
             cells: 1200,
             grazing_margin_deg: 0.0,
+            exact_cells: true,
             fit_tolerance_deg: 1e-9,
             probe_cells: 320,
             equivalent_cells: 1.0,
@@ -138,6 +144,11 @@ pub struct SetupPlan {
     /// Patches that no direction reaches (empty cone): hidden faces, closed
     /// cavities. Any such patch makes the part infeasible.
     pub unreachable_patches: Vec<usize>,
+    /// Patches whose cone is about as narrow as the cell spacing or
+    /// narrower (no cell of it is surrounded by cells of it): reachable,
+    /// but the answer places their directions only to a cell or so; a finer
+    /// sphere resolves them (`VisibilityMap::narrow`).
+    pub narrow_patches: Vec<usize>,
     /// Whether one direction reaches every reachable patch (3-axis, `FTM³`).
     pub three_axis: bool,
     /// Whether the machine's ranges hold every patch in one setup (eq. 1).
@@ -211,6 +222,7 @@ pub fn visibility_map(
         sphere,
         visibility::VisibilityOptions {
             grazing_margin: config.grazing_margin_deg.to_radians(),
+            exact_cells: config.exact_cells,
         },
         &|done, total| progress(Phase::Visibility, done, total),
     ))
@@ -291,6 +303,9 @@ pub fn search_setup(
         patches: map.patches(),
         pvc_classes: classes.classes,
         unreachable_patches: unreachable_patches.clone(),
+        narrow_patches: (0..map.patches())
+            .filter(|&j| map.narrow(j, sphere))
+            .collect(),
         three_axis: !common.is_empty(),
         feasible: setup.is_some() && unreachable_patches.is_empty(),
         setup,

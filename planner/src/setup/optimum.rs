@@ -36,13 +36,11 @@ use super::rect::{RectScratch, rect_search};
 use super::search::{
     Key, Placement, PvcClasses, Scratch, Solved, angle, can_beat, md_cells, nearer,
 };
-use super::sphere::GeodesicSphere;
+use super::sphere::{CellChunks, GeodesicSphere};
 use super::visibility::VisibilityMap;
 
 type V3 = Vector3<f64>;
 
-/// Cells of a class boundary list grouped under one bounding cap.
-const CHUNK: usize = 16;
 /// MD points within this many cell spacings of binding a placement are
 /// kept as its binding points.
 const BINDING_SLACK: f64 = 1.0;
@@ -68,15 +66,12 @@ pub(super) struct Evaluation {
 }
 
 /// The boundary of one class's cone: its cells that touch a cell outside
-/// it, in chunks of [`CHUNK`] under bounding caps. The cone cell nearest a
-/// direction outside the cone is one of them (the sphere has no other local
-/// nearest cells: `sphere::tests`), so MD points can be found here alone.
+/// it, chunked under bounding caps ([`CellChunks`]). The cone cell nearest
+/// a direction outside the cone is one of them (the sphere has no other
+/// local nearest cells: `sphere::tests`), so MD points can be found here
+/// alone.
 #[derive(Debug)]
-struct Boundary {
-    cells: Vec<u32>,
-    /// Per chunk: cap centre, cos and sin of its radius.
-    caps: Vec<(V3, f64, f64)>,
-}
+struct Boundary(CellChunks);
 
 impl Boundary {
     fn new(map: &VisibilityMap, patch: usize, sphere: &GeodesicSphere) -> Self {
@@ -86,90 +81,16 @@ impl Boundary {
             .filter(|&c| open(c) && sphere.touching(c).iter().any(|&n| !open(n as usize)))
             .map(|c| c as u32)
             .collect();
-        let dirs = sphere.cells();
-        // Compact chunks: split along the widest coordinate, recursively.
-        let mut cells = cells;
-        split_compact(&mut cells, dirs);
-        let caps = cells
-            .chunks(CHUNK)
-            .map(|chunk| {
-                let sum: V3 = chunk.iter().map(|&c| dirs[c as usize]).sum();
-                let centre = if sum.norm() > 1e-12 {
-                    sum.normalize()
-                } else {
-                    dirs[chunk[0] as usize]
-                };
-                let cos_r = chunk
-                    .iter()
-                    .map(|&c| dirs[c as usize].dot(&centre))
-                    .fold(1.0, f64::min);
-                // Widened a little so that round-off never drops a cell.
-                let r = cos_r.clamp(-1.0, 1.0).acos() + 1e-9;
-                (centre, r.cos(), r.sin())
-            })
-            .collect();
-        Self { cells, caps }
+        let mut chunks = CellChunks::default();
+        chunks.rebuild(&cells, sphere.cells());
+        Self(chunks)
     }
 
     /// The boundary cell first in the order of [`nearer`] from `p`.
     fn nearest(&self, p: &V3, dirs: &[V3], bounds: &mut Vec<f64>) -> u32 {
-        // Upper bound of p·d over each chunk's cap.
-        bounds.clear();
-        let mut first = 0;
-        for (k, (centre, cos_r, sin_r)) in self.caps.iter().enumerate() {
-            let c = p.dot(centre);
-            let b = if c >= *cos_r {
-                1.0
-            } else {
-                c * cos_r + (1.0 - c * c).max(0.0).sqrt() * sin_r
-            };
-            bounds.push(b + 1e-12);
-            if b > bounds[first] - 1e-12 {
-                first = k;
-            }
-        }
-        let mut best = self.cells[first * CHUNK];
-        let scan = |k: usize, best: &mut u32| {
-            for &c in &self.cells[k * CHUNK..((k + 1) * CHUNK).min(self.cells.len())] {
-                if nearer(p, dirs, c, *best) {
-                    *best = c;
-                }
-            }
-        };
-        scan(first, &mut best);
-        let mut top = dirs[best as usize].dot(p);
-        for k in 0..self.caps.len() {
-            if k != first && bounds[k] >= top {
-                scan(k, &mut best);
-                top = dirs[best as usize].dot(p);
-            }
-        }
-        best
+        self.0
+            .first_by(p, dirs, bounds, |a, b| nearer(p, dirs, a, b))
     }
-}
-
-/// Orders `cells` so that runs of [`CHUNK`] are compact: sorted along the
-/// coordinate of widest spread, halved (at a multiple of `CHUNK`), and each
-/// half ordered the same way.
-fn split_compact(cells: &mut [u32], dirs: &[V3]) {
-    if cells.len() <= CHUNK {
-        return;
-    }
-    let (mut lo, mut hi) = (V3::repeat(f64::INFINITY), V3::repeat(f64::NEG_INFINITY));
-    for &c in cells.iter() {
-        lo = lo.inf(&dirs[c as usize]);
-        hi = hi.sup(&dirs[c as usize]);
-    }
-    let axis = (hi - lo).imax();
-    cells.sort_unstable_by(|&a, &b| {
-        dirs[a as usize][axis]
-            .total_cmp(&dirs[b as usize][axis])
-            .then(a.cmp(&b))
-    });
-    let half = (cells.len() / 2).div_ceil(CHUNK) * CHUNK;
-    let (a, b) = cells.split_at_mut(half.min(cells.len()));
-    split_compact(a, dirs);
-    split_compact(b, dirs);
 }
 
 /// Per-thread memory.

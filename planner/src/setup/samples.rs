@@ -73,6 +73,23 @@ pub fn rotated(soup: &[[P3; 3]], rotation: &Rotation3<f64>) -> Vec<[P3; 3]> {
     soup.iter().map(|t| t.map(|p| rotation * p)).collect()
 }
 
+/// A rotation drawn from `seed` (xorshift): axis uniform on the sphere,
+/// angle uniform in `[0, π)`. The same seed gives the same rotation.
+pub fn random_rotation(seed: u64) -> Rotation3<f64> {
+    let mut s: u64 = seed.wrapping_mul(2_654_435_761).wrapping_add(1);
+    let mut next = || {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        (s >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let z = 2.0 * next() - 1.0;
+    let t = TAU * next();
+    let r = (1.0 - z * z).sqrt();
+    let axis = V3::new(r * t.cos(), r * t.sin(), z);
+    Rotation3::from_axis_angle(&Unit::new_normalize(axis), PI * next())
+}
+
 /// The rotation taking +z to the unit vector `axis` (shortest arc).
 pub fn z_to(axis: &V3) -> Rotation3<f64> {
     Rotation3::rotation_between(&V3::z(), axis)
@@ -177,6 +194,82 @@ pub fn teapot(
                 let out = off - axis * off.dot(&axis);
                 soup.push(facing(tri, out));
             }
+        }
+    }
+    soup
+}
+
+/// A rectangular pocket `width × length`, `depth` deep, in a flat plate: a
+/// floor facing +z, four walls facing into the pocket that lean outward by
+/// `draft_deg` (at 0 they are vertical, so +z grazes them; a small draft
+/// makes +z reach them only just), and a flange `flange` wide around the
+/// mouth. The floor and walls are split `steps × steps` (each quad two
+/// triangles), the flange in four trapezoids. Centred on the origin, floor
+/// at `z = 0`.
+pub fn pocket(
+    width: f64,
+    length: f64,
+    depth: f64,
+    draft_deg: f64,
+    flange: f64,
+    steps: usize,
+) -> Vec<[P3; 3]> {
+    let steps = steps.max(1);
+    let spread = depth * draft_deg.to_radians().tan();
+    let (hw, hl) = (width / 2.0, length / 2.0);
+    let (tw, tl) = (hw + spread, hl + spread);
+    let mut soup = Vec::new();
+    // A quad a → b → c → d split into steps × steps, facing `want`.
+    let mut quad = |a: P3, b: P3, c: P3, d: P3, want: V3| {
+        let at = |u: f64, v: f64| {
+            let bottom = a + (b - a) * u;
+            let top = d + (c - d) * u;
+            bottom + (top - bottom) * v
+        };
+        let s = steps as f64;
+        for i in 0..steps {
+            for j in 0..steps {
+                let (u0, u1) = (i as f64 / s, (i + 1) as f64 / s);
+                let (v0, v1) = (j as f64 / s, (j + 1) as f64 / s);
+                let (p, q, r, t) = (at(u0, v0), at(u1, v0), at(u1, v1), at(u0, v1));
+                soup.push(facing([p, q, r], want));
+                soup.push(facing([p, r, t], want));
+            }
+        }
+    };
+    let bottom = [
+        P3::new(-hw, -hl, 0.0),
+        P3::new(hw, -hl, 0.0),
+        P3::new(hw, hl, 0.0),
+        P3::new(-hw, hl, 0.0),
+    ];
+    let top = [
+        P3::new(-tw, -tl, depth),
+        P3::new(tw, -tl, depth),
+        P3::new(tw, tl, depth),
+        P3::new(-tw, tl, depth),
+    ];
+    quad(bottom[0], bottom[1], bottom[2], bottom[3], V3::z());
+    for k in 0..4 {
+        let (a, b) = (bottom[k], bottom[(k + 1) % 4]);
+        let (c, d) = (top[(k + 1) % 4], top[k]);
+        // Into the pocket: toward the axis, and up by the draft.
+        let mid = P3::from((a.coords + b.coords) / 2.0);
+        let inward = -mid.coords.xy().push(0.0).normalize();
+        quad(a, b, c, d, inward + V3::z() * draft_deg.to_radians().tan());
+    }
+    if flange > 0.0 {
+        let outer = [
+            P3::new(-tw - flange, -tl - flange, depth),
+            P3::new(tw + flange, -tl - flange, depth),
+            P3::new(tw + flange, tl + flange, depth),
+            P3::new(-tw - flange, tl + flange, depth),
+        ];
+        for k in 0..4 {
+            let (a, b) = (top[k], top[(k + 1) % 4]);
+            let (c, d) = (outer[(k + 1) % 4], outer[k]);
+            soup.push(facing([a, b, c], V3::z()));
+            soup.push(facing([a, c, d], V3::z()));
         }
     }
     soup

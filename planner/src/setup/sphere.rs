@@ -239,6 +239,132 @@ impl GeodesicSphere {
     }
 }
 
+/// Cells of one chunk of [`CellChunks`].
+const CHUNK: usize = 16;
+
+/// A set of cells in compact chunks (of [`CHUNK`] cells unless told)
+/// under bounding caps, to find the cells of the set near a direction
+/// without scanning them all.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct CellChunks {
+    /// Cells per chunk (0: [`CHUNK`]).
+    size: usize,
+    cells: Vec<u32>,
+    /// Per chunk: cap centre, cos and sin of its radius.
+    caps: Vec<(Dir, f64, f64)>,
+}
+
+impl CellChunks {
+    /// An empty set chunked `size` cells at a time.
+    pub(crate) fn with_chunk(size: usize) -> Self {
+        Self {
+            size: size.max(1),
+            ..Self::default()
+        }
+    }
+
+    fn size(&self) -> usize {
+        if self.size == 0 { CHUNK } else { self.size }
+    }
+
+    /// Replaces the set by `cells` (directions `dirs`), keeping the memory.
+    pub(crate) fn rebuild(&mut self, cells: &[u32], dirs: &[Dir]) {
+        let size = self.size();
+        self.cells.clear();
+        self.cells.extend_from_slice(cells);
+        split_compact(&mut self.cells, dirs, size);
+        self.caps.clear();
+        for chunk in self.cells.chunks(size) {
+            let sum: Dir = chunk.iter().map(|&c| dirs[c as usize]).sum();
+            let centre = if sum.norm() > 1e-12 {
+                sum.normalize()
+            } else {
+                dirs[chunk[0] as usize]
+            };
+            let cos_r = chunk
+                .iter()
+                .map(|&c| dirs[c as usize].dot(&centre))
+                .fold(1.0, f64::min);
+            // Widened a little so that round-off never drops a cell.
+            let r = cos_r.clamp(-1.0, 1.0).acos() + 1e-9;
+            self.caps.push((centre, r.cos(), r.sin()));
+        }
+    }
+
+    /// The chunks: cap (centre, cos and sin of the radius) and cells.
+    pub(crate) fn chunks(&self) -> impl Iterator<Item = (&(Dir, f64, f64), &[u32])> {
+        self.caps.iter().zip(self.cells.chunks(self.size()))
+    }
+
+    /// The cell of the set first in the order `before(a, b)` (larger `p·d`
+    /// first, ties by `before`). `bounds` is scratch.
+    pub(crate) fn first_by(
+        &self,
+        p: &Dir,
+        dirs: &[Dir],
+        bounds: &mut Vec<f64>,
+        before: impl Fn(u32, u32) -> bool,
+    ) -> u32 {
+        // Upper bound of p·d over each chunk's cap.
+        bounds.clear();
+        let mut first = 0;
+        for (k, (centre, cos_r, sin_r)) in self.caps.iter().enumerate() {
+            let c = p.dot(centre);
+            let b = if c >= *cos_r {
+                1.0
+            } else {
+                c * cos_r + (1.0 - c * c).max(0.0).sqrt() * sin_r
+            };
+            bounds.push(b + 1e-12);
+            if b > bounds[first] - 1e-12 {
+                first = k;
+            }
+        }
+        let size = self.size();
+        let mut best = self.cells[first * size];
+        let scan = |k: usize, best: &mut u32| {
+            for &c in &self.cells[k * size..((k + 1) * size).min(self.cells.len())] {
+                if before(c, *best) {
+                    *best = c;
+                }
+            }
+        };
+        scan(first, &mut best);
+        let mut top = dirs[best as usize].dot(p);
+        for k in 0..self.caps.len() {
+            if k != first && bounds[k] >= top {
+                scan(k, &mut best);
+                top = dirs[best as usize].dot(p);
+            }
+        }
+        best
+    }
+}
+
+/// Orders `cells` so that runs of `size` are compact: sorted along the
+/// coordinate of widest spread, halved (at a multiple of `size`), and each
+/// half ordered the same way.
+fn split_compact(cells: &mut [u32], dirs: &[Dir], size: usize) {
+    if cells.len() <= size {
+        return;
+    }
+    let (mut lo, mut hi) = (Dir::repeat(f64::INFINITY), Dir::repeat(f64::NEG_INFINITY));
+    for &c in cells.iter() {
+        lo = lo.inf(&dirs[c as usize]);
+        hi = hi.sup(&dirs[c as usize]);
+    }
+    let axis = (hi - lo).imax();
+    cells.sort_unstable_by(|&a, &b| {
+        dirs[a as usize][axis]
+            .total_cmp(&dirs[b as usize][axis])
+            .then(a.cmp(&b))
+    });
+    let half = (cells.len() / 2).div_ceil(size) * size;
+    let (a, b) = cells.split_at_mut(half.min(cells.len()));
+    split_compact(a, dirs, size);
+    split_compact(b, dirs, size);
+}
+
 /// The regular icosahedron: 12 unit vertices, 20 faces counter-clockwise seen
 /// from outside.
 fn icosahedron() -> ([Dir; 12], [[usize; 3]; 20]) {
