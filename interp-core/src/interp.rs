@@ -131,6 +131,18 @@ pub enum PushError {
     Schedule,
 }
 
+impl PushError {
+    /// Refused for now, not for what the block is: the queue, the
+    /// look-ahead window or the parts of a long block before it need the
+    /// machine to move on. Offer the block again after a tick.
+    pub fn is_wait(&self) -> bool {
+        matches!(
+            self,
+            PushError::Full { .. } | PushError::ProfileFull | PushError::Pending
+        )
+    }
+}
+
 impl core::fmt::Display for PushError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {

@@ -506,9 +506,7 @@ fn stream(cfg: InterpConfig, blocks: &[Block], gap: usize, separate: bool) -> Ve
             let queued = if separate {
                 match driver.push_into(&mut exec, &blocks[next], &mut sink) {
                     Ok(()) => true,
-                    Err(PushError::ProfileFull | PushError::Full { .. } | PushError::Pending) => {
-                        false
-                    }
+                    Err(e) if e.is_wait() => false,
                     Err(e) => panic!("{e}"),
                 }
             } else {

@@ -9,7 +9,6 @@
 mod common;
 
 use interp_core::geom::{Curve, Vec3};
-use interp_core::interp::PushError;
 use interp_core::path::{Arc, Block, Path};
 use interp_core::{InterpConfig, Interpolator, RunState};
 
@@ -79,7 +78,7 @@ fn run() -> (u64, u64, u64) {
             match ip.push(&block) {
                 Ok(()) => {}
                 // The look-ahead reaches far enough for now.
-                Err(PushError::ProfileFull | PushError::Pending | PushError::Full { .. }) => break,
+                Err(e) if e.is_wait() => break,
                 Err(e) => panic!("{e}"),
             }
             tail = block.path.end_point();

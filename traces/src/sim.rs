@@ -15,7 +15,7 @@
 //! the program's own blocks, so a replay re-runs the stage and gets the same
 //! segments.
 
-use interp_core::interp::{DEFAULT_QUEUE, PushError};
+use interp_core::interp::DEFAULT_QUEUE;
 use interp_core::smooth::SmoothStats;
 use interp_core::{Block, InterpConfig, Interpolator, RunState, Setpoint};
 use serde::{Deserialize, Serialize};
@@ -222,9 +222,7 @@ pub fn run<E>(
         loop {
             match ip.push(seg) {
                 Ok(()) => return Ok(true),
-                Err(PushError::Full { .. } | PushError::ProfileFull | PushError::Pending)
-                    if ip.queued_segments() > 0 =>
-                {
+                Err(e) if e.is_wait() && ip.queued_segments() > 0 => {
                     if !tick(ip, last, sink)? {
                         return Ok(false);
                     }

@@ -194,7 +194,7 @@ impl Sequencer {
                     self.send(Op::Mark, Some(Applied::Commit(seg.block.id)));
                     self.status.blocks_pushed.fetch_add(1, Ordering::AcqRel);
                 }
-                Err(PushError::Full { .. } | PushError::ProfileFull | PushError::Pending) => {
+                Err(e) if e.is_wait() => {
                     // After the next tick.
                     self.pending = Some(seg);
                     return;

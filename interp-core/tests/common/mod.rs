@@ -145,11 +145,10 @@ pub fn check_kinematics(cfg: &InterpConfig, start: Vec3, sps: &[Setpoint]) -> Me
 /// Pushes blocks until one does not fit yet (the look-ahead reaches far
 /// enough for now); returns how many were queued. Panics on any other error.
 pub fn push_what_fits<const Q: usize>(ip: &mut Interpolator<Q>, blocks: &[Block]) -> usize {
-    use interp_core::interp::PushError;
     for (i, b) in blocks.iter().enumerate() {
         match ip.push(b) {
             Ok(()) => {}
-            Err(PushError::ProfileFull | PushError::Pending | PushError::Full { .. }) => return i,
+            Err(e) if e.is_wait() => return i,
             Err(e) => panic!("block {}: {e}", b.id),
         }
     }
