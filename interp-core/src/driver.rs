@@ -255,16 +255,32 @@ impl Driver {
             return None;
         }
         self.plan.finish = false;
-        if self.planner.has_pending() && st.free_segments >= MAX_PIECES {
+        let pending = self.planner.has_pending();
+        if pending && st.free_segments >= MAX_PIECES {
             self.sync(st);
             match self.planner.plan_pending(&mut self.plan) {
                 Ok(()) => return Some(self.emit()),
-                // Not yet: the look-ahead reaches far enough for now (what
-                // else is due, e.g. a resumed hold, still is).
+                // Not yet: the look-ahead reaches far enough for now.
                 Err(e) => self.last_error = Some(e),
             }
         }
         if parts_only {
+            return None;
+        }
+        // A resumed hold waits for nothing: the machine rests until it is
+        // planned again.
+        if st.needs_plan {
+            self.sync(st);
+            return match self.planner.replan(self.ovr, &mut self.plan) {
+                Ok(()) => Some(self.emit()),
+                Err(e) => {
+                    self.last_error = Some(e);
+                    None
+                }
+            };
+        }
+        // The end and the guard wait for the rest of a long block.
+        if pending {
             return None;
         }
         if self.finish_requested && !self.finish_sent && !st.finished {
@@ -278,16 +294,6 @@ impl Driver {
             self.plan.finish = true;
             self.finish_sent = true;
             return Some(self.emit());
-        }
-        if st.needs_plan {
-            self.sync(st);
-            return match self.planner.replan(self.ovr, &mut self.plan) {
-                Ok(()) => Some(self.emit()),
-                Err(e) => {
-                    self.last_error = Some(e);
-                    None
-                }
-            };
         }
         if self.planner.has_unplanned()
             && !st.stopping

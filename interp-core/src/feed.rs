@@ -136,6 +136,25 @@ pub fn machine_limit(d: &Derivs, cfg: &InterpConfig, budget: f64) -> f64 {
     v
 }
 
+/// The speed at which a path followed at constant speed meets an axis's
+/// jerk limit, mm/s: `C_sss,i·v³ ≤ J_i` (the jerk of the curvature alone;
+/// the schedule holds the whole axis jerk along its profile). For decisions
+/// made before any schedule, such as whether a corner blend is worth it.
+pub fn steady_jerk_speed(d: &Derivs, cfg: &InterpConfig) -> f64 {
+    let Some(a) = ArcLengthDerivs::new(d) else {
+        return 0.0;
+    };
+    let keep = 1.0 - cfg.planning_margin;
+    let mut v = f64::INFINITY;
+    for i in 0..3 {
+        let csss = libm::fabs(a.c_sss[i]);
+        if csss > 0.0 {
+            v = v.min(libm::cbrt(keep * cfg.axis_max_jerk[i] / csss));
+        }
+    }
+    v
+}
+
 /// The share of one tick's step within which the curvature at a stationary
 /// point is taken from the step's far end (see [`stationary_offset`]).
 pub const STATIONARY_STEP_SHARE: f64 = 0.25;
