@@ -650,6 +650,13 @@ impl Loop {
             if let Some(what) = step.record {
                 self.record(RtRecord::Applied { tick: ticks, what });
             }
+            if step.program != self.status.program.load(Ordering::Relaxed) {
+                // The state first: a reader that sees the new program
+                // (Acquire) must not see the last one's `done` as its own.
+                self.status
+                    .state
+                    .store(self.exec.state() as u32, Ordering::Release);
+            }
             // The program first: a reader that sees its `started` or
             // `finished` (Acquire) sees which program they are for.
             self.status.program.store(step.program, Ordering::Release);
@@ -721,6 +728,12 @@ impl Loop {
                     self.status.planner_late.fetch_add(1, Ordering::Relaxed);
                 }
                 last.feed = 0.0;
+                // A step may have left `done` for a new program (queued,
+                // not started: it stays idle until it ticks).
+                let st = self.exec.state();
+                if st == RunState::Idle || (last.state == RunState::Done && st != RunState::Done) {
+                    last.state = RunState::Idle;
+                }
             }
             let seq = self.publisher.publish(&last);
             let t1 = now_ns();
