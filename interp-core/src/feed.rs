@@ -132,18 +132,17 @@ pub fn machine_limit(d: &Derivs, cfg: &InterpConfig, budget: f64) -> f64 {
             v = v.min(libm::sqrt(budget * keep * cfg.max_centripetal_accel / k));
         }
         v = v.min(axis_limit(&a, cfg, budget));
+        v = v.min(steady_jerk_speed(&a, cfg));
     }
     v
 }
 
 /// The speed at which a path followed at constant speed meets an axis's
-/// jerk limit, mm/s: `C_sss,i·v³ ≤ J_i` (the jerk of the curvature alone;
-/// the schedule holds the whole axis jerk along its profile). For decisions
-/// made before any schedule, such as whether a corner blend is worth it.
-pub fn steady_jerk_speed(d: &Derivs, cfg: &InterpConfig) -> f64 {
-    let Some(a) = ArcLengthDerivs::new(d) else {
-        return 0.0;
-    };
+/// jerk limit, mm/s: `C_sss,i·v³ ≤ J_i`, the axis jerk of the curvature
+/// alone. No plan passes a point faster than that (it would have to pass it
+/// at constant speed at least), so it is a pointwise machine limit; the
+/// schedule's linear program holds the whole axis jerk along its profile.
+pub fn steady_jerk_speed(a: &ArcLengthDerivs, cfg: &InterpConfig) -> f64 {
     let keep = 1.0 - cfg.planning_margin;
     let mut v = f64::INFINITY;
     for i in 0..3 {

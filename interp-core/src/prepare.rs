@@ -672,6 +672,27 @@ fn sample_laws(
         sample(w, seg.s0, &path.eval(u_lo, 3));
         sample(w, seg.s1(), &path.eval(u_hi, 3));
     }
+    if curve && seg.length < 2.0 * hs {
+        // A curve shorter than the law spacing (a corner blend of a few µm)
+        // may hold no grid sample at all: its laws at its ends and at its
+        // worst point, and a per-axis sample there.
+        for which in 0..2 {
+            let at = |uu: f64| law(&path.eval(uu.clamp(u_lo, u_hi), 3), which);
+            let (u_min, v_min) = golden_section_argmin(at, u_lo, u_hi, GOLDEN_ITERS, 0.0);
+            let v = v_min.min(at(u_lo)).min(at(u_hi));
+            for g in g_first..=g_last {
+                lower(w, g, which, v);
+            }
+            if which == 0 && v_min.is_finite() {
+                let u_min = u_min.clamp(u_lo, u_hi);
+                sample(
+                    w,
+                    seg.s0 + path.arc_length(u_lo, u_min),
+                    &path.eval(u_min, 3),
+                );
+            }
+        }
+    }
     // Whether the last law sample kept a per-axis sample (then the stretch to
     // the next one is sampled at its middle too: the terms change fast there).
     let mut last_kept = false;

@@ -41,7 +41,7 @@
 use heapless::Deque;
 
 use crate::config::{ConfigError, InterpConfig};
-use crate::feed::{machine_limit, steady_jerk_speed};
+use crate::feed::machine_limit;
 use crate::fit::{BAND, lsq_fit, place_knots};
 use crate::geom::{Curve, Vec3};
 use crate::nurbs::{MAX_CTRL, Nurbs};
@@ -588,10 +588,7 @@ impl<const W: usize> Smoother<W> {
             if check(&curve, &poly, &ub, tol, blend_m2(&pts, l)) {
                 // Useful: faster than a stop at its tightest point.
                 let slowest = (0..=16)
-                    .map(|i| {
-                        let d = curve.eval(l * i as f64 / 16.0, 3);
-                        machine_limit(&d, &self.cfg, 1.0).min(steady_jerk_speed(&d, &self.cfg))
-                    })
+                    .map(|i| machine_limit(&curve.eval(l * i as f64 / 16.0, 3), &self.cfg, 1.0))
                     .fold(f64::INFINITY, f64::min);
                 if slowest < self.cfg.junction_min_speed {
                     return None;
