@@ -163,6 +163,66 @@ impl RotaryKey {
         let r2 = Rotation3::from_axis_angle(&Unit::new_unchecked(self.second.direction()), q2);
         r1 * r2 * Vector3::z()
     }
+
+    /// The joint angles `(q1, q2)` (radians, in `(−π, π]`) at which the tool
+    /// axis is `p`: `ftm5(q1, q2) = p̂`, the inverse of eq. 2. Two solutions
+    /// in general (one when `p` lies on the `first` axis, where `q1` is free
+    /// and taken as 0). Empty for the keys that are not 5-axis.
+    pub fn positions_for(&self, p: &Vector3<f64>) -> Vec<(f64, f64)> {
+        if self.machine_type().is_none() || p.norm() == 0.0 {
+            return Vec::new();
+        }
+        let p = p.normalize();
+        let (e1, z) = (self.first.direction(), Vector3::z());
+        // R_{r2}(q2)·ẑ = cos q2·ẑ + sin q2·w (ẑ ⟂ r2, which is a or b), and
+        // its component along r1 must be p's (R_{r1} keeps it):
+        // cos q2·(ẑ·e1) + sin q2·(w·e1) = p·e1, with e1 in the plane of ẑ, w.
+        let w = self.second.direction().cross(&z);
+        let base = (w.dot(&e1)).atan2(z.dot(&e1));
+        let spread = p.dot(&e1).clamp(-1.0, 1.0).acos();
+        let wrap = |a: f64| {
+            let a = a.rem_euclid(std::f64::consts::TAU);
+            if a > std::f64::consts::PI {
+                a - std::f64::consts::TAU
+            } else {
+                a
+            }
+        };
+        let mut out: Vec<(f64, f64)> = Vec::with_capacity(2);
+        for q2 in [base + spread, base - spread] {
+            let v = z * q2.cos() + w * q2.sin();
+            // q1 turns v about r1 onto p.
+            let (vp, pp) = (v - e1 * v.dot(&e1), p - e1 * p.dot(&e1));
+            let q1 = if vp.norm() < 1e-12 || pp.norm() < 1e-12 {
+                0.0
+            } else {
+                e1.dot(&vp.cross(&pp)).atan2(vp.dot(&pp))
+            };
+            let q = (wrap(q1), wrap(q2));
+            if !out
+                .iter()
+                .any(|o| (o.0 - q.0).abs() < 1e-12 && (o.1 - q.1).abs() < 1e-12)
+            {
+                out.push(q);
+            }
+        }
+        out
+    }
+}
+
+/// Rotary axis positions for 3+2 machining: where to put the machine's two
+/// rotary axes so that the tool axis, seen from the part, is a given
+/// direction ([`MachineConfig::rotary_positions`]).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct RotaryPositions {
+    /// The axis nearer the workpiece (`r1`) and its angle, radians.
+    pub first: (RotaryAxis, f64),
+    /// The axis nearer the tool (`r2`) and its angle, radians.
+    pub second: (RotaryAxis, f64),
+    /// Whether both angles lie within the machine's ranges (C,A: C in
+    /// `[−Θˢ, Θᴸ]`, tilt in `[−Φˢ, Φᴸ]`; A,B: R1 in `[−Φˢ, Φᴸ]`, R2 in
+    /// `[−Θˢ, Θᴸ]`); if no solution does, the one with the least motion.
+    pub within_ranges: bool,
 }
 
 impl fmt::Display for RotaryKey {
@@ -201,6 +261,61 @@ impl MachineConfig {
     /// C,A type `(C, tilt axis)`, for an A,B type `(R1, R2)` (§3.3 table).
     pub fn roles(&self) -> (RotaryAxis, RotaryAxis) {
         (self.key.first, self.key.second)
+    }
+
+    /// The rotary axis positions at which the tool axis, seen from the part
+    /// as it lies with the axes at zero, is `tool_axis` (part coordinates):
+    /// with the axes there, a 3-axis program machines what that direction
+    /// reaches (3+2). Of the solutions of [`RotaryKey::positions_for`], the
+    /// one within `ranges` with the least motion `|q1| + |q2|` (angles
+    /// taken modulo 360° into the range when that fits), else the least
+    /// motion overall.
+    pub fn rotary_positions(
+        &self,
+        ranges: &AxisRanges,
+        tool_axis: &Vector3<f64>,
+    ) -> RotaryPositions {
+        use std::f64::consts::TAU;
+        // (−low, high) of the first and second axis.
+        let (first, second) = match self.machine_type() {
+            MachineType::CA => (
+                (ranges.theta_s, ranges.theta_l),
+                (ranges.phi_s, ranges.phi_l),
+            ),
+            MachineType::AB => (
+                (ranges.phi_s, ranges.phi_l),
+                (ranges.theta_s, ranges.theta_l),
+            ),
+        };
+        /// Slack on the range ends, radians.
+        const SLACK: f64 = 1e-9;
+        let fit = |q: f64, (low, high): (f64, f64)| {
+            [q, q - TAU, q + TAU]
+                .into_iter()
+                .find(|&a| a >= -low - SLACK && a <= high + SLACK)
+        };
+        let mut best: Option<(bool, f64, f64, f64)> = None;
+        for (q1, q2) in self.key.positions_for(tool_axis) {
+            let (a, b) = match (fit(q1, first), fit(q2, second)) {
+                (Some(a), Some(b)) => (a, b),
+                _ => (q1, q2),
+            };
+            let within = fit(q1, first).is_some() && fit(q2, second).is_some();
+            let cost = a.abs() + b.abs();
+            let better = match best {
+                None => true,
+                Some((w, c, _, _)) => (within && !w) || (within == w && cost < c - 1e-12),
+            };
+            if better {
+                best = Some((within, cost, a, b));
+            }
+        }
+        let (within_ranges, _, q1, q2) = best.unwrap_or((true, 0.0, 0.0, 0.0));
+        RotaryPositions {
+            first: (self.key.first, q1),
+            second: (self.key.second, q2),
+            within_ranges,
+        }
     }
 }
 
@@ -450,6 +565,50 @@ mod tests {
             assert_eq!(m.key().to_string(), key);
             assert_eq!(m.machine_type(), MachineType::CA);
         }
+    }
+
+    #[test]
+    fn rotary_positions_invert_the_tool_axis_kinematics() {
+        // Every 5-axis key, directions all over the sphere (poles included):
+        // each solution turns the tool axis to the direction (eq. 2).
+        let dirs: Vec<Vector3<f64>> = (0..40)
+            .map(|k| {
+                let (t, a) = (0.37 * k as f64, 1.3 * k as f64);
+                Vector3::new(t.sin() * a.cos(), t.sin() * a.sin(), t.cos())
+            })
+            .chain([Vector3::z(), -Vector3::z(), Vector3::x(), -Vector3::y()])
+            .collect();
+        for key in RotaryKey::all()
+            .into_iter()
+            .filter(|k| k.machine_type().is_some())
+        {
+            for p in &dirs {
+                let sols = key.positions_for(p);
+                assert!(!sols.is_empty(), "{key} {p:?}");
+                for (q1, q2) in sols {
+                    assert!((key.ftm5(q1, q2) - p).norm() < 1e-12, "{key} {p:?}");
+                }
+            }
+        }
+        // A caB machine: the tool tilted 30° toward −y from the part's z
+        // is A = 30° with C = 0 (R_x(30°)·ẑ = (0, −sin 30°, cos 30°)).
+        let m: MachineConfig = "W/caxyBz/T".parse().unwrap();
+        let r: AxisRanges = "110,30,180,180".parse().unwrap();
+        let p = Vector3::new(0.0, -0.5, 3f64.sqrt() / 2.0);
+        let pos = m.rotary_positions(&r, &p);
+        assert!(pos.within_ranges);
+        assert_eq!((pos.first.0, pos.second.0), (RotaryAxis::C, RotaryAxis::A));
+        assert!(pos.first.1.abs() < 1e-12 && (pos.second.1 - 30f64.to_radians()).abs() < 1e-12);
+        // Tilting the other way: A = −30° (the end of A's range) moves less
+        // than C = 180°, A = 30°.
+        let other = Vector3::new(0.0, 0.5, 3f64.sqrt() / 2.0);
+        let q = m.rotary_positions(&r, &other);
+        assert!(q.within_ranges && q.first.1.abs() < 1e-12);
+        assert!((q.second.1 + 30f64.to_radians()).abs() < 1e-12);
+        assert!((m.key().ftm5(q.first.1, q.second.1) - other).norm() < 1e-12);
+        // A tilt beyond both sides of A's range is reported as such.
+        let tight: AxisRanges = "10,10,180,180".parse().unwrap();
+        assert!(!m.rotary_positions(&tight, &p).within_ranges);
     }
 
     #[test]
