@@ -83,6 +83,15 @@ pub fn program_from_gcode(g: &gcode::Program, rapid_speed: f64) -> Result<Progra
             blending = gcode::core_blending(*mode).into();
             continue;
         }
+        // Rotary axes and tool-centre-point control are parsed, not yet
+        // interpolated: refuse rather than run the program as three-axis.
+        if !b
+            .kind
+            .orientation()
+            .is_none_or(gcode::Orientation::is_fixed)
+        {
+            return Err(gcode::ConvertError::FiveAxis { line: b.line }.into());
+        }
         let (from, block) = match &b.kind {
             BlockKind::Rapid(m) => (
                 m.start,
@@ -146,4 +155,21 @@ pub fn program_from_gcode(g: &gcode::Program, rapid_speed: f64) -> Result<Progra
         blocks.push(block);
     }
     Ok(Program { start, blocks })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn five_axis_moves_are_refused_naming_the_line_not_run_as_three_axis() {
+        let g = gcode::parse("G21 G90\nG1 X10 F600\nG1 X20 A15\n").unwrap();
+        let err = program_from_gcode(&g, 100.0).unwrap_err().to_string();
+        assert!(
+            err.contains("line 3: five-axis motion is not interpolated yet"),
+            "{err}"
+        );
+        let g = gcode::parse("G21 G90\nG1 X10 F600\nG1 X20\n").unwrap();
+        assert_eq!(program_from_gcode(&g, 100.0).unwrap().blocks.len(), 2);
+    }
 }

@@ -8,8 +8,8 @@
 //! ([`Reply`]): `ok …`, `status {json}` or `err LINE PROBLEM`. Both parse
 //! from their line and print back to it.
 
-use interp_core::Block;
 use interp_core::nurbs::MAX_CTRL;
+use interp_core::{Block, InterpConfig};
 use traces::{InputBlock, PathSpec, Pipeline};
 
 /// Longest request line, bytes (newline excluded). Longer lines are refused
@@ -120,8 +120,10 @@ impl core::fmt::Display for Request {
 pub enum Reply {
     /// `ok`: an empty line or a comment.
     Ok,
-    /// `ok block K segments A..=B`: the K-th block of the program, queued as
-    /// interpolator segments A to B.
+    /// `ok block K segments A..=B`: the K-th block of the program was
+    /// accepted, and interpolator segments A to B were queued meanwhile
+    /// (`B = A - 1`: none; the program's `G64 P` stage holds blocks back
+    /// until it can decide them, and releases the rest at `end`).
     Block {
         /// Position of the block in its program, from 1.
         index: u32,
@@ -249,9 +251,11 @@ impl Reply {
 
 /// Expands one JSON block (the `traces` JSON block form) as the next block
 /// of the program `pipeline` carries (a NURBS is split into pieces of at
-/// most [`PIECE_CTRL`] control points, exactly as `interpd simulate` and
-/// `interpd replay` do). Also returns the segment info recorded with the
-/// block.
+/// most [`PIECE_CTRL`] control points, and the pieces go through the `G64 P`
+/// stage, exactly as `interpd simulate` and `interpd replay` do). Returns
+/// the interpolator blocks the stage released (maybe none yet: it holds
+/// blocks back until it can decide them) and the block's segment info, as
+/// recorded with it.
 pub fn expand(
     block: &InputBlock,
     pipeline: &mut Pipeline,
@@ -264,17 +268,27 @@ pub fn expand(
             points.len()
         ));
     }
-    let b = pipeline.push(block).map_err(|e| e.kind.to_string())?;
-    Ok((b.segments, b.info))
+    let mut released = Vec::new();
+    let b = pipeline
+        .push(block, &mut released)
+        .map_err(|e| e.kind.to_string())?;
+    Ok((released, b.info))
 }
 
-/// [`expand`] of a block that starts a pipeline at `start` with ids from `first_id`.
+/// The interpolator blocks of a one-block program at `start` under `cfg`,
+/// with ids from `first_id` ([`expand`], then the program's end), and the
+/// block's segment info.
 pub fn expand_from(
     block: &InputBlock,
     start: [f64; 3],
     first_id: u32,
+    cfg: &InterpConfig,
 ) -> Result<(Vec<Block>, Vec<traces::messages::SegmentInfo>), String> {
-    expand(block, &mut Pipeline::new(start, first_id, PIECE_CTRL))
+    let mut pipeline =
+        Pipeline::new(start, first_id, PIECE_CTRL, cfg).map_err(|e| format!("config: {e}"))?;
+    let (mut blocks, info) = expand(block, &mut pipeline)?;
+    blocks.extend(pipeline.finish());
+    Ok((blocks, info))
 }
 
 /// The JSON line of a block.
@@ -307,6 +321,10 @@ pub fn nurbs_json(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn cfg() -> InterpConfig {
+        InterpConfig::default()
+    }
 
     fn block(line: &str) -> InputBlock {
         match parse(line) {
@@ -398,15 +416,19 @@ mod tests {
     #[test]
     fn blocks_expand_and_check_their_geometry() {
         let b = block(r#"{"feed": 600, "kind": "line", "end": [10, 0, 0]}"#);
-        let (bs, info) = expand_from(&b, [0.0; 3], 3).unwrap();
+        let (bs, info) = expand_from(&b, [0.0; 3], 3, &cfg()).unwrap();
         assert_eq!(bs.len(), 1);
         assert_eq!((bs[0].id, info[0].block_id), (3, 3));
         assert_eq!(bs[0].feed, 10.0);
         assert!((bs[0].path.length() - 10.0).abs() < 1e-12);
         // Zero length, bad feed.
-        assert!(expand_from(&b, [10.0, 0.0, 0.0], 1).is_err());
+        assert!(expand_from(&b, [10.0, 0.0, 0.0], 1, &cfg()).is_err());
         let bad = block(r#"{"feed": -1, "kind": "line", "end": [1, 0, 0]}"#);
-        assert!(expand_from(&bad, [0.0; 3], 1).unwrap_err().contains("feed"));
+        assert!(
+            expand_from(&bad, [0.0; 3], 1, &cfg())
+                .unwrap_err()
+                .contains("feed")
+        );
     }
 
     #[test]
@@ -421,7 +443,7 @@ mod tests {
             &BUTTERFLY_KNOTS,
         );
         let b = block(&line);
-        let (pieces, _) = expand_from(&b, START, 1).unwrap();
+        let (pieces, _) = expand_from(&b, START, 1, &cfg()).unwrap();
         assert!(pieces.len() >= 2);
         for (k, w) in pieces.windows(2).enumerate() {
             let gap = (w[0].path.end_point() - w[1].path.start_point()).norm();
@@ -432,6 +454,6 @@ mod tests {
         let want = Vec3::from(BUTTERFLY_POINTS[50]);
         assert!((end - want).norm() < 1e-9);
         // Starting elsewhere is refused.
-        assert!(expand_from(&b, [0.0; 3], 1).is_err());
+        assert!(expand_from(&b, [0.0; 3], 1, &cfg()).is_err());
     }
 }

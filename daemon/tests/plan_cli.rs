@@ -66,6 +66,14 @@ fn plan_raster_refuses_bad_feeds_clearances_and_tolerances_naming_the_flag() {
             "--clearance must be a finite number >= 0",
         ),
         (
+            &["--blend-tolerance=-0.001"][..],
+            "--blend-tolerance must be a finite number of mm >= 0",
+        ),
+        (
+            &["--blend-tolerance", "nan"][..],
+            "--blend-tolerance must be a finite number of mm >= 0",
+        ),
+        (
             &["--chord-tolerance", "1e-15"][..],
             "--chord-tolerance 0.000000000000001 mm is below what f64 resolves",
         ),
@@ -80,6 +88,13 @@ fn plan_raster_refuses_bad_feeds_clearances_and_tolerances_naming_the_flag() {
     assert!(ok, "{err}");
     let text = std::fs::read_to_string(&out).unwrap();
     assert!(text.contains("F1200"), "{text}");
+    // Dense moves run at speed: G64 P (1 µm by default) before any move;
+    // `--blend-tolerance 0` leaves the controller's exact path.
+    assert!(text.contains("G64 P0.001"), "{text}");
+    let (ok, err) = run(&["--blend-tolerance", "0"]);
+    assert!(ok, "{err}");
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(!text.contains("G64"), "{text}");
     std::fs::remove_dir_all(&dir).ok();
 }
 
@@ -91,6 +106,7 @@ fn plan_raster_refuses_bad_feeds_clearances_and_tolerances_naming_the_flag() {
 /// kinematics (eq. 2), for a C,A and an A,B machine.
 #[test]
 fn plan_setup_json_prints_the_certificate_equivalents_and_rotary_positions() {
+    use interp_core::kinematics::{Machine, MachineSpec};
     use planner::setup::MachineConfig;
     use std::fmt::Write as _;
     let dir = std::env::temp_dir().join(format!("interpd-plan-setup-cli-{}", std::process::id()));
@@ -155,12 +171,16 @@ fn plan_setup_json_prints_the_certificate_equivalents_and_rotary_positions() {
             .collect();
         assert_eq!(got, names, "{machine}");
         assert_eq!(setup["rotary_positions_within_ranges"], true);
-        let key = machine.parse::<MachineConfig>().unwrap().key();
-        let q: Vec<f64> = positions
-            .iter()
-            .map(|p| num(&p["deg"]).to_radians())
-            .collect();
-        let reached = key.ftm5(q[0], q[1]);
+        // Forward through the machine's own chain: the joints at home but
+        // the two rotary axes where the JSON says.
+        let config = machine.parse::<MachineConfig>().unwrap();
+        let kin = Machine::new(MachineSpec::new(*config.chain())).unwrap();
+        let mut joints = [0.0; 6];
+        let (r1, r2) = config.roles();
+        joints[r1.joint()] = num(&positions[0]["deg"]);
+        joints[r2.joint()] = num(&positions[1]["deg"]);
+        let reached = kin.forward(&joints).axis;
+        let q = [joints[r1.joint()], joints[r2.joint()]].map(f64::to_radians);
         let axis: Vec<f64> = setup["tool_axis"]
             .as_array()
             .unwrap()

@@ -552,3 +552,103 @@ fn a_recording_cut_off_by_a_crash_replays_up_to_its_last_complete_chunk() {
     let sum = trace_summary(&trace);
     assert_eq!(sum["setpoints"].as_u64(), Some(compared), "{sum}");
 }
+
+/// A `G64 P` program: long lines with corners (blended) and a run of short
+/// moves along a wave (compressed into NURBS pieces), from the origin.
+fn g64_program() -> String {
+    let mut t = String::from("G21 G90 G17\nG64 P0.01\nG1 X10 Y0 F3000\n");
+    for i in 1..=200 {
+        let x = 10.0 + 0.05 * f64::from(i);
+        let y = 0.5 * (0.4 * f64::from(i) * 0.05 * std::f64::consts::TAU).sin();
+        t.push_str(&format!("G1 X{x:.4} Y{y:.4}\n"));
+    }
+    t.push_str("G1 X30 Y10\nG1 X0 Y10\nG1 X0 Y2\nM2\n");
+    t
+}
+
+/// The setpoints of a trace from the last one before it moved to the first
+/// one `done` (the service publishes before `start` and after the end),
+/// without `seq` and `time`.
+fn moving_setpoints(trace: &std::path::Path) -> Vec<[u64; 9]> {
+    let t = traces::reader::Trace::open(trace).expect("trace reads");
+    let first = t
+        .setpoints
+        .iter()
+        .position(|s| s.s > 0.0)
+        .expect("the run moved");
+    let done = t.setpoints[first..]
+        .iter()
+        .position(|s| s.state == interp_core::RunState::Done)
+        .expect("the run ended")
+        + first;
+    t.setpoints[first.saturating_sub(1)..=done]
+        .iter()
+        .map(|s| {
+            [
+                s.x.to_bits(),
+                s.y.to_bits(),
+                s.z.to_bits(),
+                s.feed.to_bits(),
+                s.u.to_bits(),
+                s.s.to_bits(),
+                u64::from(s.block_id),
+                s.a.to_bits(),
+                s.state as u64,
+            ]
+        })
+        .collect()
+}
+
+#[test]
+fn a_g64_program_gives_the_same_setpoints_served_as_simulated() {
+    let dir = temp_dir("g64");
+    let service = service_name("g64");
+    let served = dir.join("served.mcap");
+    let simulated = dir.join("simulated.mcap");
+    let program = dir.join("g64.ngc");
+    std::fs::write(&program, g64_program()).unwrap();
+    let srv = Server::start(
+        &service,
+        &["--no-socket", "--record", served.to_str().unwrap()],
+    );
+    let (st, status, err) = send(srv.port, &program, &[]);
+    assert!(st.success(), "send: {err}");
+    let status = status.expect("send --json prints the status");
+    assert_eq!(status["state"], "done", "{status}");
+    let (st, text) = srv.stop();
+    assert!(st.success(), "serve exited with {st}: {text}");
+
+    let out = std::process::Command::new(interpd())
+        .args(["simulate", "--json", "--out"])
+        .arg(&simulated)
+        .arg(&program)
+        .output()
+        .expect("interpd simulate");
+    assert!(
+        out.status.success(),
+        "simulate: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).expect("summary JSON");
+
+    let a = moving_setpoints(&served);
+    let b = moving_setpoints(&simulated);
+    // The stage reshaped the program: fewer interpolator blocks than moves.
+    let last_id = b.last().unwrap()[6];
+    assert!(last_id > 3 && last_id < 100, "{last_id} blocks: {summary}");
+    assert_eq!(
+        a.len(),
+        b.len(),
+        "served {} setpoints, simulated {}",
+        a.len(),
+        b.len()
+    );
+    if let Some(k) = (0..a.len()).find(|&k| a[k] != b[k]) {
+        panic!(
+            "setpoint {k} of the motion differs: served {:?}, simulated {:?}",
+            a[k], b[k]
+        );
+    }
+    // The recording replays bit for bit by its schedule, stage included.
+    assert!(replay_bit_identical(&served) >= a.len() as u64);
+}

@@ -8,8 +8,11 @@
 //! Each line: `{"line":N,"kind":"rapid"|"feed"|"arc"|"nurbs","end":[x,y,z],...}`
 //! in mm; arcs add `"centre"`, `"plane"` (17/18/19) and `"rotation"` (LinuxCNC's:
 //! +turns counter-clockwise, −turns clockwise); feeds add `"feed"` (mm/min) or
-//! `"inverse_time"` (1/min); NURBS add `"control_points"`. On a parse error it
-//! prints `{"error":"line:column: message"}` and exits with status 2.
+//! `"inverse_time"` (1/min); NURBS add `"control_points"` and the curve as read:
+//! `"plane"`, `"degree"`, `"points"` (x, y, z each), `"weights"`, `"knots"`
+//! (so the script can measure LinuxCNC's approximation against the exact
+//! curve). On a parse error it prints `{"error":"line:column: message"}` and
+//! exits with status 2.
 
 use std::fmt::Write;
 
@@ -17,6 +20,11 @@ use gcode::{BlockKind, Feed};
 
 fn point(p: &[f64; 3]) -> String {
     format!("[{:?},{:?},{:?}]", p[0], p[1], p[2])
+}
+
+fn list(values: impl Iterator<Item = String>) -> String {
+    let items: Vec<String> = values.collect();
+    format!("[{}]", items.join(","))
 }
 
 fn feed(f: Feed) -> String {
@@ -80,10 +88,15 @@ fn main() {
                 let end = m.points.last().copied().unwrap_or([f64::NAN; 3]);
                 let _ = writeln!(
                     out,
-                    "{{\"line\":{line},\"kind\":\"nurbs\",\"end\":{},\"control_points\":{},{}}}",
+                    "{{\"line\":{line},\"kind\":\"nurbs\",\"end\":{},\"control_points\":{},{},\"plane\":{},\"degree\":{},\"points\":{},\"weights\":{},\"knots\":{}}}",
                     point(&end),
                     m.points.len(),
-                    feed(m.feed)
+                    feed(m.feed),
+                    m.plane.g_code(),
+                    m.degree,
+                    list(m.points.iter().map(point)),
+                    list(m.weights.iter().map(|w| format!("{w:?}"))),
+                    list(m.knots.iter().map(|k| format!("{k:?}")))
                 );
             }
             _ => {}

@@ -5,7 +5,7 @@ use interp_core::nurbs::{MAX_CTRL, SplitError, split_program_curve};
 use interp_core::path::{Arc, Blending, Block, Line, Path, PathError};
 
 use crate::error::ConvertError;
-use crate::program::{BlockKind, Feed, PathControl, Program};
+use crate::program::{BlockKind, Feed, Orientation, PathControl, Program};
 
 /// The interp-core blending mode of a path control mode: G61.1 exact stop,
 /// G61 exact path, G64 `P` (G64's `Q` merges nothing here: runs of short
@@ -67,9 +67,13 @@ impl Program {
     ///   [`split_program_curve`] into pieces of at most [`MAX_CTRL`] control
     ///   points that are the same curve;
     /// - moves of zero length are dropped (RS274/NGC allows them; they move nothing);
-    /// - dwell, spindle, tool and path-control blocks carry no path and are
-    ///   skipped; the path control mode in force (G61.1, G61, G64 P; G61
-    ///   until the program sets one) becomes each block's `blending`.
+    /// - dwell, spindle, tool, path-control and tool-centre-point blocks
+    ///   carry no path and are skipped; the path control mode in force (G61.1,
+    ///   G61, G64 P; G61 until the program sets one) becomes each block's
+    ///   `blending`;
+    /// - a move that turns a rotary axis or runs under tool-centre-point
+    ///   control (G43.4, G43.5) is refused ([`ConvertError::FiveAxis`]):
+    ///   interp-core blocks carry X Y Z only.
     ///
     /// Feeds become mm/s (G93 inverse time: the move's length × F / 60).
     pub fn for_each_core_block<E>(
@@ -87,6 +91,9 @@ impl Program {
             }
             let path_err =
                 |error: PathError| ConvertOrSinkError::Convert(ConvertError::Path { line, error });
+            if !b.kind.orientation().is_none_or(Orientation::is_fixed) {
+                return Err(ConvertOrSinkError::Convert(ConvertError::FiveAxis { line }));
+            }
             match &b.kind {
                 BlockKind::Rapid(m) => {
                     let path = match Line::new(v3(m.start), v3(m.end)) {
@@ -162,6 +169,7 @@ impl Program {
                 | BlockKind::Spindle { .. }
                 | BlockKind::ToolChange { .. }
                 | BlockKind::PathControl(_)
+                | BlockKind::ToolControl(_)
                 | BlockKind::ProgramEnd => {}
             }
         }

@@ -6,7 +6,10 @@
 
 use core::fmt::Write;
 
-use crate::program::{BlockKind, Feed, PathControl, Plane, Point, Program, SpindleRotation};
+use crate::program::{
+    BlockKind, Feed, Orientation, PathControl, Plane, Point, Program, Rotary, SpindleRotation,
+    ToolControl,
+};
 
 /// Header every emitted program starts with: millimetres, absolute
 /// coordinates and absolute arc centres, feed per minute, XY plane.
@@ -14,17 +17,24 @@ pub const EMIT_HEADER: &str = "G21 G90 G90.1 G94 G17";
 
 /// Writes `program` as RS274/NGC text (G21, absolute): G0/G1, G2/G3 (centre
 /// form, absolute centres), G6.2 for every NURBS, G4, S/M3/M4/M5, T/M6,
-/// G61/G64, M2.
+/// G61/G64, G43.4/G43.5/G49, M2. A B C words where a rotary axis moves (on
+/// G6.2 control points too), I J K on G0/G1 where the G43.5 tool vector
+/// changes.
 ///
 /// A motion whose start differs from where the previous block ended is
-/// preceded by a G0 to its start. Non-finite numbers cannot be written as
-/// G-code; they come out as `NaN`/`inf` and the text will not parse.
+/// preceded by a G0 to its start (and a move under another tool-centre-point
+/// mode than the one in force by that mode's code). Non-finite numbers
+/// cannot be written as G-code; they come out as `NaN`/`inf` and the text
+/// will not parse.
 pub fn emit(program: &Program) -> String {
     let mut e = Emitter {
         out: String::with_capacity(program.blocks.len() * 40 + 64),
         pos: [0.0; 3],
         plane: Plane::Xy,
         feed: None,
+        rotary: [Some(0.0); 3],
+        tool: ToolControl::Off,
+        vector: None,
     };
     e.out.push_str(EMIT_HEADER);
     e.out.push('\n');
@@ -34,15 +44,30 @@ pub fn emit(program: &Program) -> String {
     e.out
 }
 
+/// The emitter's view of the parser state it writes for.
 struct Emitter {
     out: String,
     pos: Point,
     plane: Plane,
     feed: Option<Feed>,
+    rotary: Rotary,
+    tool: ToolControl,
+    vector: Option<[f64; 3]>,
 }
 
 const AXES: [char; 3] = ['X', 'Y', 'Z'];
+const ROTARY: [char; 3] = ['A', 'B', 'C'];
 const OFFSETS: [char; 3] = ['I', 'J', 'K'];
+
+/// Rotary positions of an orientation's start and end, if it has them.
+fn rotary_ends(o: &Orientation) -> Option<(Rotary, Rotary)> {
+    match *o {
+        Orientation::Axes { start, end } | Orientation::TcpRotary { start, end } => {
+            Some((start, end))
+        }
+        _ => None,
+    }
+}
 
 impl Emitter {
     fn xyz(&mut self, p: &Point) {
@@ -51,10 +76,114 @@ impl Emitter {
         }
     }
 
-    fn move_to_start(&mut self, start: &Point) {
-        if *start != self.pos {
+    /// A B C words for the axes of `target` that differ from `base`.
+    fn rotary_words(&mut self, target: &Rotary, base: &Rotary) {
+        for ((a, t), b) in ROTARY.iter().zip(target).zip(base) {
+            if let Some(v) = t
+                && *b != Some(*v)
+            {
+                let _ = write!(self.out, " {a}{v}");
+            }
+        }
+    }
+
+    /// The words that bring the orientation from the emitter's state to
+    /// `o`'s end, and the new state.
+    fn orientation_words(&mut self, o: &Orientation) {
+        match *o {
+            Orientation::Axes { end, .. } | Orientation::TcpRotary { end, .. } => {
+                let base = self.rotary;
+                self.rotary_words(&end, &base);
+                self.rotary = end;
+            }
+            Orientation::TcpVector { end, .. } => {
+                if let Some(v) = end
+                    && self.vector != end
+                {
+                    for (a, c) in OFFSETS.iter().zip(v) {
+                        let _ = write!(self.out, " {a}{c}");
+                    }
+                }
+                self.vector = end;
+            }
+            Orientation::Fixed => {}
+        }
+    }
+
+    /// Switches tool-centre-point control as the parser does.
+    fn set_tool(&mut self, mode: ToolControl) {
+        let was_vector = matches!(self.tool, ToolControl::ToolVector { .. });
+        let is_vector = matches!(mode, ToolControl::ToolVector { .. });
+        let _ = match mode {
+            ToolControl::Off => writeln!(self.out, "G49"),
+            ToolControl::RotaryAngles { offset: None } => writeln!(self.out, "G43.4"),
+            ToolControl::RotaryAngles { offset: Some(h) } => writeln!(self.out, "G43.4 H{h}"),
+            ToolControl::ToolVector { offset: None } => writeln!(self.out, "G43.5"),
+            ToolControl::ToolVector { offset: Some(h) } => writeln!(self.out, "G43.5 H{h}"),
+        };
+        if is_vector && !was_vector {
+            self.rotary = [None; 3];
+            self.vector = None;
+        }
+        if !is_vector {
+            self.vector = None;
+        }
+        self.tool = mode;
+    }
+
+    /// A move under another mode than the one in force gets that mode first.
+    fn ensure_mode(&mut self, o: &Orientation) {
+        let fits = matches!(
+            (o, self.tool),
+            (
+                Orientation::Fixed | Orientation::Axes { .. },
+                ToolControl::Off
+            ) | (
+                Orientation::TcpRotary { .. },
+                ToolControl::RotaryAngles { .. }
+            ) | (
+                Orientation::TcpVector { .. },
+                ToolControl::ToolVector { .. }
+            )
+        );
+        if !fits {
+            self.set_tool(match o {
+                Orientation::Fixed | Orientation::Axes { .. } => ToolControl::Off,
+                Orientation::TcpRotary { .. } => ToolControl::RotaryAngles { offset: None },
+                Orientation::TcpVector { .. } => ToolControl::ToolVector { offset: None },
+            });
+        }
+    }
+
+    /// A G0 to where a move starts (position, rotary axes, tool vector)
+    /// when that is not where the previous block ended.
+    fn move_to_start(&mut self, start: &Point, o: &Orientation) {
+        self.ensure_mode(o);
+        let rotary_start = rotary_ends(o).map(|(s, _)| s);
+        let rotary_differs = rotary_start.is_some_and(|r| {
+            r.iter()
+                .zip(&self.rotary)
+                .any(|(a, b)| a.is_some() && a != b)
+        });
+        let vector_start = match o {
+            Orientation::TcpVector { start, .. } => *start,
+            _ => None,
+        };
+        let vector_differs = vector_start.is_some() && vector_start != self.vector;
+        if *start != self.pos || rotary_differs || vector_differs {
             self.out.push_str("G0");
             self.xyz(start);
+            if let Some(r) = rotary_start {
+                let base = self.rotary;
+                self.rotary_words(&r, &base);
+                self.rotary = r;
+            }
+            if vector_differs && let Some(v) = vector_start {
+                for (a, c) in OFFSETS.iter().zip(v) {
+                    let _ = write!(self.out, " {a}{c}");
+                }
+                self.vector = vector_start;
+            }
             self.out.push('\n');
             self.pos = *start;
         }
@@ -97,22 +226,24 @@ impl Emitter {
     fn block(&mut self, kind: &BlockKind) {
         match kind {
             BlockKind::Rapid(m) => {
-                self.move_to_start(&m.start);
+                self.move_to_start(&m.start, &m.orientation);
                 self.out.push_str("G0");
                 self.xyz(&m.end);
+                self.orientation_words(&m.orientation);
                 self.out.push('\n');
                 self.pos = m.end;
             }
             BlockKind::Linear(m) => {
-                self.move_to_start(&m.start);
+                self.move_to_start(&m.start, &m.orientation);
                 self.out.push_str("G1");
                 self.xyz(&m.end);
+                self.orientation_words(&m.orientation);
                 self.feed(m.feed);
                 self.out.push('\n');
                 self.pos = m.end;
             }
             BlockKind::Arc(m) => {
-                self.move_to_start(&m.start);
+                self.move_to_start(&m.start, &m.orientation);
                 self.set_plane(m.plane);
                 self.out.push_str(if m.clockwise { "G2" } else { "G3" });
                 self.xyz(&m.end);
@@ -131,9 +262,12 @@ impl Emitter {
                 let Some(first) = m.points.first() else {
                     return;
                 };
-                self.move_to_start(first);
+                self.move_to_start(first, &m.orientation);
                 self.set_plane(m.plane);
                 let n = m.points.len();
+                // Point lines give the rotary axes that differ from where
+                // the curve starts (the parser reads the others from there).
+                let base = self.rotary;
                 for (i, (p, w)) in m.points.iter().zip(&m.weights).enumerate() {
                     if i == 0 {
                         self.out.push_str("G6.2");
@@ -141,6 +275,9 @@ impl Emitter {
                         self.out.push_str("   ");
                     }
                     self.xyz(p);
+                    if let Some(r) = m.rotary.get(i) {
+                        self.rotary_words(r, &base);
+                    }
                     let k = m.knots.get(i).copied().unwrap_or(f64::NAN);
                     let _ = write!(self.out, " R{w} K{k}");
                     if i == 0 {
@@ -153,6 +290,9 @@ impl Emitter {
                     let _ = writeln!(self.out, "G6.2 K{k}");
                 }
                 self.pos = m.points[n - 1];
+                if let Some(r) = m.rotary.last() {
+                    self.rotary = *r;
+                }
             }
             BlockKind::Dwell { seconds } => {
                 let _ = writeln!(self.out, "G4 P{seconds}");
@@ -190,6 +330,7 @@ impl Emitter {
                     self.out.push('\n');
                 }
             },
+            BlockKind::ToolControl(mode) => self.set_tool(*mode),
             BlockKind::ProgramEnd => self.out.push_str("M2\n"),
         }
     }

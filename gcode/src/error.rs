@@ -110,6 +110,15 @@ pub enum ConvertError {
         /// interp-core's reason.
         error: NurbsError,
     },
+    /// A move that turns a rotary axis or runs under tool-centre-point
+    /// control: interp-core blocks carry X Y Z only so far.
+    #[error(
+        "line {line}: five-axis motion is not interpolated yet (a rotary axis moves or tool-centre-point control G43.4/G43.5 is on)"
+    )]
+    FiveAxis {
+        /// Source line.
+        line: u32,
+    },
     /// A feed that is zero, negative or not finite.
     #[error("line {line}: feed {feed} is not positive")]
     Feed {

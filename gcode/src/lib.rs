@@ -24,11 +24,11 @@ pub use expr::{MAX_EXPRESSION_DEPTH, NEAR_INT_TOL, PARAMETER_COUNT};
 pub use parser::{
     ARC_R_TINY, CENTER_ARC_RADIUS_TOLERANCE_INCH, CENTER_ARC_RADIUS_TOLERANCE_MM,
     G5_2_DEFAULT_ORDER, RADIUS_TOLERANCE_INCH, SPIRAL_ABS_HARD_FACTOR, SPIRAL_RELATIVE_TOLERANCE,
-    g5_2_knots, parse, parse_from,
+    g5_2_knots, parse, parse_from, parse_from_axes,
 };
 pub use program::{
-    ArcMove, BlockKind, Feed, LinearMove, NurbsMove, PathControl, Plane, Point, Program,
-    ProgramBlock, RapidMove, SpindleRotation,
+    ArcMove, BlockKind, Feed, LinearMove, NurbsMove, Orientation, PathControl, Plane, Point,
+    Program, ProgramBlock, RapidMove, Rotary, SpindleRotation, ToolControl,
 };
 
 /// A G-code number that is not a units mode (only G20 and G21 are).

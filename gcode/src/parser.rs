@@ -6,8 +6,8 @@ use crate::Units;
 use crate::error::{ParseError, ParseErrorKind};
 use crate::expr::{Cursor, NEAR_INT_TOL, Parameters, Target};
 use crate::program::{
-    ArcMove, BlockKind, Feed, LinearMove, NurbsMove, PathControl, Plane, Point, Program,
-    ProgramBlock, RapidMove, SpindleRotation,
+    ArcMove, BlockKind, Feed, LinearMove, NurbsMove, Orientation, PathControl, Plane, Point,
+    Program, ProgramBlock, RapidMove, Rotary, SpindleRotation, ToolControl,
 };
 
 /// LinuxCNC's `RADIUS_TOLERANCE_INCH`: arcs with a smaller radius are refused, inch.
@@ -40,10 +40,18 @@ pub fn parse(text: &str) -> Result<Program, ParseError> {
 
 /// Parses as [`parse`] does, with the machine at `start` (mm) before the
 /// first line instead of the origin: relative moves (G91) and the first move
-/// start there, so a program is converted from where the machine is.
+/// start there, so a program is converted from where the machine is. The
+/// rotary axes start at 0.
 pub fn parse_from(text: &str, start: Point) -> Result<Program, ParseError> {
+    parse_from_axes(text, [start[0], start[1], start[2], 0.0, 0.0, 0.0])
+}
+
+/// Parses as [`parse_from`] does, with the machine's axes `[X, Y, Z, A, B,
+/// C]` (mm and degrees, as interp-core's setpoints) before the first line.
+pub fn parse_from_axes(text: &str, start: [f64; 6]) -> Result<Program, ParseError> {
     let mut p = Parser {
-        pos: start,
+        pos: [start[0], start[1], start[2]],
+        rotary: [Some(start[3]), Some(start[4]), Some(start[5])],
         ..Parser::default()
     };
     // A G-code line is rarely shorter than this: one reservation instead of
@@ -110,6 +118,9 @@ type LineResult<T> = Result<T, (usize, ParseErrorKind)>;
 /// Letters that may carry a value on a line (not G and M).
 const LETTERS: usize = 26;
 
+/// The axis words: X Y Z and the rotary A B C.
+const AXIS_WORDS: [u8; 6] = [b'x', b'y', b'z', b'a', b'b', b'c'];
+
 fn idx(c: u8) -> usize {
     (c - b'a') as usize
 }
@@ -125,7 +136,7 @@ fn g_group(code: u32) -> Option<(u8, &'static str)> {
         930 | 940 => (5, "feed rate mode"),
         200 | 210 => (6, "units"),
         400 => (7, "cutter compensation"),
-        490 => (8, "tool length offset"),
+        434 | 435 | 490 => (8, "tool length offset"),
         540 => (12, "coordinate system"),
         610 | 611 | 640 => (13, "path control"),
         960 | 970 => (14, "spindle speed mode"),
@@ -253,6 +264,8 @@ struct G6Curve {
     knots: Vec<f64>,
     /// (line, column) of each entry (control point and knot).
     sources: Vec<(u32, usize)>,
+    /// Rotary coordinates of each entry.
+    rotary: Vec<Rotary>,
 }
 
 #[derive(Debug)]
@@ -271,6 +284,12 @@ struct Parser {
     rotation: SpindleRotation,
     css: bool,
     tool: u32,
+    /// Rotary axes A B C, degrees (`None`: unknown, after G43.5).
+    rotary: Rotary,
+    /// G43.4 / G43.5 / G49.
+    tool_control: ToolControl,
+    /// The G43.5 tool vector (`None`: the machine's, no I J K yet).
+    tool_vector: Option<[f64; 3]>,
     motion: Option<Motion>,
     g5: Option<G5Curve>,
     g6: Option<G6Curve>,
@@ -304,6 +323,9 @@ impl Default for Parser {
             rotation: SpindleRotation::Stopped,
             css: false,
             tool: 0,
+            rotary: [Some(0.0); 3],
+            tool_control: ToolControl::Off,
+            tool_vector: None,
             motion: None,
             g5: None,
             g6: None,
@@ -478,11 +500,11 @@ impl Parser {
                         ),
                     );
                 }
-                b'a' | b'b' | b'c' | b'u' | b'v' | b'w' => {
+                b'u' | b'v' | b'w' => {
                     return err(
                         at,
                         ParseErrorKind::Unsupported(format!(
-                            "axis word '{}' (interpd is XYZ only)",
+                            "axis word '{}' (interpd has X Y Z A B C)",
                             c.to_ascii_uppercase() as char
                         )),
                     );
@@ -605,6 +627,134 @@ impl Parser {
             }
         }
         p
+    }
+
+    /// The rotary positions from A B C against `base` (degrees: G20 does
+    /// not scale them; G91 adds them).
+    fn rotary_target(&self, w: &Words, base: Rotary) -> LineResult<Rotary> {
+        let mut r = base;
+        for (i, c) in [b'a', b'b', b'c'].into_iter().enumerate() {
+            if let Some(v) = w.get(c) {
+                r[i] = if self.absolute {
+                    Some(v)
+                } else {
+                    match base[i] {
+                        Some(b) => Some(b + v),
+                        None => {
+                            return err(
+                                w.col(c),
+                                ParseErrorKind::ConflictingArguments(format!(
+                                    "incremental {} while its position is unknown (G43.5 moved the rotary axes): give it in G90 first",
+                                    c.to_ascii_uppercase() as char
+                                )),
+                            );
+                        }
+                    }
+                };
+            }
+        }
+        Ok(r)
+    }
+
+    /// The orientation of a move that changes nothing but X Y Z.
+    fn steady_orientation(&self) -> Orientation {
+        match self.tool_control {
+            ToolControl::Off => Orientation::Fixed,
+            ToolControl::RotaryAngles { .. } => Orientation::TcpRotary {
+                start: self.rotary,
+                end: self.rotary,
+            },
+            ToolControl::ToolVector { .. } => Orientation::TcpVector {
+                start: self.tool_vector,
+                end: self.tool_vector,
+            },
+        }
+    }
+
+    /// The orientation of a move whose rotary axes go to `end` (TCP off or
+    /// G43.4); the parser's rotary state moves there.
+    fn rotary_orientation(&mut self, end: Rotary) -> Orientation {
+        let start = core::mem::replace(&mut self.rotary, end);
+        match self.tool_control {
+            ToolControl::Off if start == end => Orientation::Fixed,
+            ToolControl::Off => Orientation::Axes { start, end },
+            _ => Orientation::TcpRotary { start, end },
+        }
+    }
+
+    /// The orientation of a G0/G1: A B C words (TCP off, G43.4) or the tool
+    /// vector I J K (G43.5; I J K anywhere else is an error).
+    fn move_orientation(
+        &mut self,
+        w: &Words,
+        what: &str,
+        use_word: &mut impl FnMut(u8),
+    ) -> LineResult<Orientation> {
+        let ijk = [b'i', b'j', b'k'];
+        let given = ijk.iter().filter(|&&c| w.has(c)).map(|&c| w.col(c)).min();
+        if let ToolControl::ToolVector { .. } = self.tool_control {
+            let start = self.tool_vector;
+            if given.is_some() {
+                // Fanuc: an omitted I, J or K is 0.
+                let v = ijk.map(|c| w.get(c).unwrap_or(0.0));
+                if v == [0.0; 3] {
+                    return err(
+                        given.unwrap_or(0),
+                        ParseErrorKind::BadValue("tool vector I J K is zero".into()),
+                    );
+                }
+                ijk.into_iter().for_each(&mut *use_word);
+                self.tool_vector = Some(v);
+            }
+            return Ok(Orientation::TcpVector {
+                start,
+                end: self.tool_vector,
+            });
+        }
+        if let Some(col) = given {
+            return err(
+                col,
+                ParseErrorKind::ConflictingArguments(format!(
+                    "I/J/K on {what}: a tool vector needs G43.5 (tool-centre-point control with a tool vector)"
+                )),
+            );
+        }
+        let end = self.rotary_target(w, self.rotary)?;
+        Ok(self.rotary_orientation(end))
+    }
+
+    /// Refuses A B C on a motion that has no rotary form.
+    fn no_rotary_words(w: &Words, what: &str) -> LineResult<()> {
+        match [b'a', b'b', b'c'].into_iter().find(|&c| w.has(c)) {
+            Some(c) => err(
+                w.col(c),
+                ParseErrorKind::Unsupported(format!(
+                    "{} on {what}, which has no rotary form (give the move as G1 or as a G6.2 curve)",
+                    c.to_ascii_uppercase() as char
+                )),
+            ),
+            None => Ok(()),
+        }
+    }
+
+    /// Sets the tool-centre-point control mode; a block marks each change.
+    fn set_tool_control(&mut self, mode: ToolControl, line: u32) {
+        if mode == self.tool_control {
+            return;
+        }
+        let was_vector = matches!(self.tool_control, ToolControl::ToolVector { .. });
+        let is_vector = matches!(mode, ToolControl::ToolVector { .. });
+        if is_vector && !was_vector {
+            // The tool vector steers the rotary axes from here on: the program
+            // no longer knows where they are, nor (until I J K) the vector.
+            self.rotary = [None; 3];
+            self.tool_vector = None;
+        }
+        if !is_vector {
+            self.tool_vector = None;
+        }
+        self.tool_control = mode;
+        self.push(line, BlockKind::ToolControl(mode));
     }
 
     fn feed(&self) -> Feed {
@@ -811,6 +961,41 @@ impl Parser {
             }
             self.plane = plane;
         }
+        if let Some(code) = seen_g[8] {
+            let col = g(code).unwrap_or(0);
+            if self.g5.is_some() || self.g6.is_some() {
+                return err(
+                    col,
+                    ParseErrorKind::NurbsSequence(format!(
+                        "{} inside a NURBS curve (tool-centre-point control changes between moves)",
+                        g_name(code)
+                    )),
+                );
+            }
+            let offset = match w.get(b'h') {
+                Some(h) if code != 490 => {
+                    use_word(b'h');
+                    match near_int(h).filter(|h| (0..=i64::from(u32::MAX)).contains(h)) {
+                        Some(h) => Some(h as u32),
+                        None => {
+                            return err(
+                                w.col(b'h'),
+                                ParseErrorKind::BadValue(
+                                    "tool length offset H must be a non-negative integer".into(),
+                                ),
+                            );
+                        }
+                    }
+                }
+                _ => None,
+            };
+            let mode = match code {
+                434 => ToolControl::RotaryAngles { offset },
+                435 => ToolControl::ToolVector { offset },
+                _ => ToolControl::Off,
+            };
+            self.set_tool_control(mode, line);
+        }
         if let Some(code) = seen_g[13] {
             let pc = match code {
                 610 => PathControl::ExactPath,
@@ -873,7 +1058,19 @@ impl Parser {
                 _ => self.motion, // G5.3, G80 handled below
             };
         }
-        let axes = w.has(b'x') || w.has(b'y') || w.has(b'z');
+        let rotary_words = w.has(b'a') || w.has(b'b') || w.has(b'c');
+        let axes = w.has(b'x') || w.has(b'y') || w.has(b'z') || rotary_words;
+        // Under G43.5 a G0/G1 may turn the tool alone (I J K only).
+        let vector_words = self.vector_words(w);
+        if rotary_words && matches!(self.tool_control, ToolControl::ToolVector { .. }) {
+            return err(
+                w.col(b'a').max(w.col(b'b')).max(w.col(b'c')),
+                ParseErrorKind::ConflictingArguments(
+                    "A/B/C under G43.5: the tool vector I J K steers the rotary axes (G43.4 takes A B C)"
+                        .into(),
+                ),
+            );
+        }
         match motion_code.map(|m| m.0) {
             Some(53) => {
                 let col = motion_code.map_or(0, |m| m.1);
@@ -882,7 +1079,7 @@ impl Parser {
             Some(800) => {
                 if axes {
                     return err(
-                        w.col(b'x').max(w.col(b'y')).max(w.col(b'z')),
+                        AXIS_WORDS.into_iter().map(|c| w.col(c)).max().unwrap_or(0),
                         ParseErrorKind::ConflictingArguments("axis words with G80".into()),
                     );
                 }
@@ -894,7 +1091,7 @@ impl Parser {
                 match self.motion {
                     None if axes => {
                         return err(
-                            [b'x', b'y', b'z']
+                            AXIS_WORDS
                                 .into_iter()
                                 .filter(|&c| w.has(c))
                                 .map(|c| w.col(c))
@@ -906,26 +1103,30 @@ impl Parser {
                         );
                     }
                     // LinuxCNC moves (by zero) on an explicit G0/G1 without axis words.
-                    Some(Motion::Rapid) if axes || explicit => {
+                    Some(Motion::Rapid) if axes || explicit || vector_words => {
                         let end = self.target(w, self.pos);
+                        let orientation = self.move_orientation(w, "G0", &mut use_word)?;
                         self.push(
                             line,
                             BlockKind::Rapid(RapidMove {
                                 start: self.pos,
                                 end,
+                                orientation,
                             }),
                         );
                         self.pos = end;
                     }
-                    Some(Motion::Linear) if axes || explicit => {
+                    Some(Motion::Linear) if axes || explicit || vector_words => {
                         self.check_feed(w, motion_code.map_or(0, |m| m.1), "G1")?;
                         let end = self.target(w, self.pos);
+                        let orientation = self.move_orientation(w, "G1", &mut use_word)?;
                         self.push(
                             line,
                             BlockKind::Linear(LinearMove {
                                 start: self.pos,
                                 end,
                                 feed: self.feed(),
+                                orientation,
                             }),
                         );
                         self.pos = end;
@@ -998,10 +1199,17 @@ impl Parser {
         Ok(true)
     }
 
+    /// I J K on a line under G43.5 (a tool vector for G0/G1).
+    fn vector_words(&self, w: &Words) -> bool {
+        matches!(self.tool_control, ToolControl::ToolVector { .. })
+            && (w.has(b'i') || w.has(b'j') || w.has(b'k'))
+    }
+
     /// The motion code a line without one will run (for the G93 F check).
     fn motion_code_if_moving(&self, w: &Words) -> Option<u32> {
-        let axes = w.has(b'x') || w.has(b'y') || w.has(b'z');
-        if !axes {
+        let axes = AXIS_WORDS.into_iter().any(|c| w.has(c));
+        let vector = self.vector_words(w) && matches!(self.motion, Some(Motion::Linear));
+        if !(axes || vector) {
             return None;
         }
         Some(match self.motion? {
@@ -1034,6 +1242,7 @@ impl Parser {
         clockwise: bool,
         use_word: &mut impl FnMut(u8),
     ) -> LineResult<()> {
+        Self::no_rotary_words(w, if clockwise { "G2" } else { "G3" })?;
         let plane = self.plane;
         let (a, b, n) = plane.axes();
         let offs = [b'i', b'j', b'k'];
@@ -1179,6 +1388,7 @@ impl Parser {
                 clockwise,
                 extra_turns: turns - 1,
                 feed: self.feed(),
+                orientation: self.steady_orientation(),
             }),
         );
         self.pos = end;
@@ -1195,6 +1405,7 @@ impl Parser {
         use_word: &mut impl FnMut(u8),
     ) -> LineResult<()> {
         let name = if cubic { "G5" } else { "G5.1" };
+        Self::no_rotary_words(w, name)?;
         if self.plane != Plane::Xy {
             return err(
                 col,
@@ -1266,7 +1477,8 @@ impl Parser {
         let mut knots = vec![0.0; degree + 1];
         knots.extend(std::iter::repeat_n(1.0, degree + 1));
         let weights = vec![1.0; points.len()];
-        self.push_nurbs(line, col, line, degree, points, weights, knots, &[])
+        let rotary = vec![self.rotary; points.len()];
+        self.push_nurbs(line, col, line, degree, points, weights, knots, rotary, &[])
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -1279,6 +1491,7 @@ impl Parser {
         points: Vec<Point>,
         weights: Vec<f64>,
         knots: Vec<f64>,
+        rotary: Vec<Rotary>,
         sources: &[(u32, usize)],
     ) -> LineResult<()> {
         match validate_program_curve(degree, &points, &weights, &knots) {
@@ -1304,18 +1517,50 @@ impl Parser {
             }
         }
         let start = points[0];
-        if start != self.pos {
+        let (first_rotary, last_rotary) = match (rotary.first(), rotary.last()) {
+            (Some(f), Some(l)) => (*f, *l),
+            _ => (self.rotary, self.rotary),
+        };
+        if start != self.pos || first_rotary != self.rotary {
             // LinuxCNC feeds in a straight line to the curve's first point.
+            let orientation = match self.tool_control {
+                ToolControl::ToolVector { .. } => self.steady_orientation(),
+                _ => self.rotary_orientation(first_rotary),
+            };
             self.push(
                 line,
                 BlockKind::Linear(LinearMove {
                     start: self.pos,
                     end: start,
                     feed: self.feed(),
+                    orientation,
                 }),
             );
         }
         self.pos = points[points.len() - 1];
+        let (orientation, rotary) = match self.tool_control {
+            ToolControl::ToolVector { .. } => (self.steady_orientation(), Vec::new()),
+            ToolControl::Off if rotary.iter().all(|r| *r == first_rotary) => {
+                (Orientation::Fixed, Vec::new())
+            }
+            ToolControl::Off => (
+                Orientation::Axes {
+                    start: first_rotary,
+                    end: last_rotary,
+                },
+                rotary,
+            ),
+            ToolControl::RotaryAngles { .. } => (
+                Orientation::TcpRotary {
+                    start: first_rotary,
+                    end: last_rotary,
+                },
+                rotary,
+            ),
+        };
+        if !matches!(self.tool_control, ToolControl::ToolVector { .. }) {
+            self.rotary = last_rotary;
+        }
         let plane = self.plane;
         let feed = self.feed();
         self.push(
@@ -1328,6 +1573,8 @@ impl Parser {
                 weights,
                 knots,
                 feed,
+                orientation,
+                rotary,
             }),
         );
         Ok(())
@@ -1358,6 +1605,7 @@ impl Parser {
         explicit: bool,
         use_word: &mut impl FnMut(u8),
     ) -> LineResult<()> {
+        Self::no_rotary_words(w, "G5.2")?;
         let has_pair = self.plane_pair(w, col)?;
         if !self.inverse_time && self.feed == 0.0 {
             return err(
@@ -1445,6 +1693,7 @@ impl Parser {
         let knots = g5_2_knots(c.points.len(), c.order);
         self.motion = None;
         self.plane = c.plane;
+        let rotary = vec![self.rotary; c.points.len()];
         self.push_nurbs(
             line,
             col,
@@ -1453,6 +1702,7 @@ impl Parser {
             c.points,
             c.weights,
             knots,
+            rotary,
             &c.sources,
         )
     }
@@ -1492,6 +1742,7 @@ impl Parser {
                     weights: Vec::new(),
                     knots: Vec::new(),
                     sources: Vec::new(),
+                    rotary: Vec::new(),
                 });
             }
         } else if first {
@@ -1529,6 +1780,35 @@ impl Parser {
             );
         };
         let base = c.start;
+        let base_rotary = self.rotary;
+        let rotary_words = [b'a', b'b', b'c'].into_iter().find(|&l| w.has(l));
+        let rotary = match rotary_words {
+            Some(l) if !has_pair => {
+                return err(
+                    w.col(l),
+                    ParseErrorKind::ConflictingArguments(format!(
+                        "{} on a G6.2 line without a control point",
+                        l.to_ascii_uppercase() as char
+                    )),
+                );
+            }
+            Some(_) => self.rotary_target(w, base_rotary)?,
+            None => base_rotary,
+        };
+        // Each rotary axis is a coordinate of every control point or of none.
+        if let Some(prev) = c.rotary.first() {
+            for (i, l) in [b'a', b'b', b'c'].into_iter().enumerate() {
+                if prev[i].is_some() != rotary[i].is_some() && has_pair {
+                    return err(
+                        if w.has(l) { w.col(l) } else { col },
+                        ParseErrorKind::ConflictingArguments(format!(
+                            "{} is not known on every control point of this G6.2 curve (its position is unknown after G43.5): give it on every point",
+                            l.to_ascii_uppercase() as char
+                        )),
+                    );
+                }
+            }
+        }
         let point = if has_pair {
             match r {
                 Some(r) if r > 0.0 => {}
@@ -1552,6 +1832,7 @@ impl Parser {
         c.weights.push(r.unwrap_or(1.0));
         c.knots.push(k);
         c.sources.push((line, col));
+        c.rotary.push(rotary);
         let n = c.knots.len();
         // LinuxCNC ends the curve once the last `order` knots are equal.
         if n > c.order && c.knots[n - 1] == c.knots[n - c.order] {
@@ -1561,6 +1842,7 @@ impl Parser {
             let count = n - c.order;
             c.points.truncate(count);
             c.weights.truncate(count);
+            c.rotary.truncate(count);
             self.motion = None;
             let col = c.first_col;
             if count == 0 {
@@ -1577,6 +1859,7 @@ impl Parser {
                 c.points,
                 c.weights,
                 c.knots,
+                c.rotary,
                 &c.sources,
             )?;
         }

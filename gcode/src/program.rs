@@ -7,6 +7,75 @@
 /// A point `[x, y, z]`, mm.
 pub type Point = [f64; 3];
 
+/// Positions of the rotary axes `[A, B, C]`, degrees; `None` for an axis
+/// whose position the program does not know (after G43.5 steered the rotary
+/// axes, until a word sets it again).
+pub type Rotary = [Option<f64>; 3];
+
+/// Tool-centre-point control, modal group 8 (G43.4, G43.5, G49).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum ToolControl {
+    /// G49 (and the start): X Y Z are the machine's linear axes and A B C
+    /// plain rotary axes.
+    #[default]
+    Off,
+    /// G43.4: X Y Z are the tool tip in the workpiece frame, A B C the
+    /// rotary positions.
+    RotaryAngles {
+        /// The tool length offset number `H`, if given.
+        offset: Option<u32>,
+    },
+    /// G43.5: X Y Z are the tool tip in the workpiece frame, I J K the tool
+    /// axis (from the tip into the spindle).
+    ToolVector {
+        /// The tool length offset number `H`, if given.
+        offset: Option<u32>,
+    },
+}
+
+/// What a move does with the rotary axes and the tool axis, beside X Y Z.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum Orientation {
+    /// A three-axis move: tool-centre-point control is off and no rotary
+    /// axis moves (they stay where they are).
+    #[default]
+    Fixed,
+    /// TCP off (G49): A B C move as plain axes from `start` to `end`
+    /// together with X Y Z (the joints move in proportion).
+    Axes {
+        /// Rotary positions where the move starts.
+        start: Rotary,
+        /// Rotary positions where it ends.
+        end: Rotary,
+    },
+    /// G43.4: X Y Z are the tool tip in the workpiece frame; the rotary
+    /// positions go from `start` to `end`.
+    TcpRotary {
+        /// Rotary positions where the move starts.
+        start: Rotary,
+        /// Rotary positions where it ends.
+        end: Rotary,
+    },
+    /// G43.5: X Y Z are the tool tip; the tool axis goes from `start` to
+    /// `end` (directions as programmed, not normalised; `None`: the
+    /// machine's tool axis, when no I J K has been given since G43.5).
+    TcpVector {
+        /// Tool axis where the move starts.
+        start: Option<[f64; 3]>,
+        /// Tool axis where it ends.
+        end: Option<[f64; 3]>,
+    },
+}
+
+impl Orientation {
+    /// A three-axis move (neither rotary motion nor tool-centre-point control).
+    pub fn is_fixed(&self) -> bool {
+        matches!(self, Orientation::Fixed)
+    }
+}
+
 /// A parsed program: its blocks in order.
 #[derive(Debug, Clone, PartialEq, Default)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -88,6 +157,8 @@ pub struct LinearMove {
     pub end: Point,
     /// Programmed feed.
     pub feed: Feed,
+    /// Rotary axes and tool axis.
+    pub orientation: Orientation,
 }
 
 /// A rapid move to `end` (G0). It carries no feed: the machine's rapid speed applies.
@@ -98,6 +169,8 @@ pub struct RapidMove {
     pub start: Point,
     /// Where it ends, mm.
     pub end: Point,
+    /// Rotary axes and tool axis.
+    pub orientation: Orientation,
 }
 
 /// A circular or helical arc (G2/G3), centre form (radius-form arcs are
@@ -119,6 +192,8 @@ pub struct ArcMove {
     pub extra_turns: u32,
     /// Programmed feed.
     pub feed: Feed,
+    /// Rotary axes and tool axis (arcs carry no A B C words: constant).
+    pub orientation: Orientation,
 }
 
 /// A rational B-spline move (G5.2/G5.3 or G6.2), exactly as programmed.
@@ -140,6 +215,14 @@ pub struct NurbsMove {
     pub knots: Vec<f64>,
     /// Programmed feed.
     pub feed: Feed,
+    /// Rotary axes and tool axis; for [`Orientation::Axes`] and
+    /// [`Orientation::TcpRotary`] its start and end are the first and last
+    /// entry of `rotary`.
+    pub orientation: Orientation,
+    /// Rotary coordinates of each control point (G6.2 `A B C`, a NURBS in
+    /// the rotary axes with the same weights and knots); empty unless
+    /// `orientation` is [`Orientation::Axes`] or [`Orientation::TcpRotary`].
+    pub rotary: Vec<Rotary>,
 }
 
 /// Spindle rotation (M3, M4, M5).
@@ -205,6 +288,11 @@ pub enum BlockKind {
     },
     /// G61/G61.1/G64.
     PathControl(PathControl),
+    /// G43.4, G43.5 or G49: tool-centre-point control from here on (only
+    /// where the mode changes). The machine does not move: the first move
+    /// after it starts from where the machine is, which its `start` gives in
+    /// the new mode's terms only as far as the program knows them.
+    ToolControl(ToolControl),
     /// M2 or M30: the program ends here.
     ProgramEnd,
 }
@@ -217,6 +305,17 @@ impl BlockKind {
             BlockKind::Linear(m) => Some(m.end),
             BlockKind::Arc(m) => Some(m.end),
             BlockKind::Nurbs(m) => m.points.last().copied(),
+            _ => None,
+        }
+    }
+
+    /// Orientation of a motion block (`None` for the others).
+    pub fn orientation(&self) -> Option<&Orientation> {
+        match self {
+            BlockKind::Rapid(m) => Some(&m.orientation),
+            BlockKind::Linear(m) => Some(&m.orientation),
+            BlockKind::Arc(m) => Some(&m.orientation),
+            BlockKind::Nurbs(m) => Some(&m.orientation),
             _ => None,
         }
     }

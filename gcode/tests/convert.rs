@@ -168,3 +168,34 @@ fn the_path_control_mode_in_force_becomes_each_blocks_blending() {
         ]
     );
 }
+
+/// interp-core blocks carry X Y Z only: rotary motion and TCP moves are
+/// refused naming the line, never converted without their rotary part.
+#[test]
+fn five_axis_motion_is_refused_until_it_is_interpolated() {
+    for (text, line) in [
+        ("G0 X1\nG1 X2 A30 F100\n", 2),
+        ("G1 X1 F100\nG1 C90\n", 2),
+        ("G43.4\nG0 X0 Y0 Z10\n", 2),
+        ("G43.5\nG1 X1 I0 J0 K1 F100\n", 2),
+        (
+            "F100\nG6.2 P3 X0 Y0 R1 K0\nX1 Y1 B10 R1 K0\nX2 Y0 R1 K0\nG6.2 K1\nG6.2 K1\nG6.2 K1\n",
+            7,
+        ),
+    ] {
+        let e = parse(text)
+            .unwrap()
+            .to_core_blocks(&CoreOptions::default())
+            .unwrap_err();
+        assert_eq!(e, ConvertError::FiveAxis { line }, "{text}");
+        assert!(
+            e.to_string().starts_with(&format!(
+                "line {line}: five-axis motion is not interpolated yet"
+            )),
+            "{e}"
+        );
+    }
+    // Rotary words that move nothing, and G49, convert as before.
+    let b = core("G0 X0 Y0 Z1 A0 C0\nG49 G1 X1 A0 F600\n");
+    assert_eq!(b.len(), 2);
+}

@@ -169,37 +169,61 @@ fn one_curve_in_three_spellings_gives_the_same_setpoints() {
     }
 }
 
-/// The minimal examples of docs/gcode.md: the three NURBS spellings of one
-/// quadratic read as the same curve (the G6.2 forms' knots up to their scale).
+/// docs/gcode.md's "NURBS forms, minimal" block, read from the doc: every
+/// paragraph parses alone into the curves its comment names (degree, control
+/// points, weights), so the documented forms cannot drift from the parser.
 #[test]
-fn the_documented_minimal_nurbs_forms_are_one_curve() {
-    let forms = [
-        "G0 X0 Y0\nG1 F600\nG5.2 X10 Y10 P1 L3\n     X20 Y0 P1\nG5.3\n",
-        "G6.2 P3 Q1 X0 Y0 R1 K0 F600\n     X10 Y10 R1 K0\n     X20 Y0 R1 K0\nG6.2 K1\nG6.2 K1\nG6.2 K1\n",
-        "G06.2 P3 K0 X0 Y0 R1 F600\nK0 X10 Y10 R1\nK0 X20 Y0 R1\nK25\nK25\nK25\n",
+fn every_documented_minimal_nurbs_form_reads_as_its_comment_says() {
+    const DOC: &str = include_str!("../../docs/gcode.md");
+    let section = &DOC[DOC.find("### NURBS forms, minimal").expect("section")..];
+    let fence = "```gcode\n";
+    let code = &section[section.find(fence).expect("code block") + fence.len()..];
+    let code = &code[..code.find("```").expect("end of the code block")];
+    let quadratic = (2, vec![[0.0, 0.0], [10.0, 10.0], [20.0, 0.0]], vec![1.0; 3]);
+    type Curve = (usize, Vec<[f64; 2]>, Vec<f64>);
+    let expected: [Vec<Curve>; 6] = [
+        vec![quadratic.clone()],
+        vec![(
+            3,
+            vec![[0.0, 0.0], [10.0, 10.0], [20.0, 10.0], [30.0, 0.0]],
+            vec![2.0, 1.0, 1.0, 1.0],
+        )],
+        vec![quadratic.clone()],
+        vec![quadratic.clone()],
+        vec![quadratic],
+        vec![
+            (
+                3,
+                vec![[0.0, 0.0], [5.0, 10.0], [15.0, 10.0], [20.0, 0.0]],
+                vec![1.0; 4],
+            ),
+            (
+                3,
+                vec![[20.0, 0.0], [25.0, -10.0], [35.0, -10.0], [40.0, 0.0]],
+                vec![1.0; 4],
+            ),
+        ],
     ];
-    for text in forms {
-        let curves: Vec<_> = blocks(text)
+    let forms: Vec<&str> = code.split("\n\n").collect();
+    assert_eq!(forms.len(), expected.len(), "paragraphs of the block");
+    for (text, want) in forms.iter().zip(&expected) {
+        let got: Vec<Curve> = blocks(text)
             .into_iter()
             .filter_map(|b| match b.path {
                 interp_core::Path::Nurbs(n) => Some(n),
                 _ => None,
             })
+            .map(|n| {
+                let pts = (0..n.control_count())
+                    .map(|i| {
+                        let p = n.control_point(i);
+                        [p[0], p[1]]
+                    })
+                    .collect();
+                let w = (0..n.control_count()).map(|i| n.weight(i)).collect();
+                (n.degree(), pts, w)
+            })
             .collect();
-        assert_eq!(curves.len(), 1, "{text}");
-        let n = curves[0];
-        assert_eq!(n.degree(), 2, "{text}");
-        let pts: Vec<_> = (0..n.control_count()).map(|i| n.control_point(i)).collect();
-        assert_eq!(
-            pts,
-            [[0.0, 0.0, 0.0], [10.0, 10.0, 0.0], [20.0, 0.0, 0.0]],
-            "{text}"
-        );
+        assert_eq!(&got, want, "{text}");
     }
-    // And the quadratic Bézier of the same points.
-    let b = blocks("G0 X0 Y0\nG1 F600\nG5.1 X20 Y0 I10 J10\n");
-    let interp_core::Path::Nurbs(n) = b.last().unwrap().path else {
-        panic!("{b:?}");
-    };
-    assert_eq!(n.control_point(1), [10.0, 10.0, 0.0]);
 }

@@ -201,7 +201,8 @@ fn inches_are_converted_to_millimetres() {
         BlockKind::Linear(LinearMove {
             start: [0.0; 3],
             end: [25.4, -50.8, 0.0],
-            feed: Feed::PerMinute(254.0)
+            feed: Feed::PerMinute(254.0),
+            orientation: gcode::Orientation::Fixed,
         })
     );
     let BlockKind::Arc(a) = &b[1] else { panic!() };
@@ -491,7 +492,7 @@ fn every_error_class_names_line_and_column() {
         ("G0 X-", 1, 6, |k| matches!(k, K::BadNumber)),
         ("G0 X1 é", 1, 7, |k| matches!(k, K::UnexpectedChar('é'))),
         ("O100 sub", 1, 1, |k| matches!(k, K::Unsupported(_))),
-        ("G0 A10", 1, 4, |k| matches!(k, K::Unsupported(_))),
+        ("G0 U10", 1, 4, |k| matches!(k, K::Unsupported(_))),
         ("G1 X0 F-1", 1, 7, |k| matches!(k, K::BadValue(_))),
         ("G2 X0 Y0 I1 P0 F1", 1, 13, |k| matches!(k, K::BadValue(_))),
         ("G1 F10\nG0 X1\n%", 3, 1, |k| {
@@ -552,6 +553,86 @@ fn every_error_class_names_line_and_column() {
         ("F1\nG5.2 X1 Y1 P1\nX2 Y0 P1\nM2", 4, 1, |k| {
             matches!(k, K::NurbsSequence(_))
         }),
+        // Five-axis: I J K is a tool vector only under G43.5; no TCP change
+        // inside a curve; no A B C on G5.2, G5, arcs, under G43.5, on a
+        // knot line, or incremental while unknown; H as an offset number.
+        (
+            "G1 X1 J1 F100",
+            1,
+            7,
+            |k| matches!(k, K::ConflictingArguments(m) if m.contains("G43.5")),
+        ),
+        (
+            "G0 X1 K2",
+            1,
+            7,
+            |k| matches!(k, K::ConflictingArguments(m) if m.contains("G43.5")),
+        ),
+        (
+            "F1\nG6.2 X0 Y0 R1 K0 P3\nG43.4\n",
+            3,
+            1,
+            |k| matches!(k, K::NurbsSequence(m) if m.contains("G43.4 inside")),
+        ),
+        (
+            "F1\nG5.2 X1 Y1 P1\nX2 Y0 P1 C5\n",
+            3,
+            10,
+            |k| matches!(k, K::Unsupported(m) if m.contains("C on G5.2")),
+        ),
+        ("G5 X1 Y1 I1 J0 P1 Q0 A5 F1", 1, 22, |k| {
+            matches!(k, K::Unsupported(_))
+        }),
+        (
+            "G2 X1 Y1 I1 B10 F1",
+            1,
+            13,
+            |k| matches!(k, K::Unsupported(m) if m.contains("B on G2")),
+        ),
+        (
+            "G43.5\nG1 X1 A10 F1",
+            2,
+            7,
+            |k| matches!(k, K::ConflictingArguments(m) if m.contains("under G43.5")),
+        ),
+        (
+            "G43.5\nG1 X1 I0 J0 K0 F1",
+            2,
+            7,
+            |k| matches!(k, K::BadValue(m) if m.contains("zero")),
+        ),
+        ("G43.4 H-1", 1, 7, |k| matches!(k, K::BadValue(_))),
+        ("G43.4 H1.5", 1, 7, |k| matches!(k, K::BadValue(_))),
+        ("G49 H1", 1, 5, |k| matches!(k, K::ConflictingArguments(_))),
+        ("G43.4 G49", 1, 7, |k| {
+            matches!(k, K::ModalGroupConflict { .. })
+        }),
+        (
+            "G43.5\nG49\nG91 G1 A5 F1",
+            3,
+            8,
+            |k| matches!(k, K::ConflictingArguments(m) if m.contains("unknown")),
+        ),
+        (
+            "F1\nG6.2 X0 Y0 R1 K0 P3\nX1 Y1 R1 K0\nX2 Y0 R1 K0\nG6.2 K1 A5",
+            5,
+            9,
+            |k| matches!(k, K::ConflictingArguments(m) if m.contains("without a control point")),
+        ),
+        (
+            "G43.5\nG49\nF1\nG6.2 X0 Y0 R1 K0 P3\nX1 Y1 R1 K0 A5",
+            5,
+            13,
+            |k| matches!(k, K::ConflictingArguments(m) if m.contains("every control point")),
+        ),
+        ("G80 A1", 1, 5, |k| matches!(k, K::ConflictingArguments(_))),
+        ("A1", 1, 1, |k| matches!(k, K::MissingArgument(_))),
+        (
+            "G93 G1 A1",
+            1,
+            1,
+            |k| matches!(k, K::MissingArgument(m) if m.contains("inverse time")),
+        ),
     ];
     for (text, line, col, check) in cases {
         let e = parse(text).expect_err(text);
@@ -607,4 +688,235 @@ fn numbers_read_exactly_as_rusts_float_parser() {
         let got = ends(&format!("G0 X{s}"))[0][0];
         assert_eq!(got.to_bits(), want.to_bits(), "{s}");
     }
+}
+
+/// Rotary axes, tool-centre-point control and the tool vector as the
+/// program representation carries them (docs/gcode.md, "Five-axis").
+#[test]
+fn five_axis_moves_carry_rotary_positions_and_tool_vectors() {
+    use gcode::{Orientation, ToolControl};
+    let text = "G21 G90 F600
+G1 X10 A30            ; TCP off: A moves as a plain axis
+G1 X20 A30            ; A where it is: a three-axis move
+G20 G91 G1 A5 C-10    ; incremental, degrees whatever the units
+G21 G90
+G43.4 H2              ; TCP with rotary positions
+G1 X1 Y2 Z3 A10 C20
+G43.4 H2              ; no change, no block
+G43.5 H2
+G1 X1 I0 J0 K1        ; the first vector (before it: the machine's)
+G1 X2                 ; keeps it
+G1 X3 I1              ; J, K omitted: 0
+I0 J1 K0              ; modal G1: the tool turns, the tip stays
+G49
+G1 X4 A0 B0 C0        ; the rotary axes were steered by G43.5: unknown until set
+G93 G1 X5 A90 F2
+";
+    let b = blocks(text);
+    let s = |v: [f64; 3]| v.map(Some);
+    let orientation = |k: &BlockKind| k.orientation().copied();
+    assert_eq!(
+        orientation(&b[0]),
+        Some(Orientation::Axes {
+            start: s([0.0; 3]),
+            end: s([30.0, 0.0, 0.0])
+        })
+    );
+    assert_eq!(orientation(&b[1]), Some(Orientation::Fixed));
+    assert_eq!(
+        orientation(&b[2]),
+        Some(Orientation::Axes {
+            start: s([30.0, 0.0, 0.0]),
+            end: s([35.0, 0.0, -10.0])
+        })
+    );
+    assert_eq!(
+        b[3],
+        BlockKind::ToolControl(ToolControl::RotaryAngles { offset: Some(2) })
+    );
+    assert_eq!(
+        orientation(&b[4]),
+        Some(Orientation::TcpRotary {
+            start: s([35.0, 0.0, -10.0]),
+            end: s([10.0, 0.0, 20.0])
+        })
+    );
+    assert_eq!(
+        b[5],
+        BlockKind::ToolControl(ToolControl::ToolVector { offset: Some(2) })
+    );
+    assert_eq!(
+        orientation(&b[6]),
+        Some(Orientation::TcpVector {
+            start: None,
+            end: Some([0.0, 0.0, 1.0])
+        })
+    );
+    assert_eq!(
+        orientation(&b[7]),
+        Some(Orientation::TcpVector {
+            start: Some([0.0, 0.0, 1.0]),
+            end: Some([0.0, 0.0, 1.0])
+        })
+    );
+    assert_eq!(
+        orientation(&b[8]),
+        Some(Orientation::TcpVector {
+            start: Some([0.0, 0.0, 1.0]),
+            end: Some([1.0, 0.0, 0.0])
+        })
+    );
+    let BlockKind::Linear(m) = &b[9] else {
+        panic!("{:?}", b[9])
+    };
+    assert_eq!((m.start, m.end), ([3.0, 2.0, 3.0], [3.0, 2.0, 3.0]));
+    assert_eq!(
+        m.orientation,
+        Orientation::TcpVector {
+            start: Some([1.0, 0.0, 0.0]),
+            end: Some([0.0, 1.0, 0.0])
+        }
+    );
+    assert_eq!(b[10], BlockKind::ToolControl(ToolControl::Off));
+    assert_eq!(
+        orientation(&b[11]),
+        Some(Orientation::Axes {
+            start: [None; 3],
+            end: s([0.0; 3])
+        })
+    );
+    let BlockKind::Linear(m) = &b[12] else {
+        panic!("{:?}", b[12])
+    };
+    assert_eq!(m.feed, Feed::InverseTime(2.0));
+    assert_eq!(
+        m.orientation,
+        Orientation::Axes {
+            start: s([0.0; 3]),
+            end: s([90.0, 0.0, 0.0])
+        }
+    );
+    assert_eq!(b.len(), 13);
+    // In G93 a tool turn alone needs its F too.
+    assert!(matches!(
+        parse("G43.5\nG93 G1 X1 I1 F2\nI0 J1").unwrap_err().kind,
+        ParseErrorKind::MissingArgument(_)
+    ));
+    // Programs without rotary words or TCP read as before.
+    assert!(
+        blocks("G0 X1\nG1 Y2 F100\nG2 X2 Y3 I1 J0\n")
+            .iter()
+            .all(|k| k.orientation() == Some(&Orientation::Fixed))
+    );
+}
+
+/// G6.2 control points carry A B C as NURBS coordinates; the start of the
+/// machine's rotary axes comes from `parse_from_axes`.
+#[test]
+fn g6_2_rotary_coordinates_and_the_rotary_start() {
+    use gcode::{Orientation, parse_from_axes};
+    let text = "G6.2 P3 X0 Y0 A10 R1 K0 F100
+X10 Y10 A45 R2 K0
+X20 Y0 R1 K0
+G6.2 K1
+G6.2 K1
+G6.2 K1
+";
+    let p = parse_from_axes(text, [0.0, 0.0, 0.0, 10.0, 0.0, 5.0]).unwrap();
+    let [BlockKind::Nurbs(n)] = &p.blocks.iter().map(|b| b.kind.clone()).collect::<Vec<_>>()[..]
+    else {
+        panic!("{p:?}")
+    };
+    let r = |a: f64| [Some(a), Some(0.0), Some(5.0)];
+    // A missing word on a point is the curve start's value, as for X Y Z.
+    assert_eq!(n.rotary, vec![r(10.0), r(45.0), r(10.0)]);
+    assert_eq!(
+        n.orientation,
+        Orientation::Axes {
+            start: r(10.0),
+            end: r(10.0)
+        }
+    );
+    // From A = 0 the curve's first point is reached by a straight G1 first (LinuxCNC's rule).
+    let p = parse(text).unwrap();
+    let BlockKind::Linear(m) = &p.blocks[0].kind else {
+        panic!("{p:?}")
+    };
+    assert_eq!((m.start, m.end), ([0.0; 3], [0.0; 3]));
+    assert_eq!(
+        m.orientation,
+        Orientation::Axes {
+            start: [Some(0.0); 3],
+            end: [Some(10.0), Some(0.0), Some(0.0)]
+        }
+    );
+    // A curve whose rotary coordinates do not change is a three-axis curve.
+    let p = parse(
+        "G6.2 P3 X0 Y0 R1 K0 F100\nX10 Y10 A0 R2 K0\nX20 Y0 R1 K0\nG6.2 K1\nG6.2 K1\nG6.2 K1\n",
+    )
+    .unwrap();
+    let BlockKind::Nurbs(n) = &p.blocks[0].kind else {
+        panic!("{p:?}")
+    };
+    assert!(n.rotary.is_empty() && n.orientation.is_fixed());
+}
+
+/// The five-axis example of docs/gcode.md reads as it says.
+#[test]
+fn the_documented_five_axis_example() {
+    use gcode::{Orientation, ToolControl};
+    let text = "G21 G90 G94 F1200
+G0 X0 Y0 Z50 A0 C0        ; rotary positioning (TCP off)
+G43.4 H1                  ; tool tip in the workpiece frame, A C given
+G1 X10 Y0 Z5 A30 C0
+G1 X10 Y10 Z5 A30 C90
+G43.5 H1                  ; tool tip with a tool vector
+G1 X20 Y10 Z5 I0.5 J0 K0.866
+G49
+G6.2 P3 X20 Y10 Z5 A0 C0 R1 K0   ; rotary coordinates on NURBS control points
+     X30 Y20 Z5 A15 C45 R1 K0
+     X40 Y10 Z5 A30 C90 R1 K0
+G6.2 K1
+G6.2 K1
+G6.2 K1
+M2
+";
+    let b = blocks(text);
+    let kinds: Vec<&str> = b
+        .iter()
+        .map(|k| match k {
+            BlockKind::Rapid(m) if m.orientation.is_fixed() => "G0",
+            BlockKind::Linear(m) => match m.orientation {
+                Orientation::TcpRotary { .. } => "G1 tcp-rotary",
+                Orientation::TcpVector { .. } => "G1 tcp-vector",
+                Orientation::Axes { .. } => "G1 axes",
+                Orientation::Fixed => "G1",
+            },
+            BlockKind::Nurbs(n) if matches!(n.orientation, Orientation::Axes { .. }) => "G6.2 axes",
+            BlockKind::ToolControl(ToolControl::RotaryAngles { offset: Some(1) }) => "G43.4 H1",
+            BlockKind::ToolControl(ToolControl::ToolVector { offset: Some(1) }) => "G43.5 H1",
+            BlockKind::ToolControl(ToolControl::Off) => "G49",
+            BlockKind::ProgramEnd => "M2",
+            other => panic!("{other:?}"),
+        })
+        .collect();
+    // After G43.5 the rotary axes are unknown, so the curve's first point
+    // (A0 C0) is reached by LinuxCNC's straight move first.
+    assert_eq!(
+        kinds,
+        [
+            "G0",
+            "G43.4 H1",
+            "G1 tcp-rotary",
+            "G1 tcp-rotary",
+            "G43.5 H1",
+            "G1 tcp-vector",
+            "G49",
+            "G1 axes",
+            "G6.2 axes",
+            "M2"
+        ]
+    );
+    let BlockKind::Nurbs(n) = &b[8] else { panic!() };
+    assert_eq!(n.rotary[1], [Some(15.0), None, Some(45.0)]);
 }

@@ -2,8 +2,8 @@
 //! Numbers are written in shortest round-trip form, so equality is exact.
 
 use gcode::{
-    ArcMove, BlockKind, Feed, LinearMove, NurbsMove, PathControl, Plane, Point, Program,
-    ProgramBlock, RapidMove, SpindleRotation, emit, parse,
+    ArcMove, BlockKind, Feed, LinearMove, NurbsMove, Orientation, PathControl, Plane, Point,
+    Program, ProgramBlock, RapidMove, Rotary, SpindleRotation, ToolControl, emit, parse,
 };
 use proptest::prelude::*;
 
@@ -39,6 +39,23 @@ fn feed() -> impl Strategy<Value = Feed> {
     ]
 }
 
+/// A B C words a move may give (degrees).
+fn rotary_words() -> impl Strategy<Value = [Option<f64>; 3]> {
+    prop::array::uniform3(prop_oneof![
+        2 => Just(None),
+        1 => (-720.0..720.0f64).prop_map(Some),
+        1 => (-7200i32..7200).prop_map(|i| Some(f64::from(i) / 10.0)),
+    ])
+}
+
+/// A G43.5 tool vector a move may give.
+fn tool_vector() -> impl Strategy<Value = Option<[f64; 3]>> {
+    proptest::option::of(prop::array::uniform3(0.01..1.0f64).prop_flat_map(|v| {
+        prop::array::uniform3(any::<bool>())
+            .prop_map(move |neg| [0, 1, 2].map(|i| if neg[i] { -v[i] } else { v[i] }))
+    }))
+}
+
 fn plane() -> impl Strategy<Value = Plane> {
     prop_oneof![Just(Plane::Xy), Just(Plane::Zx), Just(Plane::Yz)]
 }
@@ -46,8 +63,9 @@ fn plane() -> impl Strategy<Value = Plane> {
 /// One step of a random program, resolved against the current position.
 #[derive(Debug, Clone)]
 enum Step {
-    Rapid(Point),
-    Linear(Point, Feed),
+    Rapid(Point, [Option<f64>; 3], Option<[f64; 3]>),
+    Linear(Point, Feed, [Option<f64>; 3], Option<[f64; 3]>),
+    Mode(u8, Option<u32>),
     Arc {
         plane: Plane,
         radius: f64,
@@ -65,6 +83,7 @@ enum Step {
         weights: Vec<f64>,
         interior: Vec<f64>,
         feed: Feed,
+        rotary: Option<Vec<[f64; 3]>>,
     },
     Dwell(f64),
     Spindle(f64, u8, bool),
@@ -74,8 +93,9 @@ enum Step {
 
 fn step() -> impl Strategy<Value = Step> {
     prop_oneof![
-        2 => point().prop_map(Step::Rapid),
-        4 => (point(), feed()).prop_map(|(p, f)| Step::Linear(p, f)),
+        2 => (point(), rotary_words(), tool_vector()).prop_map(|(p, r, v)| Step::Rapid(p, r, v)),
+        4 => (point(), feed(), rotary_words(), tool_vector()).prop_map(|(p, f, r, v)| Step::Linear(p, f, r, v)),
+        1 => (0u8..3, proptest::option::of(0u32..100)).prop_map(|(m, h)| Step::Mode(m, h)),
         3 => (plane(), 0.1..500.0f64, -7.0..7.0f64, -7.0..7.0f64, prop_oneof![Just(0.0), -50.0..50.0f64], any::<bool>(), 0u32..3, feed())
             .prop_map(|(plane, radius, a0, a1, rise, clockwise, turns, feed)| Step::Arc { plane, radius, a0, a1, rise, clockwise, turns, feed }),
         2 => (plane(), 1usize..=5).prop_flat_map(|(plane, degree)| {
@@ -85,14 +105,19 @@ fn step() -> impl Strategy<Value = Step> {
                     proptest::collection::vec(0.05..20.0f64, n + 1),
                     proptest::collection::btree_set(1u32..100_000, n - degree - 1),
                     feed(),
+                    proptest::option::of(proptest::collection::vec(
+                        prop::array::uniform3(-400.0..400.0f64),
+                        n,
+                    )),
                 )
-                    .prop_map(move |(pts, weights, interior, feed)| Step::Nurbs {
+                    .prop_map(move |(pts, weights, interior, feed, rotary)| Step::Nurbs {
                         plane,
                         degree,
                         pts,
                         weights,
                         interior: interior.into_iter().map(|k| f64::from(k) / 997.0).collect(),
                         feed,
+                        rotary,
                     })
             })
         }),
@@ -103,23 +128,118 @@ fn step() -> impl Strategy<Value = Step> {
     ]
 }
 
+/// The tool-centre-point state of the program being built, following the
+/// parser's rules (docs/gcode.md, "Five-axis").
+struct Tcp {
+    mode: ToolControl,
+    rotary: Rotary,
+    vector: Option<[f64; 3]>,
+}
+
+impl Tcp {
+    fn vector_mode(&self) -> bool {
+        matches!(self.mode, ToolControl::ToolVector { .. })
+    }
+
+    fn set(&mut self, mode: ToolControl) -> bool {
+        if mode == self.mode {
+            return false;
+        }
+        let is_vector = matches!(mode, ToolControl::ToolVector { .. });
+        if !(is_vector && self.vector_mode()) {
+            self.vector = None;
+        }
+        if is_vector && !self.vector_mode() {
+            self.rotary = [None; 3];
+        }
+        self.mode = mode;
+        true
+    }
+
+    fn steady(&self) -> Orientation {
+        match self.mode {
+            ToolControl::Off => Orientation::Fixed,
+            ToolControl::RotaryAngles { .. } => Orientation::TcpRotary {
+                start: self.rotary,
+                end: self.rotary,
+            },
+            ToolControl::ToolVector { .. } => Orientation::TcpVector {
+                start: self.vector,
+                end: self.vector,
+            },
+        }
+    }
+
+    /// A G0/G1 with these A B C words (ignored under G43.5) or this vector
+    /// (only under G43.5).
+    fn step(&mut self, words: [Option<f64>; 3], vector: Option<[f64; 3]>) -> Orientation {
+        if self.vector_mode() {
+            let start = self.vector;
+            self.vector = vector.or(start);
+            return Orientation::TcpVector {
+                start,
+                end: self.vector,
+            };
+        }
+        let start = self.rotary;
+        let mut end = start;
+        for i in 0..3 {
+            if let Some(v) = words[i] {
+                end[i] = Some(v);
+            }
+        }
+        self.to(end)
+    }
+
+    fn to(&mut self, end: Rotary) -> Orientation {
+        let start = std::mem::replace(&mut self.rotary, end);
+        match self.mode {
+            ToolControl::Off if start == end => Orientation::Fixed,
+            ToolControl::Off => Orientation::Axes { start, end },
+            _ => Orientation::TcpRotary { start, end },
+        }
+    }
+}
+
 fn build(steps: &[Step], end: bool) -> Program {
     let mut pos = [0.0; 3];
+    let mut tcp = Tcp {
+        mode: ToolControl::Off,
+        rotary: [Some(0.0); 3],
+        vector: None,
+    };
     let mut blocks = Vec::new();
     let mut push = |kind| blocks.push(ProgramBlock { line: 0, kind });
     for s in steps {
         match s.clone() {
-            Step::Rapid(p) => {
-                push(BlockKind::Rapid(RapidMove { start: pos, end: p }));
+            Step::Rapid(p, words, vector) => {
+                let orientation = tcp.step(words, vector);
+                push(BlockKind::Rapid(RapidMove {
+                    start: pos,
+                    end: p,
+                    orientation,
+                }));
                 pos = p;
             }
-            Step::Linear(p, feed) => {
+            Step::Linear(p, feed, words, vector) => {
+                let orientation = tcp.step(words, vector);
                 push(BlockKind::Linear(LinearMove {
                     start: pos,
                     end: p,
                     feed,
+                    orientation,
                 }));
                 pos = p;
+            }
+            Step::Mode(m, offset) => {
+                let mode = match m {
+                    0 => ToolControl::Off,
+                    1 => ToolControl::RotaryAngles { offset },
+                    _ => ToolControl::ToolVector { offset },
+                };
+                if tcp.set(mode) {
+                    push(BlockKind::ToolControl(mode));
+                }
             }
             Step::Arc {
                 plane,
@@ -147,6 +267,7 @@ fn build(steps: &[Step], end: bool) -> Program {
                     clockwise,
                     extra_turns: turns,
                     feed,
+                    orientation: tcp.steady(),
                 }));
                 pos = end;
             }
@@ -157,8 +278,38 @@ fn build(steps: &[Step], end: bool) -> Program {
                 weights,
                 interior,
                 feed,
+                rotary,
             } => {
                 pts[0] = pos;
+                // Rotary coordinates only where every axis is known (the
+                // parser wants an axis on every point or on none).
+                let known = tcp.rotary.iter().all(Option::is_some) && !tcp.vector_mode();
+                let mut rot: Vec<Rotary> = match rotary.filter(|_| known) {
+                    Some(r) => r.iter().map(|p| p.map(Some)).collect(),
+                    None => vec![tcp.rotary; pts.len()],
+                };
+                rot[0] = tcp.rotary;
+                let (orientation, rot) = match tcp.mode {
+                    ToolControl::ToolVector { .. } => (tcp.steady(), Vec::new()),
+                    ToolControl::Off if rot.iter().all(|r| *r == rot[0]) => {
+                        (Orientation::Fixed, Vec::new())
+                    }
+                    _ => {
+                        let first = tcp.rotary;
+                        tcp.to(rot[rot.len() - 1]);
+                        let o = match tcp.mode {
+                            ToolControl::Off => Orientation::Axes {
+                                start: first,
+                                end: tcp.rotary,
+                            },
+                            _ => Orientation::TcpRotary {
+                                start: first,
+                                end: tcp.rotary,
+                            },
+                        };
+                        (o, rot)
+                    }
+                };
                 let mut knots = vec![0.0; degree + 1];
                 knots.extend(interior);
                 knots.extend(vec![interior_end(&knots); degree + 1]);
@@ -172,6 +323,8 @@ fn build(steps: &[Step], end: bool) -> Program {
                     weights,
                     knots,
                     feed,
+                    orientation,
+                    rotary: rot,
                 }));
             }
             Step::Dwell(s) => push(BlockKind::Dwell { seconds: s }),
@@ -219,7 +372,7 @@ proptest! {
 
     /// Arbitrary text never panics the parser (the fuzzer does this at length).
     #[test]
-    fn random_text_never_panics(text in "[GgMmXYZIJKRPQLFST#\\[\\]()=+*/ .;%0-9\n-]{0,200}") {
+    fn random_text_never_panics(text in "[GgMmXYZABCHIJKRPQLFST#\\[\\]()=+*/ .;%0-9\n-]{0,200}") {
         if let Ok(p) = parse(&text) {
             let _ = p.to_core_blocks(&gcode::CoreOptions::default());
             let _ = parse(&emit(&p));

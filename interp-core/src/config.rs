@@ -94,6 +94,11 @@ pub struct InterpConfig {
     /// Path tolerance of `G64` given without `P` (`Blending::Within { tolerance:
     /// None }`), mm. Default 0.01.
     pub default_blend_tolerance: f64,
+    /// Under `G64 P`, runs of line moves up to this long (and turning by
+    /// less than `smooth::FIT_MAX_TURN` between them) are compressed into
+    /// NURBS pieces within the tolerance (`smooth::Smoother`); longer moves
+    /// stay lines and their corners are blended. mm. Default 3.0.
+    pub compress_max_move: f64,
 }
 
 impl Default for InterpConfig {
@@ -123,6 +128,7 @@ impl Default for InterpConfig {
             newton_rel_tol: 1e-13,
             newton_max_iter: 10,
             default_blend_tolerance: 0.01,
+            compress_max_move: 3.0,
         }
     }
 }
@@ -244,6 +250,9 @@ impl InterpConfig {
         }
         if !pos(self.default_blend_tolerance) {
             return Err(ConfigError::OutOfRange("default-blend-tolerance"));
+        }
+        if !(self.compress_max_move >= 0.0 && self.compress_max_move.is_finite()) {
+            return Err(ConfigError::OutOfRange("compress-max-move"));
         }
         Ok(())
     }

@@ -185,6 +185,14 @@ pub struct Stats {
     pub junctions_stopped: u64,
 }
 
+/// The longest move the look-ahead takes in one block without waiting for
+/// an empty profile: a quarter of its reach (`MAX_PROFILE` grid intervals).
+/// Longer moves are cut into equal parts before planning
+/// (`traces::Pipeline`), so a move of any length runs at speed through them.
+pub fn max_move_length(cfg: &InterpConfig) -> f64 {
+    MAX_PROFILE as f64 / 4.0 * cfg.profile_step * grid_multiple(cfg) as f64
+}
+
 /// Upper bound on the pieces one block is cut into at tangent breaks (a
 /// degree-1 NURBS of `MAX_CTRL` points has `MAX_CTRL − 2` corners). `push`
 /// keeps this many paths on its stack (~45 KiB).

@@ -14,14 +14,17 @@
 
 pub mod config;
 pub mod feed;
+pub mod fit;
 pub mod geom;
 pub mod interp;
+pub mod kinematics;
 pub mod metrics;
 pub mod nurbs;
 pub mod path;
 pub mod plan;
 pub mod prepare;
 pub mod samples;
+pub mod smooth;
 
 pub use config::{InterpConfig, ParamUpdate};
 pub use geom::{Curve, Derivs, Vec3};
@@ -29,3 +32,4 @@ pub use interp::{Interpolator, RunState, Setpoint};
 pub use nurbs::{Nurbs, NurbsError};
 pub use path::{Arc, Blending, Block, Line, Path};
 pub use prepare::{BlockPlanner, PlannedBlock};
+pub use smooth::Smoother;

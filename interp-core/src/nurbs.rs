@@ -514,6 +514,46 @@ fn eval_core_p<const P: usize>(
     out
 }
 
+/// The non-zero B-spline basis functions of `degree` at `u` over a clamped,
+/// non-decreasing knot vector `knots` (A2.1 span search, A2.2 basis):
+/// returns `(span, n)` with `n[j] = N_{span−degree+j, degree}(u)` for
+/// `j ∈ 0..=degree`. `u` outside the range is clamped into it (the last span
+/// for the end). The same arithmetic as curve evaluation, for callers that
+/// build their own systems on these functions (least-squares fitting).
+///
+/// Panics if `degree` is outside `1..=MAX_DEGREE` or `knots` has fewer than
+/// `2·degree + 2` entries.
+pub fn basis_functions(degree: usize, knots: &[f64], u: f64) -> (usize, [f64; MAX_DEGREE + 1]) {
+    assert!(
+        (1..=MAX_DEGREE).contains(&degree) && knots.len() >= 2 * degree + 2,
+        "degree {degree} with {} knots",
+        knots.len()
+    );
+    let p = degree;
+    let n = knots.len() - p - 1;
+    let (a, b) = (knots[p], knots[n]);
+    let u = if u.is_nan() { a } else { u.max(a).min(b) };
+    let span = if u >= b {
+        // Last non-empty span.
+        let mut s = n - 1;
+        while s > p && knots[s] >= b {
+            s -= 1;
+        }
+        s
+    } else {
+        Nurbs::bisect(knots, p, n, u)
+    };
+    let kn = &knots[span + 1 - p..span + 1 + p];
+    let n0 = match p {
+        1 => basis_d1::<1>(kn, u).0,
+        2 => basis_d1::<2>(kn, u).0,
+        3 => basis_d1::<3>(kn, u).0,
+        4 => basis_d1::<4>(kn, u).0,
+        _ => basis_d1::<5>(kn, u).0,
+    };
+    (span, n0)
+}
+
 /// Shared validation of [`Nurbs::new`] and [`validate_program_curve`].
 /// `weights == None` means all ones; `capacity == None` means no control point
 /// limit, and a program curve: spans that stand still are allowed there (the
@@ -1817,6 +1857,32 @@ mod tests {
     const LINE4: [[f64; 3]; 4] = [[0.0; 3], [1.0, 0.0, 0.0], [2.0, 1.0, 0.0], [3.0, 1.0, 1.0]];
     const BEZ3: [f64; 8] = [0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0];
     const ONES4: [f64; 4] = [1.0; 4];
+
+    #[test]
+    fn basis_functions_sum_to_one_and_rebuild_the_curve() {
+        let pts = [
+            [0.0, 0.0, 0.0],
+            [1.0, 2.0, 0.0],
+            [3.0, 2.5, 1.0],
+            [4.0, 0.0, 0.5],
+            [6.0, 1.0, 0.0],
+        ];
+        let knots = [0.0, 0.0, 0.0, 0.0, 0.4, 1.0, 1.0, 1.0, 1.0];
+        let c = Nurbs::non_rational(3, &pts, &knots).unwrap();
+        for i in 0..=20 {
+            let u = i as f64 / 20.0;
+            let (span, n) = basis_functions(3, &knots, u);
+            assert!((n[..4].iter().sum::<f64>() - 1.0).abs() < 1e-14);
+            let mut p = Vec3::zeros();
+            for j in 0..=3 {
+                p += Vec3::from(pts[span - 3 + j]) * n[j];
+            }
+            assert!((p - c.eval(u, 0).p).norm() < 1e-14, "u {u}");
+        }
+        // Outside the range: clamped to the ends.
+        assert_eq!(basis_functions(3, &knots, 2.0).1[3], 1.0);
+        assert_eq!(basis_functions(3, &knots, -1.0).1[0], 1.0);
+    }
 
     #[test]
     fn every_error_variant() {

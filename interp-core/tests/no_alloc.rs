@@ -110,3 +110,43 @@ fn a_million_ticks_allocate_nothing_and_repeat_bit_for_bit() {
     assert_eq!(m1, m2);
     assert_eq!(h1, h2, "two runs differ");
 }
+
+/// The kinematic transforms the tick will call per setpoint allocate nothing
+/// either (a C,A table-table and an A,B head-head machine, through the pole).
+#[test]
+fn kinematics_allocate_nothing() {
+    use interp_core::kinematics::{Machine, MachineSpec};
+    let machines = ["W/caxyBz/T", "W/xyzBab/T"].map(|n| {
+        let mut spec = MachineSpec::new(n.parse().unwrap());
+        spec.tool_length = 120.0;
+        spec.rotary_centres = [[0.0, 10.0, -80.0], [5.0, 0.0, -60.0], [1.0, 2.0, 0.0]];
+        Machine::new(spec).unwrap()
+    });
+    alloc_count::start();
+    let mut checked = 0;
+    for m in &machines {
+        let mut joints = [10.0, -5.0, 40.0, 0.0, 0.0, 0.0];
+        for k in 0..1000 {
+            let t = f64::from(k) * 1e-3;
+            let target = [
+                5.0 * t,
+                3.0 - t,
+                40.0 + t,
+                30.0 - 60.0 * t,
+                20.0 * t,
+                200.0 * t,
+            ];
+            let pose = m.forward(&target);
+            joints = m.inverse(&pose, &joints).unwrap().joints;
+            if let Ok(r) = m.joint_rates(&joints, &Vec3::x(), &pose.axis.cross(&Vec3::z())) {
+                checked += usize::from(r.iter().all(|v| v.is_finite()));
+            }
+        }
+    }
+    assert_eq!(
+        alloc_count::stop(),
+        0,
+        "allocations in forward/inverse/joint_rates"
+    );
+    assert!(checked > 1900, "{checked}");
+}

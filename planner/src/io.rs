@@ -60,6 +60,16 @@ pub fn read_cl_program(text: &str) -> Result<ClProgram, ClReadError> {
     let p3 = |p: [f64; 3]| P3::new(p[0], p[1], p[2]);
     let mut top = |z: f64| top_z = Some(top_z.map_or(z, |t| t.max(z)));
     for block in &program.blocks {
+        if !block
+            .kind
+            .orientation()
+            .is_none_or(gcode::Orientation::is_fixed)
+        {
+            return Err(ClReadError::Unsupported {
+                line: block.line,
+                what: "five-axis motion (A/B/C words or G43.4/G43.5)",
+            });
+        }
         match &block.kind {
             BlockKind::Linear(m) => {
                 top(m.start[2]);
@@ -126,6 +136,7 @@ impl ClProgram {
             approach_clearance: APPROACH_CLEARANCE,
             plunge_feed: self.plunge_feed.unwrap_or(feed),
             feed,
+            blend_tolerance: None,
         }
     }
 }
@@ -177,6 +188,10 @@ pub struct Moves {
     pub plunge_feed: f64,
     /// Feed along the paths, mm/min.
     pub feed: f64,
+    /// `G64 P` written at the start: the controller may leave the written
+    /// polylines by this much (mm) to run dense moves at speed; `None`: no
+    /// path-control word (the controller's own mode).
+    pub blend_tolerance: Option<f64>,
 }
 
 /// Builds a program path by path: a rapid across at the safe height, a rapid
@@ -193,11 +208,18 @@ pub struct PathWriter {
 impl PathWriter {
     /// An empty program moving as `moves` says.
     pub fn new(moves: Moves) -> Self {
-        PathWriter {
+        let mut w = PathWriter {
             blocks: Vec::new(),
             at: None,
             moves,
+        };
+        if let Some(p) = moves.blend_tolerance {
+            w.push(gcode::BlockKind::PathControl(gcode::PathControl::Blend {
+                path_tolerance: Some(p),
+                naive_cam_tolerance: None,
+            }));
         }
+        w
     }
 
     fn push(&mut self, kind: gcode::BlockKind) {
@@ -210,7 +232,11 @@ impl PathWriter {
         // it as one rapid to the point above the first path.
         let start = self.at.unwrap_or(end);
         if start != end {
-            self.push(gcode::BlockKind::Rapid(gcode::RapidMove { start, end }));
+            self.push(gcode::BlockKind::Rapid(gcode::RapidMove {
+                start,
+                end,
+                orientation: gcode::Orientation::Fixed,
+            }));
         }
         self.at = Some(end);
     }
@@ -221,6 +247,7 @@ impl PathWriter {
             start,
             end,
             feed: gcode::Feed::PerMinute(feed),
+            orientation: gcode::Orientation::Fixed,
         }));
         self.at = Some(end);
     }
@@ -250,6 +277,8 @@ impl PathWriter {
             weights: b.weights.clone(),
             knots: b.knots.clone(),
             feed,
+            orientation: gcode::Orientation::Fixed,
+            rotary: Vec::new(),
         }));
         self.at = b.control_points.last().copied();
     }
@@ -299,6 +328,16 @@ mod tests {
         assert!(read_cl_program("G1 X0 Y0 Z0 F1\nX1 Y$\n").is_err());
         let e = read_cl_program("G0 X0 Y0 Z1\nG93 G1 X1 F2\n").unwrap_err();
         assert!(e.to_string().contains("line 2"), "{e}");
+        // A CL path is three-axis: a rotary move or TCP is not dropped silently.
+        for text in [
+            "G0 X0 Y0 Z1\nG1 X1 A30 F100\n",
+            "G0 X0 Y0 Z1\nG43.4\nG1 X1 F100\n",
+        ] {
+            let e = read_cl_program(text).unwrap_err();
+            assert!(e.to_string().contains("five-axis"), "{e}");
+        }
+        // A B C that stay where they are change nothing.
+        assert!(read_cl_program("G0 X0 Y0 Z1 A0 C0\nG1 X1 F100\nX2\n").is_ok());
     }
 
     /// Between paths the tool rises straight up to the safe height, crosses
@@ -319,6 +358,7 @@ mod tests {
                 safe_z: 20.0,
                 approach_clearance: APPROACH_CLEARANCE,
                 plunge_feed: 300.0,
+                blend_tolerance: None,
                 feed: 1200.0
             }
         );
@@ -386,6 +426,7 @@ mod tests {
             safe_z: 20.0,
             approach_clearance: APPROACH_CLEARANCE,
             plunge_feed: 300.0,
+            blend_tolerance: None,
             feed: 800.0,
         };
         let text = write_g62(&[(pts[0], f.clone())], moves);

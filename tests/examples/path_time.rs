@@ -14,13 +14,27 @@
 //! `curve`, the program's first NURBS curve (its contiguous run of NURBS
 //! blocks, from rest to rest), and `program`, every motion block including
 //! the rapids and lead-ins.
+//!
+//! Every program runs as the drivers run it: through the `G64 P` stage
+//! (`interp_core::smooth`), so `G64 P` programs are smoothed; `--g64 P`
+//! sets `G64 P` on every move (as a `G64 P` line after the header would),
+//! `--policy auto|blend|compress` picks the stage's corner policy (the
+//! choice is measured in `docs/interp-core.md`). The last two columns are
+//! the largest distance of a setpoint, and of a chord between consecutive
+//! setpoints, from the programmed path (µm), and the optimum is that of the
+//! smoothed path.
+//!
+//! ```text
+//! cargo run --release -p interpd-tests --example path_time -- --feed 6000 --g64 0.001 RASTER.ngc
+//! ```
 
 use std::path::{Path, PathBuf};
 
 use gcode::CoreOptions;
 use interp_core::InterpConfig;
-use interp_core::path::{Block, Path as CorePath};
-use interpd_tests::path_time::path_times;
+use interp_core::path::{Blending, Block, Path as CorePath};
+use interp_core::smooth::Policy;
+use interpd_tests::path_time::program_run;
 
 const CORPUS: &str = "../shared/corpus/nurbs-linuxcnc/g6";
 const DEFAULT_SET: [&str; 4] = [
@@ -30,7 +44,7 @@ const DEFAULT_SET: [&str; 4] = [
     "homer-q1.ngc",
 ];
 
-fn load(path: &Path, feed: Option<f64>) -> Result<Vec<Block>, String> {
+fn load(path: &Path, feed: Option<f64>, g64: Option<f64>) -> Result<Vec<Block>, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let program = gcode::parse(&text).map_err(|e| format!("{}:{e}", path.display()))?;
     let opts = CoreOptions::default();
@@ -44,16 +58,33 @@ fn load(path: &Path, feed: Option<f64>) -> Result<Vec<Block>, String> {
             }
         }
     }
+    if let Some(p) = g64 {
+        for b in &mut blocks {
+            b.blending = Blending::Within { tolerance: Some(p) };
+        }
+    }
     Ok(blocks)
 }
 
 fn main() {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
-    let mut feed = None;
-    if let Some(i) = args.iter().position(|a| a == "--feed") {
-        feed = args.get(i + 1).and_then(|v| v.parse::<f64>().ok());
+    let mut flag = |name: &str| {
+        let i = args.iter().position(|a| a == name)?;
+        let v = args.get(i + 1).cloned();
         args.drain(i..(i + 2).min(args.len()));
-    }
+        v
+    };
+    let feed = flag("--feed").and_then(|v| v.parse::<f64>().ok());
+    let g64 = flag("--g64").and_then(|v| v.parse::<f64>().ok());
+    let policy = match flag("--policy").as_deref() {
+        None | Some("auto") => Policy::Auto,
+        Some("blend") => Policy::BlendOnly,
+        Some("compress") => Policy::CompressOnly,
+        Some(other) => {
+            eprintln!("--policy {other}: auto, blend or compress");
+            std::process::exit(2);
+        }
+    };
     // Run from the workspace root or from tests/.
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     let files: Vec<PathBuf> = if args.is_empty() {
@@ -68,10 +99,10 @@ fn main() {
     };
     let cfg = InterpConfig::default();
     println!(
-        "program | part | blocks | length mm | ours s | trapezoid s | optimum s | ours/opt | trap/opt"
+        "program | part | blocks in | out | length mm | ours s | trapezoid s | optimum s | ours/opt | trap/opt | setpoint dev um | chord dev um"
     );
     for f in files {
-        let blocks = match load(&f, feed) {
+        let blocks = match load(&f, feed, g64) {
             Ok(b) => b,
             Err(e) => {
                 eprintln!("{e}");
@@ -95,17 +126,23 @@ fn main() {
                 continue;
             }
             let length: f64 = set.iter().map(|b| b.path.length()).sum();
-            match path_times(set, &cfg) {
-                Ok(t) => println!(
-                    "{name} | {part} | {} | {:.1} | {:.3} | {:.3} | {:.3} | {:.4} | {:.4}",
-                    set.len(),
-                    length,
-                    t.ours,
-                    t.trapezoid,
-                    t.optimum,
-                    t.ours / t.optimum,
-                    t.trapezoid / t.optimum
-                ),
+            match program_run(set, &cfg, policy) {
+                Ok(r) => {
+                    let t = r.times;
+                    println!(
+                        "{name} | {part} | {} | {} | {:.1} | {:.3} | {:.3} | {:.3} | {:.4} | {:.4} | {:.3} | {:.3}",
+                        r.blocks_in,
+                        r.blocks_out,
+                        length,
+                        t.ours,
+                        t.trapezoid,
+                        t.optimum,
+                        t.ours / t.optimum,
+                        t.trapezoid / t.optimum,
+                        r.max_point_deviation * 1e3,
+                        r.max_chord_deviation * 1e3,
+                    )
+                }
                 Err(e) => {
                     eprintln!("{}: {e}", f.display());
                     std::process::exit(1);

@@ -7,6 +7,7 @@
 //! the helpers the tests here share.
 
 pub mod path_time;
+pub mod polyline;
 
 use std::io::Cursor;
 use std::path::{Path, PathBuf};

@@ -13,8 +13,11 @@
 
 use interp_core::feed::{junction_speed, speed_limit};
 use interp_core::geom::Curve;
-use interp_core::path::Block;
-use interp_core::{InterpConfig, Interpolator, RunState};
+use interp_core::path::{Block, Path};
+use interp_core::smooth::{Policy, SmoothError, SmoothStats, Smoother};
+use interp_core::{InterpConfig, Interpolator, RunState, Vec3};
+
+use crate::polyline::Polyline;
 
 /// Grid spacing of the reference integration, mm.
 pub const REFERENCE_STEP: f64 = 0.005;
@@ -85,26 +88,129 @@ pub fn accel_only_optimum(blocks: &[Block], cfg: &InterpConfig) -> f64 {
 /// Path time (s) of `blocks` through the interpolator with `cfg`: ticks from
 /// the first setpoint until the program is done.
 pub fn interpolated_time(blocks: &[Block], cfg: &InterpConfig) -> Result<f64, String> {
+    Ok(interpolated_run(blocks, cfg, false)?.0)
+}
+
+/// [`interpolated_time`] and, with `keep`, every setpoint's X Y Z.
+pub fn interpolated_run(
+    blocks: &[Block],
+    cfg: &InterpConfig,
+    keep: bool,
+) -> Result<(f64, Vec<Vec3>), String> {
     // An Interpolator<1024> is about 1.6 MB: build it on a thread with room for it.
     let (blocks, cfg) = (blocks.to_vec(), *cfg);
     std::thread::Builder::new()
         .stack_size(INTERPOLATOR_STACK)
-        .spawn(move || run_to_done(&blocks, &cfg))
+        .spawn(move || run_to_done(&blocks, &cfg, keep))
         .map_err(|e| e.to_string())?
         .join()
         .map_err(|_| "interpolator thread panicked".to_string())?
 }
 
+/// The program's blocks through the `G64 P` stage (`Within` honoured), as
+/// the drivers run them; also what the stage did.
+pub fn smoothed(blocks: &[Block], cfg: &InterpConfig, policy: Policy) -> (Vec<Block>, SmoothStats) {
+    let first = blocks.first().map_or(1, |b| b.id);
+    let mut st: Box<Smoother> =
+        Box::new(Smoother::with_policy(cfg, first, policy).expect("valid config"));
+    let mut out = Vec::with_capacity(blocks.len());
+    for b in blocks {
+        while st.push(b) == Err(SmoothError::Full) {
+            out.extend(st.pop());
+        }
+        out.extend(std::iter::from_fn(|| st.pop()));
+    }
+    st.finish();
+    out.extend(std::iter::from_fn(|| st.pop()));
+    (out, st.stats())
+}
+
+/// The programmed path of `blocks` as segments: lines as they are, arcs and
+/// NURBS as chords no more than 1e-7 mm from them.
+pub fn programmed_path(blocks: &[Block]) -> Polyline {
+    let mut segs = Vec::new();
+    for b in blocks {
+        match &b.path {
+            Path::Line(_) => segs.push((b.path.start_point(), b.path.end_point())),
+            p => {
+                let (ua, ub) = (p.u_start(), p.u_end());
+                // 0.5 µm chords: sagitta below 1e-7 mm for radii above 0.3 mm.
+                let n = ((p.length() / 5e-4).ceil() as usize).max(1);
+                let mut prev = p.start_point();
+                for k in 1..=n {
+                    let q = p.eval(ua + (ub - ua) * k as f64 / n as f64, 0).p;
+                    segs.push((prev, q));
+                    prev = q;
+                }
+            }
+        }
+    }
+    Polyline::from_segments(segs)
+}
+
+/// A program as given, through the `G64 P` stage and the interpolator.
+#[derive(Debug, Clone, Copy)]
+pub struct ProgramRun {
+    /// Path times of the smoothed program (the optimum is that of the
+    /// smoothed path: the path the machine runs).
+    pub times: PathTimes,
+    /// Program blocks in.
+    pub blocks_in: usize,
+    /// Interpolator blocks out of the stage.
+    pub blocks_out: usize,
+    /// What the stage did.
+    pub stats: SmoothStats,
+    /// Largest distance of a setpoint from the programmed path, mm.
+    pub max_point_deviation: f64,
+    /// Largest distance of a chord between consecutive setpoints, mm.
+    pub max_chord_deviation: f64,
+}
+
+/// Runs `blocks` as a driver does (stage, then interpolator) and measures
+/// the setpoints against the programmed path.
+pub fn program_run(
+    blocks: &[Block],
+    cfg: &InterpConfig,
+    policy: Policy,
+) -> Result<ProgramRun, String> {
+    let (out, stats) = smoothed(blocks, cfg, policy);
+    let (ours, pts) = interpolated_run(&out, cfg, true)?;
+    let (max_point_deviation, max_chord_deviation) = programmed_path(blocks).deviation(&pts);
+    Ok(ProgramRun {
+        times: PathTimes {
+            ours,
+            trapezoid: interpolated_time(&out, &without_jerk(cfg))?,
+            optimum: accel_only_optimum(&out, cfg),
+        },
+        blocks_in: blocks.len(),
+        blocks_out: out.len(),
+        stats,
+        max_point_deviation,
+        max_chord_deviation,
+    })
+}
+
+/// A run is abandoned after this many ticks (5.6 h at 1 kHz): a stall.
+pub const MAX_TICKS: u64 = 20_000_000;
+
 /// Stack for a thread that owns an `Interpolator<1024>`, bytes.
 pub const INTERPOLATOR_STACK: usize = 64 << 20;
 
-fn run_to_done(blocks: &[Block], cfg: &InterpConfig) -> Result<f64, String> {
+fn run_to_done(
+    blocks: &[Block],
+    cfg: &InterpConfig,
+    keep: bool,
+) -> Result<(f64, Vec<Vec3>), String> {
     let p = blocks[0].path.start_point();
     let mut ip: Box<Interpolator<1024>> = Box::new(
         Interpolator::new(*cfg, [p.x, p.y, p.z, 0.0, 0.0, 0.0]).map_err(|e| format!("{e:?}"))?,
     );
     let mut next = 0;
     let mut ticks = 0u64;
+    let mut pts = Vec::new();
+    if keep {
+        pts.push(p);
+    }
     loop {
         while next < blocks.len() && ip.push(&blocks[next]).is_ok() {
             next += 1;
@@ -114,11 +220,18 @@ fn run_to_done(blocks: &[Block], cfg: &InterpConfig) -> Result<f64, String> {
         }
         let sp = ip.tick();
         ticks += 1;
-        if sp.state == RunState::Done {
-            return Ok(ticks as f64 * cfg.period);
+        if keep {
+            pts.push(Vec3::new(sp.axes[0], sp.axes[1], sp.axes[2]));
         }
-        if ticks > 100_000_000 {
-            return Err("did not finish".into());
+        if sp.state == RunState::Done {
+            return Ok((ticks as f64 * cfg.period, pts));
+        }
+        if ticks > MAX_TICKS {
+            return Err(format!(
+                "did not finish within {MAX_TICKS} ticks ({next} of {} blocks queued, feed {} mm/s)",
+                blocks.len(),
+                sp.feed
+            ));
         }
     }
 }

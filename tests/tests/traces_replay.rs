@@ -113,7 +113,8 @@ fn simulate_summary_equals_trace_summary() {
         let expanded = program
             .expand(config.max_ctrl_per_block, 1)
             .expect("expands");
-        let mut live = Analyzer::new(&config, expanded.blocks.len(), expanded.segments());
+        let segments = sim::smoothed_segments(&expanded, &config.interp).expect("smooths");
+        let mut live = Analyzer::new(&config, expanded.blocks.len(), &segments);
         let mut w =
             TraceWriter::new(Cursor::new(Vec::new()), TraceCompression::Lz4).expect("trace starts");
         sim::record(

@@ -393,7 +393,10 @@ pub fn analyse(trace: &Trace) -> Result<(Summary, Vec<Sample>), TraceProgramErro
             });
         }
     }
-    let an = Analyzer::new(&config, expanded.blocks.len(), expanded.segments());
+    // The interpolator ran the segments the `G64 P` stage released.
+    let segments = crate::sim::smoothed_segments(&expanded, &config.interp)
+        .map_err(TraceProgramError::Schedule)?;
+    let an = Analyzer::new(&config, expanded.blocks.len(), &segments);
     Ok(run_analysis(an, trace))
 }
 

@@ -7,9 +7,12 @@
 //! format. [`expand`] turns a program into interpolator blocks, splitting long
 //! NURBS with `interp_core::nurbs::split_program_curve` and recording how.
 
-use interp_core::interp::JOIN_TOLERANCE;
+use interp_core::InterpConfig;
+use interp_core::config::ConfigError;
+use interp_core::interp::{JOIN_TOLERANCE, max_move_length};
 use interp_core::nurbs::{SplitError, split_program_curve};
 use interp_core::path::{MrrParams, PathError, ToolSide};
+use interp_core::smooth::{SmoothError, SmoothStats, Smoother};
 use interp_core::{Arc, Blending, Block, Curve, Line, NurbsError, Path, Vec3};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
@@ -269,42 +272,34 @@ impl Program {
 
     /// Checks every block and cuts it into interpolator blocks with ids from
     /// `first_id`; NURBS longer than `max_ctrl` control points are split.
-    /// Every block goes through one [`Pipeline`], as the daemon's control
-    /// plane sends each program's blocks.
+    /// These are the program's own segments (what a trace records per
+    /// block); a run sends them through the `G64 P` stage as [`Pipeline`]
+    /// does.
     pub fn expand(&self, max_ctrl: usize, first_id: u32) -> Result<Expanded, BlockError> {
         let start = self.start_point();
-        let mut pipeline = Pipeline::new(start, first_id, max_ctrl);
+        let mut cutter = Cutter::new(start, first_id, max_ctrl);
         let mut out = Vec::with_capacity(self.blocks.len());
         for input in &self.blocks {
-            out.push(pipeline.push(input)?);
+            out.push(cutter.push(input)?);
         }
-        // Nothing is held back yet (see `Pipeline::finish`).
-        debug_assert!(pipeline.finish().is_empty());
         Ok(Expanded { start, blocks: out })
     }
 }
 
-/// The non-real-time path of one program's blocks, in order: each input
-/// block is checked and cut into interpolator segments (long NURBS split
-/// into pieces of at most `max_ctrl` control points, the same curve), ready
-/// for `BlockPlanner::plan`. `interpd simulate`, `interpd replay` and the
-/// daemon's control plane all send a program's blocks through one of these,
-/// so a stage that reshapes the stream (corner blending, compression of
-/// runs of short G64 moves into NURBS) goes in here, once, for all of them:
-/// [`Pipeline::push`] may then hold segments back until it knows the next
-/// block, and [`Pipeline::finish`] hands over the rest at the program's end.
+/// Cuts a program's blocks, in order, into interpolator segments (long
+/// NURBS split into pieces of at most `max_ctrl` control points, the same
+/// curve), each from the end of the one before.
 #[derive(Clone, Debug)]
-pub struct Pipeline {
+struct Cutter {
     at: Vec3,
     next_id: u32,
     index: usize,
     max_ctrl: usize,
 }
 
-impl Pipeline {
-    /// A program that starts at `start` (mm) with segment ids from `first_id`.
-    pub fn new(start: [f64; 3], first_id: u32, max_ctrl: usize) -> Self {
-        Pipeline {
+impl Cutter {
+    fn new(start: [f64; 3], first_id: u32, max_ctrl: usize) -> Self {
+        Cutter {
             at: v3(start),
             next_id: first_id,
             index: 0,
@@ -312,18 +307,7 @@ impl Pipeline {
         }
     }
 
-    /// Where the next block starts (the end of the last one), mm.
-    pub fn tail(&self) -> [f64; 3] {
-        a3(self.at)
-    }
-
-    /// The id the next segment gets.
-    pub fn next_id(&self) -> u32 {
-        self.next_id
-    }
-
-    /// The next input block of the program: its segments and how it was split.
-    pub fn push(&mut self, input: &InputBlock) -> Result<ExpandedBlock, BlockError> {
+    fn push(&mut self, input: &InputBlock) -> Result<ExpandedBlock, BlockError> {
         let index = self.index;
         let err = |kind| BlockError {
             index,
@@ -356,12 +340,166 @@ impl Pipeline {
             info,
         })
     }
+}
 
-    /// The program ends: the segments a stage still holds back (none yet:
-    /// every block comes out whole from [`Pipeline::push`]).
-    pub fn finish(&mut self) -> Vec<Block> {
-        Vec::new()
+/// The non-real-time path of one program's blocks, in order: each input
+/// block is checked and cut into segments ([`Program::expand`] does the
+/// same), and the segments go through the `G64 P` stage
+/// (`interp_core::smooth::Smoother`: round-off drop; under `G64`, collinear
+/// merge, compression of runs of short moves into NURBS, corner blends) whose
+/// output is what `BlockPlanner::plan` gets. The daemon's control plane
+/// sends each program's blocks through one of these; `interpd simulate`
+/// and replay run the same stage over the same segments (`traces::sim`),
+/// so both give the same interpolator blocks.
+///
+/// The stage holds blocks back until it can decide them:
+/// [`Pipeline::push`] releases what is decided, [`Pipeline::finish`] the
+/// rest at the program's end. The released blocks are numbered from
+/// `first_id` on their own (they are not the program's segments).
+pub struct Pipeline {
+    cutter: Cutter,
+    stage: Box<Smoother>,
+    next_out: u32,
+    /// Released moves longer than this are cut into equal parts
+    /// ([`interp_core::interp::max_move_length`]).
+    max_move: f64,
+}
+
+impl core::fmt::Debug for Pipeline {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("Pipeline")
+            .field("cutter", &self.cutter)
+            .field("stage", &self.stage)
+            .field("next_out", &self.next_out)
+            .field("max_move", &self.max_move)
+            .finish()
     }
+}
+
+impl Pipeline {
+    /// A program that starts at `start` (mm), run under `cfg`, with segment
+    /// ids (and released block ids) from `first_id`.
+    pub fn new(
+        start: [f64; 3],
+        first_id: u32,
+        max_ctrl: usize,
+        cfg: &InterpConfig,
+    ) -> Result<Self, ConfigError> {
+        Ok(Pipeline {
+            cutter: Cutter::new(start, first_id, max_ctrl),
+            stage: Box::new(Smoother::new(cfg, first_id)?),
+            next_out: first_id,
+            max_move: max_move_length(cfg),
+        })
+    }
+
+    /// Where the next input block starts (the end of the last one), mm.
+    pub fn tail(&self) -> [f64; 3] {
+        a3(self.cutter.at)
+    }
+
+    /// The id the next released block gets.
+    pub fn next_id(&self) -> u32 {
+        self.next_out
+    }
+
+    /// Input blocks pushed.
+    pub fn blocks(&self) -> usize {
+        self.cutter.index
+    }
+
+    /// What the `G64 P` stage did so far.
+    pub fn stats(&self) -> SmoothStats {
+        self.stage.stats()
+    }
+
+    /// The next input block of the program: its segments and how it was
+    /// split; the blocks the stage now releases are appended to `released`.
+    /// A refused block changes nothing.
+    pub fn push(
+        &mut self,
+        input: &InputBlock,
+        released: &mut Vec<Block>,
+    ) -> Result<ExpandedBlock, BlockError> {
+        let b = self.cutter.push(input)?;
+        self.smooth(&b.segments, released);
+        Ok(b)
+    }
+
+    /// [`Pipeline::push`] of a block already cut: the next block of
+    /// [`Program::expand`] run from this pipeline's start and first id.
+    pub fn push_expanded(&mut self, b: &ExpandedBlock, released: &mut Vec<Block>) {
+        debug_assert_eq!(b.index, self.cutter.index, "blocks in order");
+        if let Some(last) = b.segments.last() {
+            self.cutter.at = last.path.end_point();
+            self.cutter.next_id = last.id.wrapping_add(1);
+        }
+        self.cutter.index += 1;
+        self.smooth(&b.segments, released);
+    }
+
+    fn smooth(&mut self, segments: &[Block], released: &mut Vec<Block>) {
+        for seg in segments {
+            while self.stage.push(seg) == Err(SmoothError::Full) {
+                self.release(released);
+            }
+            self.release(released);
+        }
+    }
+
+    /// The program ends: the blocks the stage still holds back.
+    pub fn finish(&mut self) -> Vec<Block> {
+        self.stage.finish();
+        let mut out = Vec::new();
+        self.release(&mut out);
+        out
+    }
+
+    fn release(&mut self, out: &mut Vec<Block>) {
+        while let Some(b) = self.stage.pop() {
+            for mut part in cut_long_move(b, self.max_move) {
+                part.id = self.next_out;
+                self.next_out = self.next_out.wrapping_add(1);
+                out.push(part);
+            }
+        }
+    }
+}
+
+/// `b` cut into equal parts of at most `max_len` mm (the same geometry; only
+/// the last part keeps an exact stop), or `b` itself when it is short enough
+/// or cannot be cut.
+fn cut_long_move(b: Block, max_len: f64) -> Vec<Block> {
+    let len = b.path.length();
+    if !(len > max_len && max_len > 0.0) {
+        return vec![b];
+    }
+    let n = (len / max_len).ceil();
+    let mut parts = Vec::with_capacity(n as usize);
+    let mut rest = b.path;
+    for k in 1..n as usize {
+        // Each cut a fraction of what is left, so the parts come out equal.
+        let left = n - (k - 1) as f64;
+        let u = rest.param_at_arc_length(rest.u_start(), rest.length() / left);
+        match rest.split_at(u) {
+            Ok((a, r)) => {
+                let blending = if b.blending == Blending::ExactStop {
+                    Blending::ExactPath
+                } else {
+                    b.blending
+                };
+                parts.push(Block {
+                    path: a,
+                    blending,
+                    ..b
+                });
+                rest = r;
+            }
+            Err(_) => break,
+        }
+    }
+    parts.push(Block { path: rest, ..b });
+    parts
 }
 
 fn expand_block(

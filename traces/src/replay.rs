@@ -7,7 +7,7 @@ use serde::de::{Deserialize, Deserializer, MapAccess, Visitor};
 use serde_json::Value;
 
 use crate::analysis::{TraceProgramError, program_of};
-use crate::blocks::Program;
+use crate::blocks::Pipeline;
 use crate::messages::{EventKind, SetpointMsg};
 use crate::reader::Trace;
 use crate::sim::{self, SimError, SimItem};
@@ -254,10 +254,13 @@ fn replay_with(trace: &Trace, truncated: bool) -> Result<ReplayReport, ReplayErr
 /// after the same number of ticks as in the run (events with `seq = n` act
 /// before tick `n + 1`), and every recorded setpoint is compared bit for bit.
 ///
-/// Segments come from the recorded blocks, in order, each expanded from the
-/// end of what the interpolator has queued when its first segment is
-/// committed (exactly as the control plane expanded it); segments an abort
-/// flushed before their commit are skipped.
+/// Segments come from the recorded blocks, in order, sent through one
+/// [`Pipeline`] per program (the `G64 P` stage included) from the end of
+/// what the interpolator has queued when the program's first segment is
+/// committed, exactly as the control plane sent them; a program's pipeline
+/// is finished once all its recorded blocks are in and a commit still needs
+/// a segment (its `end`). Segments an abort flushed before their commit are
+/// skipped, and so are the rest of an aborted program's blocks.
 pub fn replay_schedule(trace: &Trace) -> Result<ReplayReport, ReplayError> {
     follow_schedule(trace, None)
 }
@@ -304,8 +307,10 @@ fn follow_schedule(
         )
     });
     let mut next_event = events.next();
-    let mut blocks = trace.blocks.iter();
+    let mut blocks = trace.blocks.iter().peekable();
     let mut pending: std::collections::VecDeque<Block> = Default::default();
+    // The current program's pipeline, and whether its end was applied.
+    let mut pipe: Option<(Pipeline, bool)> = None;
     let mut used_blocks = 0usize;
     let mut compared = 0u64;
     let mut missing = 0u64;
@@ -330,26 +335,60 @@ fn follow_schedule(
                 match e.kind {
                     EventKind::Commit => {
                         let id = e.count.unwrap_or(0) as u32;
-                        if pending.front().is_none_or(|b| b.id != id) {
-                            // A new block: the next recorded one that starts with this id.
-                            let tail = ip.planner().tail();
-                            pending.clear();
-                            pending.extend(
-                                next_block_segments(
-                                    &mut blocks,
-                                    id,
-                                    [tail.x, tail.y, tail.z],
-                                    config.max_ctrl_per_block,
-                                )
-                                .map_err(|err| match err {
-                                    ReplayError::Schedule(why) => bad(e, why),
-                                    other => other,
-                                })?,
-                            );
-                            used_blocks += 1;
+                        let mut fresh = false;
+                        while pending.front().is_none_or(|b| b.id != id) {
+                            let released = match pipe.as_mut() {
+                                // The current program's next segment: its next
+                                // recorded block, or its end.
+                                Some((p, finished)) if pending.is_empty() && p.next_id() == id => {
+                                    let mut out = Vec::new();
+                                    match blocks.next_if(|b| b.index as usize == p.blocks()) {
+                                        Some(b) => {
+                                            push_recorded(p, b, &mut out)?;
+                                            used_blocks += 1;
+                                        }
+                                        None if !*finished => {
+                                            *finished = true;
+                                            out = p.finish();
+                                        }
+                                        None => return Err(bad(e, "no segment".into())),
+                                    }
+                                    out
+                                }
+                                _ if fresh => {
+                                    return Err(bad(
+                                        e,
+                                        format!("segment {id} is not the next one"),
+                                    ));
+                                }
+                                // A new program: its first recorded block, from
+                                // where the queue ends.
+                                _ => {
+                                    pending.clear();
+                                    while blocks.next_if(|b| b.index != 0).is_some() {}
+                                    if blocks.peek().is_none() {
+                                        return Err(bad(
+                                            e,
+                                            format!("no recorded program has segment {id}"),
+                                        ));
+                                    }
+                                    let tail = ip.planner().tail();
+                                    let p = Pipeline::new(
+                                        [tail.x, tail.y, tail.z],
+                                        id,
+                                        config.max_ctrl_per_block,
+                                        &config.interp,
+                                    )
+                                    .map_err(|err| bad(e, format!("config: {err}")))?;
+                                    pipe = Some((p, false));
+                                    fresh = true;
+                                    continue;
+                                }
+                            };
                             if let Some(out) = segments.as_deref_mut() {
-                                out.extend(pending.iter().map(|seg| (ticks, *seg)));
+                                out.extend(released.iter().map(|seg| (ticks, *seg)));
                             }
+                            pending.extend(released);
                         }
                         let seg = pending
                             .pop_front()
@@ -367,6 +406,7 @@ fn follow_schedule(
                     EventKind::Abort => {
                         ip.abort();
                         pending.clear();
+                        pipe = None;
                     }
                     EventKind::Finish => ip.finish(),
                     _ => {}
@@ -409,28 +449,16 @@ fn split_mismatch(
     }
 }
 
-/// The segments of the next recorded block whose first segment is `id`,
-/// expanded from `start` as the control plane expanded it; blocks before it
-/// that an abort flushed before any commit are skipped.
-fn next_block_segments<'a>(
-    blocks: &mut impl Iterator<Item = &'a crate::messages::BlockMsg>,
-    id: u32,
-    start: [f64; 3],
-    max_ctrl: usize,
-) -> Result<Vec<interp_core::Block>, ReplayError> {
-    let b = blocks
-        .find(|b| b.segments.first().map(|s| s.block_id) == Some(id))
-        .ok_or_else(|| ReplayError::Schedule(format!("no recorded block has segment {id}")))?;
-    let program = Program {
-        start: Some(start),
-        blocks: vec![b.block.clone()],
-    };
-    let eb = program
-        .expand(max_ctrl, id)
-        .map_err(|err| ReplayError::Schedule(format!("expanding block {}: {err}", b.index)))?
-        .blocks
-        .pop()
-        .ok_or_else(|| ReplayError::Schedule("empty block".into()))?;
+/// Sends recorded block `b` through the program's pipeline `p` (released
+/// blocks into `out`); its split must be the recorded one.
+fn push_recorded(
+    p: &mut Pipeline,
+    b: &crate::messages::BlockMsg,
+    out: &mut Vec<interp_core::Block>,
+) -> Result<(), ReplayError> {
+    let eb = p
+        .push(&b.block, out)
+        .map_err(|err| ReplayError::Schedule(format!("expanding block {}: {err}", b.index)))?;
     if eb.info != b.segments {
         return Err(ReplayError::Mismatch(split_mismatch(
             b.index,
@@ -438,5 +466,5 @@ fn next_block_segments<'a>(
             &eb.info,
         )));
     }
-    Ok(eb.segments)
+    Ok(())
 }

@@ -6,12 +6,21 @@
 //! refuses one because its queue or look-ahead is full, it ticks once and the
 //! push is tried again (the block planned once, its commit retried: the same
 //! as `push`); after the last block, `finish()` and tick until done.
+//!
+//! Between the program and the interpolator runs the `G64 P` stage
+//! (`interp_core::smooth::Smoother`, window `DEFAULT_WINDOW`) of a
+//! [`Pipeline`], as in the daemon's control plane: every expanded block is
+//! pushed into it, and every block it releases goes to the interpolator at
+//! once; at the end, `Pipeline::finish` releases the rest. The trace records
+//! the program's own blocks, so a replay re-runs the stage and gets the same
+//! segments.
 
 use interp_core::interp::{DEFAULT_QUEUE, PushError};
-use interp_core::{Interpolator, PlannedBlock, RunState, Setpoint};
+use interp_core::smooth::SmoothStats;
+use interp_core::{Block, InterpConfig, Interpolator, PlannedBlock, RunState, Setpoint};
 use serde::{Deserialize, Serialize};
 
-use crate::blocks::{BlockError, Program};
+use crate::blocks::{BlockError, Expanded, Pipeline, Program};
 use crate::messages::{BlockMsg, ConfigMsg, EventKind, EventMsg, FORMAT_VERSION};
 
 /// Id of the first interpolator block.
@@ -101,6 +110,22 @@ pub struct SimOutcome {
     pub segments: usize,
     /// The interpolator's counters.
     pub stats: interp_core::interp::Stats,
+    /// What the `G64 P` stage did.
+    pub smoothing: SmoothStats,
+}
+
+/// The interpolator blocks of an expanded program: its segments through the
+/// `G64 P` stage of a [`Pipeline`], exactly as [`run`] pushes them (for
+/// analysis and replay).
+pub fn smoothed_segments(expanded: &Expanded, cfg: &InterpConfig) -> Result<Vec<Block>, String> {
+    let mut pipeline = Pipeline::new(expanded.start, FIRST_BLOCK_ID, usize::MAX, cfg)
+        .map_err(|e| e.to_string())?;
+    let mut out = Vec::new();
+    for eb in &expanded.blocks {
+        pipeline.push_expanded(eb, &mut out);
+    }
+    out.extend(pipeline.finish());
+    Ok(out)
 }
 
 /// The configuration message for a program run with `interp` and `settings`.
@@ -173,44 +198,67 @@ pub fn run<E>(
         Ok(last.state != RunState::Fault)
     };
 
+    // The program's segments through the `G64 P` stage, as the daemon's
+    // control plane sends them.
+    let mut pipeline = Pipeline::new(
+        expanded.start,
+        FIRST_BLOCK_ID,
+        config.max_ctrl_per_block,
+        &config.interp,
+    )
+    .map_err(|e| SimError::Config(e.to_string()))?;
+    let mut released = Vec::new();
     let mut segments = 0usize;
     let mut faulted = false;
     let mut plan = Box::new(PlannedBlock::new());
+    // Pushes one released block into the interpolator, ticking while its
+    // queue is full. Plan once, then retry only the commit: `push` is
+    // exactly plan then commit, and while only ticks happen the plan stays
+    // valid. Planning again on every tick the queue is full measured the
+    // block's length each time (most of a long program's run time).
+    let mut push = |ip: &mut Interpolator,
+                    last: &mut Setpoint,
+                    sink: &mut dyn FnMut(SimItem<'_>) -> Result<(), E>,
+                    seg: &Block,
+                    eb: &crate::blocks::ExpandedBlock|
+     -> Result<bool, SimError<E>> {
+        let planned = ip.planner().plan(seg, &mut plan);
+        loop {
+            let pushed = match planned {
+                Ok(()) => ip.commit(&plan),
+                Err(e) => Err(e),
+            };
+            match pushed {
+                Ok(()) => return Ok(true),
+                Err(PushError::Full { .. } | PushError::ProfileFull)
+                    if ip.queued_segments() > 0 =>
+                {
+                    if !tick(ip, last, sink)? {
+                        return Ok(false);
+                    }
+                }
+                Err(e) => {
+                    return Err(SimError::Push {
+                        index: eb.index,
+                        source_line: eb.input.source_line,
+                        block_id: seg.id,
+                        reason: e.to_string(),
+                    });
+                }
+            }
+        }
+    };
     'blocks: for (k, eb) in expanded.blocks.iter().enumerate() {
         if k == 0 {
             let ev = EventMsg::new(EventKind::Start, 0, 0.0);
             sink(SimItem::Event(&ev)).map_err(SimError::Sink)?;
         }
-        for seg in &eb.segments {
-            // Plan once, then retry only the commit: `push` is exactly plan then
-            // commit, and while only ticks happen the plan stays valid. Planning
-            // again on every tick the queue is full measured the block's length
-            // each time (most of a long program's run time).
-            let planned = ip.planner().plan(seg, &mut plan);
-            loop {
-                let pushed = match planned {
-                    Ok(()) => ip.commit(&plan),
-                    Err(e) => Err(e),
-                };
-                match pushed {
-                    Ok(()) => break,
-                    Err(PushError::Full { .. } | PushError::ProfileFull)
-                        if ip.queued_segments() > 0 =>
-                    {
-                        if !tick(&mut ip, &mut last, &mut sink)? {
-                            faulted = true;
-                            break 'blocks;
-                        }
-                    }
-                    Err(e) => {
-                        return Err(SimError::Push {
-                            index: eb.index,
-                            source_line: eb.input.source_line,
-                            block_id: seg.id,
-                            reason: e.to_string(),
-                        });
-                    }
-                }
+        released.clear();
+        pipeline.push_expanded(eb, &mut released);
+        for out in &released {
+            if !push(&mut ip, &mut last, &mut sink, out, eb)? {
+                faulted = true;
+                break 'blocks;
             }
             segments += 1;
         }
@@ -221,6 +269,17 @@ pub fn run<E>(
             accepted_at_seq: last.seq,
         };
         sink(SimItem::Block(&msg)).map_err(SimError::Sink)?;
+    }
+    if !faulted {
+        let tail = expanded.blocks.last();
+        for out in pipeline.finish() {
+            let eb = tail.expect("a released block comes from some input block");
+            if !push(&mut ip, &mut last, &mut sink, &out, eb)? {
+                faulted = true;
+                break;
+            }
+            segments += 1;
+        }
     }
     if !faulted {
         ip.finish();
@@ -242,6 +301,7 @@ pub fn run<E>(
         blocks: expanded.blocks.len(),
         segments,
         stats: ip.stats(),
+        smoothing: pipeline.stats(),
     })
 }
 

@@ -21,6 +21,12 @@ use serde::Serialize;
 
 use planner::io::{Moves, PathWriter};
 
+/// `G64 P` of a written raster program, mm: 1 µm, far below a finishing
+/// pass's scallop and the CL path's own chord tolerance, yet enough for the
+/// controller to run 17 µm moves at the feed instead of crawling through
+/// each vertex.
+pub const DEFAULT_BLEND_TOLERANCE: f64 = 0.001;
+
 /// Options of `interpd plan raster`.
 #[derive(Clone, Debug, clap::Args)]
 pub struct RasterArgs {
@@ -60,6 +66,11 @@ pub struct RasterArgs {
     /// Plunge feed, mm/min.
     #[arg(long, default_value_t = 300.0)]
     pub plunge_feed: f64,
+    /// `G64 P` written at the program's start, mm: the controller may leave
+    /// the polylines by this much to run their dense moves at speed (the
+    /// moves are a few µm long). 0: no G64 (the controller's exact path).
+    #[arg(long, default_value_t = DEFAULT_BLEND_TOLERANCE)]
+    pub blend_tolerance: f64,
     /// Weld tolerance for the mesh's vertices, mm.
     #[arg(long, default_value_t = WeldOptions::default().weld_tolerance)]
     pub weld_tolerance: f64,
@@ -90,6 +101,12 @@ pub fn main(args: &RasterArgs) -> Result<()> {
         if !(v.is_finite() && v > 0.0) {
             bail!("{flag} must be a positive number of mm/min, got {v}");
         }
+    }
+    if !(args.blend_tolerance.is_finite() && args.blend_tolerance >= 0.0) {
+        bail!(
+            "--blend-tolerance must be a finite number of mm >= 0 (0: no G64), got {}",
+            args.blend_tolerance
+        );
     }
     if !(args.clearance.is_finite() && args.clearance >= 0.0) {
         bail!(
@@ -153,6 +170,7 @@ pub fn main(args: &RasterArgs) -> Result<()> {
             approach_clearance: APPROACH_CLEARANCE,
             feed: args.feed,
             plunge_feed: args.plunge_feed,
+            blend_tolerance: (args.blend_tolerance > 0.0).then_some(args.blend_tolerance),
         };
         write_gcode(&path, out, &moves)
             .with_context(|| format!("writing G-code to {}", out.display()))?;
@@ -312,6 +330,7 @@ mod tests {
             approach_clearance: APPROACH_CLEARANCE,
             feed: 1200.0,
             plunge_feed: 250.0,
+            blend_tolerance: Some(0.001),
         };
         let text = raster_gcode(&path, &moves);
         let program = gcode::parse(&text).expect("emitted G-code parses");
@@ -321,6 +340,7 @@ mod tests {
         let mut got: Vec<Vec<[f64; 3]>> = Vec::new();
         let mut cutting = false;
         let mut at = None::<[f64; 3]>;
+        let mut blend_first = false;
         for b in &program.blocks {
             match &b.kind {
                 BlockKind::Rapid(m) => {
@@ -354,9 +374,15 @@ mod tests {
                     at = Some(m.end);
                 }
                 BlockKind::ProgramEnd => {}
+                // The G64 P of `moves`, first: dense moves run at speed.
+                BlockKind::PathControl(gcode::PathControl::Blend {
+                    path_tolerance: Some(p),
+                    ..
+                }) if at.is_none() && *p == 0.001 => blend_first = true,
                 other => panic!("unexpected block {other:?}"),
             }
         }
+        assert!(blend_first, "G64 P0.001 before the first move");
         assert_eq!(got.len(), lines.len());
         for (g, l) in got.iter().zip(&lines) {
             let want: Vec<[f64; 3]> = l.iter().map(|q| [q.x, q.y, q.z]).collect();

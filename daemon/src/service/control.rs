@@ -148,9 +148,13 @@ pub struct Stream {
     pub index: u32,
     /// The program the fields above belong to.
     pub program: u32,
-    /// The program's pipeline (input blocks to segments), from `tail` with
-    /// ids from `next_id`; made again when those moved (abort, a refusal).
+    /// The program's pipeline (input blocks through the `G64 P` stage to
+    /// interpolator segments), made at its first block from the end of the
+    /// planner's queue with ids from `next_id`; made again from there after
+    /// a refusal.
     pub pipeline: Option<traces::Pipeline>,
+    /// The interpolator's configuration (the pipeline's stage runs under it).
+    pub interp: interp_core::InterpConfig,
 }
 
 impl core::fmt::Debug for Control {
@@ -345,9 +349,17 @@ impl Control {
         s.pipeline = None;
     }
 
-    /// Where the next block of the current program starts.
+    /// Where the next block of the current program starts: the end of the
+    /// last one it accepted, or (a new pipeline) the end of the planner's
+    /// queue, which `follow` moved to where the machine is after an abort.
     fn next_start(&self, s: &Stream) -> [f64; 3] {
-        s.tail.unwrap_or_else(|| self.status.position())
+        match &s.pipeline {
+            Some(p) => p.tail(),
+            None => {
+                let t = s.planner.tail();
+                [t.x, t.y, t.z]
+            }
+        }
     }
 
     /// The current status.
@@ -434,12 +446,30 @@ impl Control {
     }
 
     /// `end`: the owner's program ends after the blocks it sent.
+    /// The blocks the program's `G64 P` stage still holds are queued first.
     async fn end(&self, peer: &Peer) -> Result<Reply, String> {
+        let epoch = self.abort_epoch.load(Ordering::Acquire);
         let program = self.end_program(&mut self.lock_programs(), peer)?;
-        if let Some(p) = program {
-            self.command(Command::End(p)).await;
-        }
-        Ok(Reply::End)
+        let Some(p) = program else {
+            return Ok(Reply::End);
+        };
+        let mut s = self.stream.lock().await;
+        let pipeline = if s.program == p {
+            s.pipeline.take()
+        } else {
+            None
+        };
+        let flushed = match pipeline {
+            Some(mut pipeline) => {
+                let rest = pipeline.finish();
+                self.queue(&mut s, p, epoch, rest).await
+            }
+            None => Ok(()),
+        };
+        drop(s);
+        // The program ends after what was queued, even when the rest failed.
+        self.command(Command::End(p)).await;
+        flushed.map(|()| Reply::End)
     }
 
     /// The program `end` ends (`None`: it had ended already).
@@ -538,28 +568,66 @@ impl Control {
         }
     }
 
-    /// Parses, checks, plans and queues one block; waits while the RT queue is full.
+    /// Parses and checks one block and sends it through the program's
+    /// pipeline; plans and queues what the pipeline releases (waits while
+    /// the RT queue is full).
     async fn block(&self, b: &traces::InputBlock, peer: &Peer) -> Result<Reply, String> {
         let epoch = self.abort_epoch.load(Ordering::Acquire);
         let program = self.claim(&mut self.lock_programs(), peer)?;
         let mut s = self.stream.lock().await;
         self.follow(&mut s, program);
-        let start = self.next_start(&s);
-        let id = s.next_id;
+        let first = s.next_id;
         // Every block of the program passes through its one pipeline.
-        let mut pipeline = match s.pipeline.take() {
-            Some(p) if p.tail() == start && p.next_id() == id => p,
-            _ => traces::Pipeline::new(start, id, crate::protocol::PIECE_CTRL),
+        let pipeline = match s.pipeline.take() {
+            Some(p) => p,
+            None => traces::Pipeline::new(
+                self.next_start(&s),
+                first,
+                crate::protocol::PIECE_CTRL,
+                &s.interp,
+            )
+            .map_err(|e| format!("config: {e}"))?,
         };
-        let (pieces, info) = crate::protocol::expand(b, &mut pipeline)?;
+        // The stage may fit NURBS over its whole window: off the runtime's thread.
+        let block = b.clone();
+        let (pipeline, expanded) = tokio::task::spawn_blocking(move || {
+            let mut pipeline = pipeline;
+            let r = crate::protocol::expand(&block, &mut pipeline);
+            (pipeline, r)
+        })
+        .await
+        .map_err(|e| format!("expanding block {}: {e}", s.index + 1))?;
+        s.tail = Some(pipeline.tail());
         s.pipeline = Some(pipeline);
+        let (pieces, info) = expanded?;
+        // Recorded once accepted, before anything it released is queued: a
+        // replay sends the recorded blocks through the same pipeline.
+        self.record_block(s.index, b, info);
+        s.index += 1;
+        self.lock_programs().blocks += 1;
+        self.blocks_accepted.fetch_add(1, Ordering::AcqRel);
+        self.queue(&mut s, program, epoch, pieces).await?;
+        Ok(Reply::Block {
+            index: s.index,
+            first,
+            last: s.next_id.wrapping_sub(1),
+        })
+    }
+
+    /// Plans and queues `pieces` (released by the program's pipeline, ids
+    /// from `s.next_id`); waits while the RT queue is full. A piece the
+    /// planner refuses ends the pipeline: the program goes on from the end
+    /// of what was queued.
+    async fn queue(
+        &self,
+        s: &mut Stream,
+        program: u32,
+        epoch: u64,
+        pieces: Vec<interp_core::Block>,
+    ) -> Result<(), String> {
         let n = pieces.len();
-        let end = pieces.last().map(|p| {
-            let e = interp_core::Curve::end_point(&p.path);
-            [e.x, e.y, e.z]
-        });
-        let mut info = Some(info);
         for (i, piece) in pieces.into_iter().enumerate() {
+            let id = piece.id;
             let buf = s
                 .spent
                 .dequeue()
@@ -573,26 +641,19 @@ impl Control {
                 (planner, buf, r)
             })
             .await
-            .map_err(|e| format!("planning block {id}: {e}"))?;
+            .map_err(|e| format!("planning segment {id}: {e}"))?;
             if let Err(e) = planned {
-                if i > 0 {
-                    // The pieces before it are queued: the program goes on from there.
-                    let t = s.planner.tail();
-                    s.tail = Some([t.x, t.y, t.z]);
-                    s.next_id = id + i as u32;
-                }
+                // What the stage still holds is dropped with its pipeline;
+                // the next block starts from the end of the queue.
+                let t = s.planner.tail();
+                s.tail = Some([t.x, t.y, t.z]);
+                s.next_id = id;
+                s.pipeline = None;
                 return Err(format!(
-                    "block {id}: segment {} of {n}: {e} ({i} of {n} segments queued)",
-                    i + 1
+                    "segment {id}: {e} ({i} of {n} segments released with this block queued)"
                 ));
             }
             s.planner = planner;
-            if let Some(info) = info.take() {
-                // Recorded once its first segment is planned, before any of it
-                // is queued: a replay takes each block's segments from here as
-                // their commits come (an abort may flush some).
-                self.record_block(s.index, b, info);
-            }
             let mut item = Plan {
                 program,
                 block: buf,
@@ -600,7 +661,7 @@ impl Control {
             loop {
                 if self.abort_epoch.load(Ordering::Acquire) != epoch {
                     return Err(format!(
-                        "aborted while queueing block {id} ({i} of {n} pieces queued, flushed)"
+                        "aborted while queueing segment {id} ({i} of {n} segments queued, flushed)"
                     ));
                 }
                 match s.blocks.enqueue(item) {
@@ -611,17 +672,9 @@ impl Control {
                     }
                 }
             }
+            s.next_id = id.wrapping_add(1);
         }
-        s.tail = end;
-        s.next_id = id + n as u32;
-        s.index += 1;
-        self.lock_programs().blocks += 1;
-        self.blocks_accepted.fetch_add(1, Ordering::AcqRel);
-        Ok(Reply::Block {
-            index: s.index,
-            first: id,
-            last: id + n as u32 - 1,
-        })
+        Ok(())
     }
 
     /// `peer` left: a program it owns loses its owner (another connection

@@ -305,6 +305,7 @@ pub fn start(
             index: 0,
             program: 0,
             pipeline: None,
+            interp: cfg,
         }),
         programs: Mutex::new(crate::service::control::Programs::new()),
         commands: Mutex::new(rt.commands),

@@ -107,7 +107,7 @@ pub fn main(args: &DemoArgs) -> Result<()> {
     })?;
     if !args.no_plots {
         let cfg = config(args);
-        let blocks = butterfly_blocks(args.feed)?;
+        let blocks = butterfly_blocks(args.feed, &cfg)?;
         let inp = crate::tools::demo_plots::PlotInput {
             cfg: &cfg,
             blocks: &blocks,
@@ -360,16 +360,17 @@ pub(crate) fn butterfly_request(feed_mm_min: f64) -> String {
     )
 }
 
-/// The butterfly as the service gets it: its protocol line parsed and split
-/// exactly as the control plane does, so both runs get the same blocks.
-fn butterfly_blocks(feed_mm_min: f64) -> Result<Vec<Block>> {
+/// The butterfly as the service gets it: its protocol line parsed, split
+/// and sent through the program pipeline (`G64 P` stage included) exactly
+/// as the control plane does, so both runs get the same blocks.
+fn butterfly_blocks(feed_mm_min: f64, cfg: &InterpConfig) -> Result<Vec<Block>> {
     let line = butterfly_request(feed_mm_min);
     let crate::protocol::Request::Block(b) =
         crate::protocol::parse(&line).map_err(|e| anyhow!("butterfly request: {e}"))?
     else {
         bail!("the butterfly request is not a block");
     };
-    crate::protocol::expand_from(&b, butterfly::START, FIRST_BLOCK_ID)
+    crate::protocol::expand_from(&b, butterfly::START, FIRST_BLOCK_ID, cfg)
         .map(|(blocks, _)| blocks)
         .map_err(|e| anyhow!("splitting the butterfly NURBS into blocks: {e}"))
 }
@@ -522,7 +523,7 @@ impl Prepared {
         }
         let cfg = config(args);
         let feed = args.feed / 60.0;
-        let blocks = butterfly_blocks(args.feed)?;
+        let blocks = butterfly_blocks(args.feed, &cfg)?;
         let (first, last) = match (blocks.first(), blocks.last()) {
             (Some(f), Some(l)) => (f, l),
             _ => bail!("the butterfly gave no blocks"),
@@ -857,7 +858,7 @@ pub(crate) mod tests_support {
 
     /// The butterfly's interpolator blocks.
     pub(crate) fn blocks(args: &DemoArgs) -> Vec<Block> {
-        butterfly_blocks(args.feed).expect("the butterfly splits")
+        butterfly_blocks(args.feed, &config(args)).expect("the butterfly splits")
     }
 }
 

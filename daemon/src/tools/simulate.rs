@@ -171,7 +171,11 @@ pub fn run(args: &SimulateArgs) -> Result<Summary> {
     let expanded = program
         .expand(r.settings.max_ctrl_per_block, sim::FIRST_BLOCK_ID)
         .with_context(|| format!("in {source}"))?;
-    let mut analyzer = Analyzer::new(&config, expanded.blocks.len(), expanded.segments());
+    // The segments the interpolator runs: the program through the G64 P stage.
+    let segments = sim::smoothed_segments(&expanded, &config.interp)
+        .map_err(anyhow::Error::msg)
+        .with_context(|| format!("smoothing {source}"))?;
+    let mut analyzer = Analyzer::new(&config, expanded.blocks.len(), &segments);
     let mut observe = |item: &SimItem<'_>| match item {
         SimItem::Tick { setpoint, .. } => {
             analyzer.push(setpoint);

@@ -4,7 +4,9 @@
 //! Each piece becomes one clamped, non-rational B-spline of degree ≤ 5 (cubic
 //! by default), fitted by least squares (Piegl & Tiller, *The NURBS Book*,
 //! §9.4.1): chord-length parameters, knots placed by averaging the parameters
-//! so every knot span holds data (eq. 9.68–9.69), end points interpolated. The
+//! so every knot span holds data (eq. 9.68–9.69), end points interpolated —
+//! the core's fitting (`interp_core::fit`, on the core's B-spline basis
+//! `interp_core::nurbs::basis_functions`), which the `G64 P` stage uses too. The
 //! number of control points is searched (doubling, then bisection) for the
 //! fewest that keep every CL point within [`FitConfig::tolerance`] of the curve
 //! at its parameter. The normal equations are banded (bandwidth = degree); they
@@ -19,6 +21,8 @@
 //! weights 1 > 0); a piece may have any number of control points, since the
 //! program side splits long curves exactly.
 
+use interp_core::fit::{BAND, banded_cholesky_solve, normal_equations, place_knots};
+use interp_core::nurbs::basis_functions;
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -28,7 +32,7 @@ use crate::gouge::{self, CcSurface};
 use crate::mesh::P3;
 
 /// Highest degree interp-core evaluates.
-pub const MAX_DEGREE: usize = 5;
+pub const MAX_DEGREE: usize = interp_core::nurbs::MAX_DEGREE;
 
 /// Consecutive CL points closer than this (mm) are merged before fitting.
 const DUPLICATE_DISTANCE: f64 = 1e-9;
@@ -145,9 +149,7 @@ impl NurbsBlock {
     /// The curve point at parameter `u` in [0, 1].
     pub fn point(&self, u: f64) -> P3 {
         let (p, knots, ctrl) = (self.degree, &self.knots, &self.control_points);
-        let span = knot_span(ctrl.len() - 1, p, u, knots);
-        let mut nb = [0.0; MAX_DEGREE + 1];
-        basis(span, u, p, knots, &mut nb);
+        let (span, nb) = basis_functions(p, knots, u);
         let mut pt = [0.0; 3];
         for j in 0..=p {
             let c = ctrl[span - p + j];
@@ -191,51 +193,8 @@ pub struct Fitted {
     pub recheck_max_depth: Option<f64>,
 }
 
-fn knot_span(n: usize, p: usize, u: f64, knots: &[f64]) -> usize {
-    // Piegl–Tiller A2.1; `n` is the last control-point index.
-    if u >= knots[n + 1] {
-        return n;
-    }
-    if u <= knots[p] {
-        return p;
-    }
-    let (mut lo, mut hi) = (p, n + 1);
-    let mut mid = (lo + hi) / 2;
-    while u < knots[mid] || u >= knots[mid + 1] {
-        if u < knots[mid] {
-            hi = mid;
-        } else {
-            lo = mid;
-        }
-        mid = (lo + hi) / 2;
-    }
-    mid
-}
-
-fn basis(span: usize, u: f64, p: usize, knots: &[f64], out: &mut [f64; MAX_DEGREE + 1]) {
-    // Piegl–Tiller A2.2.
-    let mut left = [0.0; MAX_DEGREE + 1];
-    let mut right = [0.0; MAX_DEGREE + 1];
-    out[0] = 1.0;
-    for j in 1..=p {
-        left[j] = u - knots[span + 1 - j];
-        right[j] = knots[span + j] - u;
-        let mut saved = 0.0;
-        for r in 0..j {
-            let denom = right[r + 1] + left[j - r];
-            let temp = if denom != 0.0 { out[r] / denom } else { 0.0 };
-            out[r] = saved + right[r + 1] * temp;
-            saved = left[j - r] * temp;
-        }
-        out[j] = saved;
-    }
-}
-
 fn eval(p: usize, knots: &[f64], ctrl: &[P3], u: f64) -> P3 {
-    let n = ctrl.len() - 1;
-    let span = knot_span(n, p, u, knots);
-    let mut nb = [0.0; MAX_DEGREE + 1];
-    basis(span, u, p, knots, &mut nb);
+    let (span, nb) = basis_functions(p, knots, u);
     let mut pt = nalgebra::Vector3::zeros();
     for j in 0..=p {
         pt += ctrl[span - p + j].coords * nb[j];
@@ -258,130 +217,30 @@ fn chord_params(q: &[P3]) -> Vec<f64> {
     u
 }
 
-/// Knots for `n + 1` control points of degree `p` over parameters `ub`
-/// (eq. 9.69; eq. 9.8 averaging when interpolating).
-fn place_knots(ub: &[f64], n: usize, p: usize) -> Vec<f64> {
-    let m = ub.len() - 1;
-    let mut knots = vec![0.0; n + p + 2];
-    for k in knots.iter_mut().skip(n + 1) {
-        *k = 1.0;
-    }
-    if n == m {
-        for j in 1..=n - p {
-            knots[j + p] = ub[j..j + p].iter().sum::<f64>() / p as f64;
-        }
-    } else {
-        let d = (m + 1) as f64 / (n - p + 1) as f64;
-        for j in 1..=n - p {
-            let jd = j as f64 * d;
-            let i = jd.floor() as usize;
-            let alpha = jd - i as f64;
-            knots[p + j] = (1.0 - alpha) * ub[i - 1] + alpha * ub[i];
-        }
-    }
-    knots
-}
-
-/// Solves the symmetric positive definite banded system `a x = b` in place
-/// (`a[i][d]` = A(i, i−d), half-bandwidth `w`). Returns false if not SPD.
-fn banded_cholesky_solve(a: &mut [[f64; MAX_DEGREE + 1]], w: usize, b: &mut [f64]) -> bool {
-    let n = b.len();
-    for i in 0..n {
-        for d in (0..=w.min(i)).rev() {
-            let j = i - d;
-            let mut sum = a[i][d];
-            for k in i.saturating_sub(w)..j {
-                sum -= a[i][i - k] * a[j][j - k];
-            }
-            if d == 0 {
-                if !(sum > 0.0) {
-                    return false;
-                }
-                a[i][0] = sum.sqrt();
-            } else {
-                a[i][d] = sum / a[j][0];
-            }
-        }
-    }
-    for i in 0..n {
-        let mut s = b[i];
-        for k in i.saturating_sub(w)..i {
-            s -= a[i][i - k] * b[k];
-        }
-        b[i] = s / a[i][0];
-    }
-    for i in (0..n).rev() {
-        let mut s = b[i];
-        for k in i + 1..(i + w + 1).min(n) {
-            s -= a[k][k - i] * b[k];
-        }
-        b[i] = s / a[i][0];
-    }
-    true
-}
-
-/// Least-squares curve with `n + 1` control points through the end points.
+/// Least-squares curve with `n + 1` control points through the end points
+/// (`interp_core::fit`); nalgebra's SVD when the normal equations are
+/// singular (a span without data).
 fn lsq(q: &[P3], ub: &[f64], n: usize, p: usize) -> (Vec<f64>, Vec<P3>) {
     let m = q.len() - 1;
-    let knots = place_knots(ub, n, p);
+    let mut knots = vec![0.0; n + p + 2];
+    place_knots(ub, n, p, &mut knots);
     let mut ctrl = vec![q[0]; n + 1];
     ctrl[n] = q[m];
     if n < 2 {
         return (knots, ctrl);
     }
-    let unknowns = n - 1;
-    let mut band = vec![[0.0; MAX_DEGREE + 1]; unknowns];
-    let mut rhs = [
-        vec![0.0; unknowns],
-        vec![0.0; unknowns],
-        vec![0.0; unknowns],
-    ];
-    let mut nb = [0.0; MAX_DEGREE + 1];
-    let rows: Vec<(usize, [f64; MAX_DEGREE + 1])> = (1..m)
-        .map(|k| {
-            let span = knot_span(n, p, ub[k], &knots);
-            basis(span, ub[k], p, &knots, &mut nb);
-            (span, nb)
-        })
-        .collect();
-    for (k, (span, nb)) in rows.iter().enumerate() {
-        let k = k + 1;
-        // R_k = Q_k − N_0 Q_0 − N_n Q_m (only the end basis functions touch them).
-        let mut r = q[k].coords;
-        for j in 0..=p {
-            let i = span - p + j;
-            if i == 0 {
-                r -= q[0].coords * nb[j];
-            } else if i == n {
-                r -= q[m].coords * nb[j];
-            }
-        }
-        for j in 0..=p {
-            let i = span - p + j;
-            if i == 0 || i == n {
-                continue;
-            }
-            let row = i - 1;
-            for c in 0..3 {
-                rhs[c][row] += nb[j] * r[c];
-            }
-            for jj in 0..=j {
-                let ii = span - p + jj;
-                if ii == 0 || ii == n {
-                    continue;
-                }
-                band[row][i - ii] += nb[j] * nb[jj];
-            }
-        }
-    }
+    let pts: Vec<interp_core::Vec3> = q.iter().map(|x| x.coords).collect();
+    let cps: Vec<interp_core::Vec3> = ctrl.iter().map(|x| x.coords).collect();
+    let mut band = vec![[0.0; BAND]; n - 1];
+    let mut rhs = vec![[0.0; 3]; n - 1];
+    let unknowns = match normal_equations(&pts, ub, p, &knots, &cps, 1, 1, &mut band, &mut rhs) {
+        Ok(u) => u,
+        // More unknowns than data: nothing better than the chord.
+        Err(_) => return (knots, ctrl),
+    };
     let mut a = band.clone();
     let mut sol = rhs.clone();
-    let mut ok = true;
-    for c in 0..3 {
-        a.clone_from(&band);
-        ok &= banded_cholesky_solve(&mut a, p, &mut sol[c]);
-    }
-    if !ok {
+    if !banded_cholesky_solve(&mut a, p, &mut sol) {
         // Singular normal equations (a span without data): least squares by SVD.
         let mut dense = DMatrix::zeros(unknowns, unknowns);
         for i in 0..unknowns {
@@ -392,15 +251,17 @@ fn lsq(q: &[P3], ub: &[f64], n: usize, p: usize) -> (Vec<f64>, Vec<P3>) {
         }
         let svd = dense.svd(true, true);
         for c in 0..3 {
+            let b = DVector::from_iterator(unknowns, rhs.iter().map(|r| r[c]));
             let x = svd
-                .solve(&DVector::from_vec(rhs[c].clone()), 1e-12)
-                .map(|v| v.as_slice().to_vec())
-                .unwrap_or_else(|_| vec![0.0; unknowns]);
-            sol[c] = x;
+                .solve(&b, 1e-12)
+                .unwrap_or_else(|_| DVector::zeros(unknowns));
+            for i in 0..unknowns {
+                sol[i][c] = x[i];
+            }
         }
     }
     for i in 0..unknowns {
-        ctrl[i + 1] = P3::new(sol[0][i], sol[1][i], sol[2][i]);
+        ctrl[i + 1] = P3::new(sol[i][0], sol[i][1], sol[i][2]);
     }
     (knots, ctrl)
 }
@@ -687,11 +548,11 @@ mod tests {
     use super::*;
 
     #[test]
-    fn banded_cholesky_matches_nalgebra() {
+    fn the_cores_banded_cholesky_matches_nalgebra() {
         let n = 12;
         let w = 3;
         let mut dense = DMatrix::<f64>::zeros(n, n);
-        let mut band = vec![[0.0; MAX_DEGREE + 1]; n];
+        let mut band = vec![[0.0; BAND]; n];
         for i in 0..n {
             for d in 0..=w.min(i) {
                 let v = if d == 0 {
@@ -709,10 +570,12 @@ mod tests {
             .cholesky()
             .unwrap()
             .solve(&DVector::from_vec(b.clone()));
-        let mut x = b;
+        let mut x: Vec<[f64; 3]> = b.iter().map(|&v| [v, 2.0 * v, -v]).collect();
         assert!(banded_cholesky_solve(&mut band, w, &mut x));
         for i in 0..n {
-            assert!((x[i] - want[i]).abs() < 1e-12);
+            assert!((x[i][0] - want[i]).abs() < 1e-12);
+            assert!((x[i][1] - 2.0 * want[i]).abs() < 1e-12);
+            assert!((x[i][2] + want[i]).abs() < 1e-12);
         }
     }
 

@@ -1,0 +1,310 @@
+//! The G64 P stage (`smooth::Smoother`): pass-through, merges, drops,
+//! compression and blends, checked against the programmed polyline by a
+//! brute-force distance independent of the stage's own check.
+
+use interp_core::geom::Curve;
+use interp_core::path::{Blending, Block, Line, Path};
+use interp_core::smooth::{Policy, SmoothError, Smoother};
+use interp_core::{InterpConfig, Interpolator, RunState, Vec3};
+
+fn line(id: u32, a: Vec3, b: Vec3, feed: f64, blending: Blending) -> Block {
+    Block::new(id, Path::Line(Line::new(a, b).unwrap()), feed).with_blending(blending)
+}
+
+/// Lines through `pts`, ids from 1.
+fn polyline(pts: &[Vec3], feed: f64, blending: Blending) -> Vec<Block> {
+    pts.windows(2)
+        .enumerate()
+        .map(|(i, w)| line(i as u32 + 1, w[0], w[1], feed, blending))
+        .collect()
+}
+
+/// Everything through the stage, popping after each push (as the drivers do).
+fn smooth_all(blocks: &[Block], cfg: &InterpConfig, policy: Policy) -> Vec<Block> {
+    let mut st: Box<Smoother> = Box::new(Smoother::with_policy(cfg, 1, policy).unwrap());
+    let mut out = Vec::new();
+    for b in blocks {
+        loop {
+            match st.push(b) {
+                Ok(()) => break,
+                Err(SmoothError::Full) => out.push(st.pop().expect("a full window pops")),
+                Err(e) => panic!("{e}"),
+            }
+        }
+        while let Some(o) = st.pop() {
+            out.push(o);
+        }
+    }
+    st.finish();
+    while let Some(o) = st.pop() {
+        out.push(o);
+    }
+    out
+}
+
+fn seg_dist(x: &Vec3, a: &Vec3, b: &Vec3) -> f64 {
+    let ab = b - a;
+    let l2 = ab.norm_squared();
+    let t = if l2 > 0.0 {
+        ((x - a).dot(&ab) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (x - (a + ab * t)).norm()
+}
+
+/// Largest distance of densely sampled output from the polyline (brute force
+/// over every segment).
+fn max_dev(out: &[Block], pts: &[Vec3], per_block: usize) -> f64 {
+    let mut worst = 0.0f64;
+    for b in out {
+        let (ua, ub) = (b.path.u_start(), b.path.u_end());
+        for i in 0..=per_block {
+            let p = b
+                .path
+                .eval(ua + (ub - ua) * i as f64 / per_block as f64, 0)
+                .p;
+            let d = pts
+                .windows(2)
+                .map(|w| seg_dist(&p, &w[0], &w[1]))
+                .fold(f64::INFINITY, f64::min);
+            worst = worst.max(d);
+        }
+    }
+    worst
+}
+
+fn arc_points(n: usize, r: f64, sweep: f64) -> Vec<Vec3> {
+    (0..=n)
+        .map(|i| {
+            let a = sweep * i as f64 / n as f64;
+            Vec3::new(r * a.cos(), r * a.sin(), 0.1 * a)
+        })
+        .collect()
+}
+
+#[test]
+fn dense_arc_is_compressed_within_the_tolerance() {
+    let cfg = InterpConfig::default();
+    let pts = arc_points(2000, 5.0, 1.5);
+    let tol = 0.001;
+    let blocks = polyline(
+        &pts,
+        100.0,
+        Blending::Within {
+            tolerance: Some(tol),
+        },
+    );
+    let out = smooth_all(&blocks, &cfg, Policy::Auto);
+    eprintln!("{} blocks out", out.len());
+    assert!(out.len() < 40, "{} blocks", out.len());
+    assert!(out.iter().all(|b| matches!(b.path, Path::Nurbs(_))));
+    let dev = max_dev(&out, &pts, 2000);
+    assert!(dev <= tol, "{dev}");
+    assert_eq!(out[0].path.start_point(), pts[0]);
+    assert_eq!(out.last().unwrap().path.end_point(), *pts.last().unwrap());
+}
+
+/// Runs blocks through the stage and the interpolator to the end; returns
+/// the setpoints' X Y Z.
+fn run(blocks: &[Block], cfg: &InterpConfig, max_ticks: u64) -> Result<Vec<Vec3>, String> {
+    let out = smooth_all(blocks, cfg, Policy::Auto);
+    let p = out[0].path.start_point();
+    let mut ip: Box<Interpolator> =
+        Box::new(Interpolator::new(*cfg, [p.x, p.y, p.z, 0.0, 0.0, 0.0]).unwrap());
+    let mut next = 0;
+    let mut pts = Vec::new();
+    for _ in 0..max_ticks {
+        while next < out.len() && ip.push(&out[next]).is_ok() {
+            next += 1;
+        }
+        if next == out.len() {
+            ip.finish();
+        }
+        let sp = ip.tick();
+        pts.push(Vec3::new(sp.axes[0], sp.axes[1], sp.axes[2]));
+        if sp.state == RunState::Done {
+            return Ok(pts);
+        }
+    }
+    Err(format!(
+        "not done after {max_ticks} ticks ({next} of {} blocks queued)",
+        out.len()
+    ))
+}
+
+#[test]
+fn seventy_collinear_micron_moves_then_a_long_one_are_one_line_under_g64_and_finish() {
+    // Issue 15's minimal stall: 70 collinear 1 µm moves, then G1 X10.
+    let cfg = InterpConfig::default();
+    let mut pts: Vec<Vec3> = (0..=70)
+        .map(|i| Vec3::new(i as f64 * 0.001, 0.0, 0.0))
+        .collect();
+    pts.push(Vec3::new(10.0, 0.0, 0.0));
+    let g64 = Blending::Within {
+        tolerance: Some(0.001),
+    };
+    let blocks = polyline(&pts, 100.0, g64);
+    let out = smooth_all(&blocks, &cfg, Policy::Auto);
+    assert_eq!(out.len(), 1, "{out:?}");
+    assert_eq!(out[0].path.start_point(), pts[0]);
+    assert_eq!(out[0].path.end_point(), pts[71]);
+    let sp = run(&blocks, &cfg, 100_000).unwrap();
+    assert_eq!(*sp.last().unwrap(), pts[71]);
+    // Exact path keeps every move (it is the planner's to run them).
+    let exact = polyline(&pts, 100.0, Blending::ExactPath);
+    assert_eq!(smooth_all(&exact, &cfg, Policy::Auto), exact);
+}
+
+#[test]
+fn exact_path_blocks_are_released_as_soon_as_they_are_pushed() {
+    // A streaming client's last exact-path line must move before `end`:
+    // nothing can change it, so the stage holds nothing back.
+    let cfg = InterpConfig::default();
+    let pts = [
+        Vec3::new(0.0, 0.0, 0.0),
+        Vec3::new(1.0, 0.0, 0.0),
+        Vec3::new(2.0, 0.0, 0.0),
+    ];
+    for blending in [Blending::ExactPath, Blending::ExactStop] {
+        let blocks = polyline(&pts, 100.0, blending);
+        let mut s: Box<Smoother> = Box::new(Smoother::new(&cfg, 1).unwrap());
+        for b in &blocks {
+            s.push(b).unwrap();
+            assert_eq!(s.pop(), Some(*b), "{blending:?}");
+            assert_eq!(s.held(), 0);
+        }
+    }
+    // Under G64 the last line waits: the next one may continue it.
+    let g64 = polyline(&pts, 100.0, Blending::Within { tolerance: None });
+    let mut s: Box<Smoother> = Box::new(Smoother::new(&cfg, 1).unwrap());
+    s.push(&g64[0]).unwrap();
+    assert_eq!(s.pop(), None);
+    s.push(&g64[1]).unwrap();
+    assert_eq!(s.pop(), None, "the two collinear lines are one, still open");
+    s.finish();
+    let merged = s.pop().unwrap();
+    assert_eq!(merged.path.end_point(), pts[2]);
+}
+
+#[test]
+fn exact_path_programs_pass_through_unchanged_and_round_off_moves_are_dropped() {
+    let cfg = InterpConfig::default();
+    let pts = [
+        Vec3::new(0.0, 0.0, 0.0),
+        Vec3::new(10.0, 0.0, 0.0),
+        Vec3::new(10.0, 5.0, 0.0),
+        Vec3::new(3.0, 7.0, 1.0),
+    ];
+    for blending in [Blending::ExactPath, Blending::ExactStop] {
+        let blocks = polyline(&pts, 50.0, blending);
+        assert_eq!(smooth_all(&blocks, &cfg, Policy::Auto), blocks);
+    }
+    // A round-off move (as plan raster writes, 5.6e-17 mm) disappears; the
+    // next line starts where the path is, and the ids stay consecutive.
+    let tiny = Vec3::new(10.0, 5.6e-17, 0.0);
+    let mut blocks = polyline(&pts[..2], 50.0, Blending::ExactPath);
+    blocks.push(line(2, pts[1], tiny, 50.0, Blending::ExactPath));
+    blocks.push(line(3, tiny, pts[2], 50.0, Blending::ExactPath));
+    let out = smooth_all(&blocks, &cfg, Policy::Auto);
+    assert_eq!(out.len(), 2);
+    assert_eq!(out[1].path.start_point(), pts[1]);
+    assert_eq!(out[1].path.end_point(), pts[2]);
+    assert_eq!((out[0].id, out[1].id), (1, 2));
+}
+
+#[test]
+fn output_does_not_depend_on_when_pop_is_called() {
+    let cfg = InterpConfig::default();
+    let mut pts = arc_points(300, 4.0, 2.0);
+    // A long move and a sharp corner after the dense part.
+    let last = *pts.last().unwrap();
+    pts.push(last + Vec3::new(20.0, 0.0, 0.0));
+    pts.push(last + Vec3::new(20.0, 15.0, 0.0));
+    let blocks = polyline(
+        &pts,
+        100.0,
+        Blending::Within {
+            tolerance: Some(0.005),
+        },
+    );
+    let eager = smooth_all(&blocks, &cfg, Policy::Auto);
+    // Push everything first (popping only when refused), then pop.
+    let mut st: Box<Smoother<64>> = Box::new(Smoother::new(&cfg, 1).unwrap());
+    let mut lazy = Vec::new();
+    for b in &blocks {
+        while st.push(b) == Err(SmoothError::Full) {
+            lazy.push(st.pop().unwrap());
+        }
+    }
+    st.finish();
+    while let Some(o) = st.pop() {
+        lazy.push(o);
+    }
+    // Different windows may cut pieces elsewhere; the same window may not.
+    let mut st: Box<Smoother<64>> = Box::new(Smoother::new(&cfg, 1).unwrap());
+    let mut eager64 = Vec::new();
+    for b in &blocks {
+        while st.push(b) == Err(SmoothError::Full) {
+            eager64.push(st.pop().unwrap());
+        }
+        while let Some(o) = st.pop() {
+            eager64.push(o);
+        }
+    }
+    st.finish();
+    while let Some(o) = st.pop() {
+        eager64.push(o);
+    }
+    assert_eq!(lazy, eager64);
+    assert!(max_dev(&eager, &pts, 400) <= 0.005);
+    assert!(max_dev(&lazy, &pts, 400) <= 0.005);
+    // A window never holds more than it may: a push is refused when full and
+    // the pop that follows always has a block.
+    assert!(st.push(&blocks[0]).is_err());
+}
+
+#[test]
+fn long_moves_get_curvature_continuous_corner_blends_within_the_tolerance() {
+    let cfg = InterpConfig::default();
+    let pts = [
+        Vec3::new(0.0, 0.0, 0.0),
+        Vec3::new(20.0, 0.0, 0.0),
+        Vec3::new(20.0, 20.0, 0.0),
+        Vec3::new(0.0, 20.0, 5.0),
+        Vec3::new(10.0, 5.0, 5.0),
+    ];
+    let tol = 0.01;
+    let blocks = polyline(
+        &pts,
+        100.0,
+        Blending::Within {
+            tolerance: Some(tol),
+        },
+    );
+    let out = smooth_all(&blocks, &cfg, Policy::Auto);
+    // Four lines and two blends: the 90° corners are blended; the last
+    // corner turns by 123°, where a blend within 0.01 mm would be slower
+    // than a stop (0.2 mm/s at its tightest), so it stays exact.
+    assert_eq!(out.len(), 6, "{out:?}");
+    let kinds: Vec<bool> = out
+        .iter()
+        .map(|b| matches!(b.path, Path::Nurbs(_)))
+        .collect();
+    assert_eq!(kinds, [false, true, false, true, false, false]);
+    assert_eq!(out[5].path.start_point(), pts[3]);
+    assert!(max_dev(&out, &pts, 1000) <= tol);
+    for w in out.windows(2) {
+        let (a, b) = (&w[0].path, &w[1].path);
+        assert_eq!(a.end_point(), b.start_point());
+        if matches!((a, b), (Path::Line(_), Path::Line(_))) {
+            continue;
+        }
+        let l = a.eval(a.u_end(), 3);
+        let r = b.eval(b.u_start(), 3);
+        // Same direction, same (zero) curvature on both sides.
+        assert!((l.d1.normalize() - r.d1.normalize()).norm() < 1e-12);
+        assert!(l.curvature() < 1e-9 && r.curvature() < 1e-9);
+    }
+    run(&blocks, &cfg, 1_000_000).unwrap();
+}
