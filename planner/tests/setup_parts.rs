@@ -1,7 +1,7 @@
 //! Known-answer and metamorphic tests of the 5-axis setup planner
 //! (seed `000_…`) on parts built in code (`planner::setup::samples`).
 
-use nalgebra::{Point3, Rotation3, Unit, Vector3};
+use nalgebra::{Point3, Rotation3, Vector3};
 use planner::mesh::{TriMesh, WeldOptions};
 use planner::setup::samples::{bowl, cavity, dome, random_rotation, rotated, teapot, well, z_to};
 use planner::setup::{
@@ -272,50 +272,12 @@ fn teapot_setup_tilts_toward_the_spout() {
         let axis = p.setup.unwrap().placement.tool_axis;
         let tilt = angle_deg(&axis, &V3::z());
         let azimuth = axis.y.atan2(axis.x).to_degrees();
+        // The optimum is flat (tens of tool axes within the equivalence
+        // tolerance, spread over some 40°): only its side is checked.
         assert!(
-            tilt > 3.0 && azimuth.abs() < 30.0,
+            tilt > 3.0 && azimuth.abs() < 45.0,
             "{machine}: tilt {tilt:.1}°, azimuth {azimuth:.1}°"
         );
-    }
-}
-
-#[test]
-fn rotating_the_part_rotates_the_setup() {
-    let rotation = Rotation3::from_axis_angle(&Unit::new_normalize(V3::new(0.3, -1.0, 0.5)), 1.1);
-    // 2,000 cells (4.5° spacing): the sphere does not turn with the part, so
-    // the two answers agree to within about a cell.
-    let cells = 2000;
-    let sp = spacing_deg(cells);
-    for (name, soup) in [
-        ("dome", dome(40.0, 115.0, 8, 24)),
-        ("teapot", teapot(10, 12, 5, 6)),
-    ] {
-        for machine in [CA_MACHINE, AB_MACHINE] {
-            let deg = [90.0, 90.0, 180.0, 180.0];
-            let a = plan(&mesh(&soup), machine, deg, cells);
-            let b = plan(&mesh(&rotated(&soup, &rotation)), machine, deg, cells);
-            let (sa, sb) = (a.setup.unwrap().placement, b.setup.unwrap().placement);
-            let off = angle_deg(&(rotation * sa.tool_axis), &sb.tool_axis);
-            let (ra, rb) = (sa.required.degrees(), sb.required.degrees());
-            // The teapot's optimum is flat (near-equal areas over a
-            // range of tilts), so there only the area must agree.
-            if name == "dome" {
-                assert!(off <= 2.0 * sp, "{name} {machine}: axis moved {off:.2}°");
-                for k in 0..4 {
-                    assert!(
-                        (ra[k] - rb[k]).abs() <= 2.0 * sp,
-                        "{name} {machine}: {ra:?} vs {rb:?}"
-                    );
-                }
-            }
-            let rel = (sa.area - sb.area).abs() / sa.area.max(sb.area);
-            assert!(
-                rel < 0.25,
-                "{name} {machine}: areas {} vs {}",
-                sa.area,
-                sb.area
-            );
-        }
     }
 }
 
@@ -391,4 +353,119 @@ fn bounded_search_finds_the_exhaustive_answer() {
     }
     // The bounds rule out cells: the test compares two different searches.
     assert!(pruned > 0, "{pruned}");
+}
+
+/// How much the area can grow when both range sums of `o` grow by `delta`
+/// (radians): `δ·(Φ + Θ) + δ²`, the map's resolution in the criterion.
+fn area_slack(o: &SetupOrientation, delta: f64) -> f64 {
+    delta * o.placement.key().1 + delta * delta
+}
+
+/// Whether `o`'s needed ranges, widened by `delta` (radians) on every side,
+/// fit `deg`.
+fn fits_within(o: &SetupOrientation, deg: [f64; 4], delta: f64) -> bool {
+    let need = o.placement.required.degrees();
+    (0..4).all(|k| need[k] <= deg[k] + delta.to_degrees())
+}
+
+#[test]
+fn rotated_parts_keep_feasibility_area_and_tool_axis() {
+    // Metamorphic: a part rotated on the table gives the same answer, to the
+    // map's resolution (the sphere does not turn with the part): the same
+    // feasibility (unless the needed ranges are within two cell spacings of
+    // the machine's), areas within what two spacings on both range sums
+    // add, and the tool axis turned with the part — within two spacings
+    // where the optimum is unique at this resolution (its equivalent setups
+    // all within two spacings of it, on both sides), within the spread of
+    // the equivalent setups where it is flat.
+    use planner::setup::samples::{pocket, step};
+    let cells = 1200;
+    let sphere = GeodesicSphere::with_at_least(cells).unwrap();
+    // The bounded search (certified: the same answers as evaluating every
+    // cell), seeded from 80 probes to keep the test cheap.
+    let config = SetupConfig {
+        cells,
+        probe_cells: 80,
+        ..SetupConfig::default()
+    };
+    let two = 2.0 * spacing_deg(cells);
+    let spread = |o: &SetupOrientation| o.equivalent.map_or(0.0, |e| e.1.to_degrees());
+    let mut unique = 0;
+    for (name, soup) in [
+        // Walls leaning over by 10° on all four sides: the optimum sits on
+        // the axis, with the tilt all around.
+        ("dovetail pocket", pocket(20.0, 30.0, 12.0, -10.0, 5.0, 1)),
+        ("undercut dome", dome(40.0, 115.0, 6, 18)),
+        ("teapot", teapot(10, 12, 5, 6)),
+        // An L-shaped step whose wall leans over the lower floor by 20°.
+        ("overhanging step", step(20.0, 20.0, 15.0, 20.0, 30.0, 3)),
+        ("narrow well", well(1.0, 30.0, 24)),
+    ] {
+        let maps: Vec<_> = (0..4)
+            .map(|seed| {
+                let r = if seed == 0 {
+                    Rotation3::identity()
+                } else {
+                    random_rotation(seed)
+                };
+                let part = mesh(&rotated(&soup, &r));
+                let map = visibility_map(&part, &sphere, &config, &|_, _, _| {}).unwrap();
+                (r, map)
+            })
+            .collect();
+        for machine in [CA_MACHINE, AB_MACHINE] {
+            let kind = machine.parse::<MachineConfig>().unwrap().machine_type();
+            for deg in [[90.0, 90.0, 180.0, 180.0], [5.0, 5.0, 5.0, 5.0]] {
+                let plans: Vec<SetupPlan> = maps
+                    .iter()
+                    .map(|(_, map)| {
+                        search_setup(map, &sphere, kind, &ranges(deg), &config, &|_, _, _| {})
+                    })
+                    .collect();
+                let base = &plans[0];
+                let o0 = base.setup.unwrap_or(base.mar);
+                for (seed, p) in plans.iter().enumerate().skip(1) {
+                    let r = maps[seed].0;
+                    let o = p.setup.unwrap_or(p.mar);
+                    let what = format!("{name} {machine} {deg:?} rotation {seed}");
+                    if p.feasible != base.feasible {
+                        let infeasible = if p.feasible { &base.mar } else { &p.mar };
+                        assert!(
+                            fits_within(infeasible, deg, two.to_radians()),
+                            "{what}: feasible {} then {}",
+                            base.feasible,
+                            p.feasible
+                        );
+                    }
+                    let (a0, a) = (o0.placement.area, o.placement.area);
+                    let slack =
+                        area_slack(&o0, two.to_radians()).max(area_slack(&o, two.to_radians()));
+                    assert!(
+                        (a - a0).abs() <= slack,
+                        "{what}: area {:.1} then {:.1} deg² (slack {:.1})",
+                        a0.to_degrees().to_degrees(),
+                        a.to_degrees().to_degrees(),
+                        slack.to_degrees().to_degrees()
+                    );
+                    let off = angle_deg(&(r * o0.placement.tool_axis), &o.placement.tool_axis);
+                    let sharp = spread(&o0) <= two && spread(&o) <= two;
+                    let allowed = if sharp {
+                        two
+                    } else {
+                        spread(&o0) + spread(&o) + two
+                    };
+                    assert!(
+                        off <= allowed,
+                        "{what}: tool axis turned off by {off:.1}° ({:?} / {:?})",
+                        o0.equivalent,
+                        o.equivalent
+                    );
+                    unique += usize::from(sharp);
+                }
+            }
+        }
+    }
+    // Some optima are unique at this resolution, so the strict form is
+    // tested too.
+    assert!(unique >= 10, "{unique}");
 }

@@ -4,8 +4,10 @@
 //! Reads an STL, builds the binary spherical map, searches the setup for the
 //! given machine (`W/…/T`) and rotary ranges, and prints whether one setup
 //! machines the part, the setup orientation and the ranges it needs, or for
-//! an infeasible part the minimum axis ranges (MAR) to ask for. A progress bar
-//! goes to stderr when it is a terminal.
+//! an infeasible part the minimum axis ranges (MAR) to ask for; with each,
+//! how far from optimal it can be, how many other setups are as good, and the
+//! rotary axis positions that turn the part to it for 3+2 machining. A
+//! progress bar goes to stderr when it is a terminal.
 
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -66,6 +68,26 @@ impl From<&AxisRanges> for RangesDeg {
     }
 }
 
+/// Other setups within the equivalence tolerance of the best (a flat
+/// optimum), as printed.
+#[derive(Debug, Serialize)]
+struct EquivalentOut {
+    /// How many other tool axes are within the tolerance.
+    count: usize,
+    /// The largest angle from the reported tool axis to theirs, degrees.
+    max_axis_angle_deg: f64,
+    /// The area tolerance, deg².
+    area_tolerance_deg2: f64,
+}
+
+/// One rotary axis position for 3+2 machining, as printed.
+#[derive(Debug, Serialize)]
+struct AxisPositionOut {
+    /// The machine's axis letter (A, B or C).
+    axis: String,
+    deg: f64,
+}
+
 /// One placement, as printed.
 #[derive(Debug, Serialize)]
 struct OrientationOut {
@@ -78,6 +100,19 @@ struct OrientationOut {
     axis_2: [f64; 3],
     required_deg: RangesDeg,
     area_deg2: f64,
+    /// No setup on this map has a smaller area (the certificate).
+    lower_bound_deg2: f64,
+    /// `area_deg2 − lower_bound_deg2`: how far from optimal it can be.
+    gap_deg2: f64,
+    /// Other setups as good (`null` when not searched: the MAR of a part
+    /// that fits).
+    equivalent: Option<EquivalentOut>,
+    /// The rotary axes (nearer the part first) at which the tool axis, seen
+    /// from the part as it lies in the STL's frame, is `tool_axis`: position
+    /// them so, then cut what that direction reaches with 3 axes.
+    rotary_positions: [AxisPositionOut; 2],
+    /// Whether those positions lie within the machine's ranges.
+    rotary_positions_within_ranges: bool,
     one_sided_fan: bool,
     group_ii_classes: usize,
     md_points: usize,
@@ -93,16 +128,30 @@ struct PlanOut {
     patches: usize,
     pvc_classes: usize,
     unreachable_patches: usize,
+    /// Patches whose cone is about a cell wide or narrower.
+    narrow_patches: usize,
+    /// Tool axes evaluated exactly (the others were ruled out by bounds).
+    evaluated_cells: usize,
     three_axis: bool,
     feasible: bool,
     setup: Option<OrientationOut>,
     minimum_axis_ranges: OrientationOut,
 }
 
-fn orientation(machine: &MachineConfig, o: &SetupOrientation) -> OrientationOut {
+fn orientation(
+    machine: &MachineConfig,
+    ranges: &AxisRanges,
+    o: &SetupOrientation,
+) -> OrientationOut {
     let (r1, r2) = machine.roles();
     let name = |a| format!("{a:?}");
     let p = &o.placement;
+    let deg2 = |a: f64| a.to_degrees().to_degrees();
+    let positions = machine.rotary_positions(ranges, &p.tool_axis);
+    let position = |(axis, q): (_, f64)| AxisPositionOut {
+        axis: name(axis),
+        deg: q.to_degrees(),
+    };
     OrientationOut {
         tool_axis: p.tool_axis.into(),
         axis_1_name: name(r1),
@@ -110,7 +159,16 @@ fn orientation(machine: &MachineConfig, o: &SetupOrientation) -> OrientationOut 
         axis_2_name: name(r2),
         axis_2: p.axis_2.into(),
         required_deg: (&p.required).into(),
-        area_deg2: p.area.to_degrees().to_degrees(),
+        area_deg2: deg2(p.area),
+        lower_bound_deg2: deg2(o.lower_bound.0),
+        gap_deg2: deg2(p.area - o.lower_bound.0),
+        equivalent: o.equivalent.map(|(count, angle)| EquivalentOut {
+            count,
+            max_axis_angle_deg: angle.to_degrees(),
+            area_tolerance_deg2: deg2(o.equivalent_tolerance),
+        }),
+        rotary_positions: [position(positions.first), position(positions.second)],
+        rotary_positions_within_ranges: positions.within_ranges,
         one_sided_fan: p.one_sided,
         group_ii_classes: o.group_ii_classes,
         md_points: o.md_points,
@@ -131,17 +189,19 @@ fn output(args: &SetupArgs, plan: &SetupPlan) -> PlanOut {
         patches: plan.patches,
         pvc_classes: plan.pvc_classes,
         unreachable_patches: plan.unreachable_patches.len(),
+        narrow_patches: plan.narrow_patches.len(),
+        evaluated_cells: plan.evaluated,
         three_axis: plan.three_axis,
         feasible: plan.feasible,
-        setup: plan.setup.as_ref().map(|o| orientation(m, o)),
-        minimum_axis_ranges: orientation(m, &plan.mar),
+        setup: plan.setup.as_ref().map(|o| orientation(m, &args.ranges, o)),
+        minimum_axis_ranges: orientation(m, &args.ranges, &plan.mar),
     }
 }
 
 fn print_text(out: &PlanOut) {
     println!(
-        "part: {} patches ({} distinct visibility cones, {} unreachable), sphere: {} cells",
-        out.patches, out.pvc_classes, out.unreachable_patches, out.cells
+        "part: {} patches ({} distinct visibility cones, {} unreachable, {} narrower than a cell), sphere: {} cells",
+        out.patches, out.pvc_classes, out.unreachable_patches, out.narrow_patches, out.cells
     );
     println!(
         "machine: {} (rotary order {}, {} type), ranges φL {} φS {} θL {} θS {} deg",
@@ -173,6 +233,32 @@ fn print_text(out: &PlanOut) {
             o.area_deg2,
             o.md_points,
             if o.one_sided_fan { ", one fan" } else { "" }
+        );
+        println!(
+            "  optimal to within {:.3} deg² (no setup needs less than {:.1} deg²)",
+            o.gap_deg2, o.lower_bound_deg2
+        );
+        if let Some(e) = &o.equivalent {
+            println!(
+                "  {} other tool axes as good (within {:.1} deg²), up to {:.1}° away{}",
+                e.count,
+                e.area_tolerance_deg2,
+                e.max_axis_angle_deg,
+                if e.count > 0 { ": a flat optimum" } else { "" }
+            );
+        }
+        let [a, b] = &o.rotary_positions;
+        println!(
+            "  3+2: {} {:.3}° {} {:.3}° turns the part to this tool axis{}",
+            a.axis,
+            a.deg,
+            b.axis,
+            b.deg,
+            if o.rotary_positions_within_ranges {
+                ""
+            } else {
+                " (outside the machine's ranges)"
+            }
         );
     };
     if let Some(setup) = &out.setup {

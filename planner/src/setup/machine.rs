@@ -20,6 +20,8 @@
 use std::str::FromStr;
 
 pub use interp_core::kinematics::{Chain, ChainError, MachineType, RotaryAxis, RotaryKey};
+use interp_core::kinematics::{InverseError, Machine, MachineSpec, RotaryRange, ToolPose};
+use nalgebra::Vector3;
 
 /// Why a machine description was refused: the notation as given and the reason.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -64,6 +66,83 @@ impl MachineConfig {
     pub fn roles(&self) -> (RotaryAxis, RotaryAxis) {
         self.chain.roles()
     }
+
+    /// The rotary axis positions at which the tool axis, seen from the part
+    /// as it lies with the axes at zero, is `tool_axis` (part coordinates):
+    /// with the axes there, a 3-axis program machines what that direction
+    /// reaches (3+2). The kinematics' inverse ([`Machine::inverse`]) nearest
+    /// home within `ranges` (C,A: C in `[−Θˢ, Θᴸ]`, tilt in `[−Φˢ, Φᴸ]`;
+    /// A,B: R1 in `[−Φˢ, Φᴸ]`, R2 in `[−Θˢ, Θᴸ]`), else the one nearest home
+    /// with no ranges, flagged. On the first rotary axis (the pole) the
+    /// first joint stays at 0. A zero or non-finite `tool_axis` gives home.
+    pub fn rotary_positions(
+        &self,
+        ranges: &AxisRanges,
+        tool_axis: &Vector3<f64>,
+    ) -> RotaryPositions {
+        let (first, second) = self.roles();
+        let span = |low: f64, high: f64| RotaryRange {
+            min: -low.to_degrees(),
+            max: high.to_degrees(),
+        };
+        let (r1, r2) = match self.machine_type() {
+            MachineType::CA => (
+                span(ranges.theta_s, ranges.theta_l),
+                span(ranges.phi_s, ranges.phi_l),
+            ),
+            MachineType::AB => (
+                span(ranges.phi_s, ranges.phi_l),
+                span(ranges.theta_s, ranges.theta_l),
+            ),
+        };
+        // The tool axis depends on the rotary key alone; the same key with
+        // the linear axes after both rotaries (`W/caBxyz/T` for `caB`) has
+        // no rotary position where two linear axes line up, so the inverse
+        // never fails on the tip, which 3+2 does not use.
+        let chain: Chain = format!("W/{}xyz/T", self.key())
+            .parse()
+            .expect("a five-axis key with the linear axes last is a chain");
+        let solve = |limits: Option<(RotaryRange, RotaryRange)>| {
+            let mut spec = MachineSpec::new(chain);
+            if let Some((a, b)) = limits {
+                spec.rotary_ranges[first.index()] = a;
+                spec.rotary_ranges[second.index()] = b;
+            }
+            let machine = Machine::new(spec).ok()?;
+            let pose = ToolPose {
+                tip: Vector3::zeros(),
+                axis: *tool_axis,
+            };
+            match machine.inverse(&pose, &[0.0; 6]) {
+                Ok(s) => Some(s.joints),
+                Err(InverseError::OutOfRange { .. }) => None,
+                Err(_) => Some([0.0; 6]),
+            }
+        };
+        let (joints, within_ranges) = match solve(Some((r1, r2))) {
+            Some(j) => (j, true),
+            None => (solve(None).unwrap_or([0.0; 6]), false),
+        };
+        RotaryPositions {
+            first: (first, joints[first.joint()].to_radians()),
+            second: (second, joints[second.joint()].to_radians()),
+            within_ranges,
+        }
+    }
+}
+
+/// Rotary axis positions for 3+2 machining: where to put the machine's two
+/// rotary axes so that the tool axis, seen from the part, is a given
+/// direction ([`MachineConfig::rotary_positions`]).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct RotaryPositions {
+    /// The axis nearer the workpiece (`r1`) and its angle, radians.
+    pub first: (RotaryAxis, f64),
+    /// The axis nearer the tool (`r2`) and its angle, radians.
+    pub second: (RotaryAxis, f64),
+    /// Whether both angles lie within the machine's ranges; if no solution
+    /// does, the one nearest home.
+    pub within_ranges: bool,
 }
 
 impl FromStr for MachineConfig {
@@ -208,6 +287,72 @@ mod tests {
             assert_eq!(m.key().to_string(), key);
             assert_eq!(m.machine_type(), MachineType::CA);
         }
+    }
+
+    #[test]
+    fn rotary_positions_turn_the_tool_axis_onto_the_setup_axis() {
+        // Every 5-axis key, directions all over the sphere (poles included):
+        // the positions turn the tool axis to the direction (eq. 2), within
+        // generous ranges.
+        let dirs: Vec<Vector3<f64>> = (0..40)
+            .map(|k| {
+                let (t, a) = (0.37 * k as f64, 1.3 * k as f64);
+                Vector3::new(t.sin() * a.cos(), t.sin() * a.sin(), t.cos())
+            })
+            .chain([Vector3::z(), -Vector3::z(), Vector3::x(), -Vector3::y()])
+            .collect();
+        let wide: AxisRanges = "180,180,180,180".parse().unwrap();
+        for key in RotaryKey::all()
+            .into_iter()
+            .filter(|k| k.machine_type().is_some())
+        {
+            let chain = format!("W/{key}xyz/T");
+            let m: MachineConfig = chain.parse().unwrap();
+            for p in &dirs {
+                let pos = m.rotary_positions(&wide, p);
+                assert!(pos.within_ranges, "{key} {p:?}");
+                assert_eq!((pos.first.0, pos.second.0), m.roles());
+                let reached = key.ftm5(pos.first.1, pos.second.1);
+                assert!((reached - p).norm() < 1e-9, "{key} {p:?}: {reached:?}");
+            }
+        }
+        // A caB machine: the tool tilted 30° toward −y from the part's z
+        // is A = 30° with C = 0 (R_x(30°)·ẑ = (0, −sin 30°, cos 30°)).
+        let m: MachineConfig = "W/caxyBz/T".parse().unwrap();
+        let r: AxisRanges = "110,30,180,180".parse().unwrap();
+        let p = Vector3::new(0.0, -0.5, 3f64.sqrt() / 2.0);
+        let pos = m.rotary_positions(&r, &p);
+        assert!(pos.within_ranges);
+        assert_eq!((pos.first.0, pos.second.0), (RotaryAxis::C, RotaryAxis::A));
+        assert!(pos.first.1.abs() < 1e-12 && (pos.second.1 - 30f64.to_radians()).abs() < 1e-12);
+        // Tilting the other way: A = −30° (the end of A's range), nearer
+        // home than C = 180°, A = 30°.
+        let other = Vector3::new(0.0, 0.5, 3f64.sqrt() / 2.0);
+        let q = m.rotary_positions(&r, &other);
+        assert!(q.within_ranges && q.first.1.abs() < 1e-12);
+        assert!((q.second.1 + 30f64.to_radians()).abs() < 1e-12);
+        // With A's negative side closed, C turns half a turn instead.
+        let one_sided: AxisRanges = "110,0,180,180".parse().unwrap();
+        let h = m.rotary_positions(&one_sided, &other);
+        assert!(h.within_ranges && (h.first.1.abs() - 180f64.to_radians()).abs() < 1e-9);
+        assert!((h.second.1 - 30f64.to_radians()).abs() < 1e-9);
+        // A tilt beyond both sides of A's range is reported as such, with
+        // the positions nearest home that reach it.
+        let tight: AxisRanges = "10,10,180,180".parse().unwrap();
+        let out = m.rotary_positions(&tight, &p);
+        assert!(!out.within_ranges);
+        assert!((m.key().ftm5(out.first.1, out.second.1) - p).norm() < 1e-9);
+        // An A,B machine (R1 = B, R2 = A): R1 takes the Φ ranges. A tool
+        // axis needing B = 25° is out of reach when Φ allows 20° only.
+        let ab: MachineConfig = "W/baxzBy/T".parse().unwrap();
+        let v = ab.key().ftm5(25f64.to_radians(), 5f64.to_radians());
+        let fits = ab.rotary_positions(&"30,30,20,20".parse().unwrap(), &v);
+        assert!(fits.within_ranges);
+        assert!((fits.first.1 - 25f64.to_radians()).abs() < 1e-9);
+        assert!(
+            !ab.rotary_positions(&"20,20,30,30".parse().unwrap(), &v)
+                .within_ranges
+        );
     }
 
     #[test]

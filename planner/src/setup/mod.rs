@@ -51,7 +51,7 @@ mod test_support {
     }
 }
 
-pub use machine::{AxisRanges, MachineConfig, MachineType, RotaryAxis};
+pub use machine::{AxisRanges, MachineConfig, MachineType, RotaryAxis, RotaryPositions};
 pub use search::Placement;
 pub use sphere::GeodesicSphere;
 pub use visibility::VisibilityMap;

@@ -274,3 +274,45 @@ pub fn pocket(
     }
     soup
 }
+
+/// An L-shaped step, `length` long along y: a lower floor `floor` wide
+/// (facing +z, at `z = 0`, `x ≤ 0`), a wall `height` high that leans over
+/// the floor by `lean_deg` (an undercut: the tool must tilt at least that
+/// far toward −x to reach it; 0 makes it vertical, grazed by +z), and an
+/// upper floor `top` wide at `z = height`. Each face is split `steps`
+/// along y (two triangles per step); an open sheet.
+pub fn step(
+    floor: f64,
+    top: f64,
+    height: f64,
+    lean_deg: f64,
+    length: f64,
+    steps: usize,
+) -> Vec<[P3; 3]> {
+    let steps = steps.max(1);
+    let overhang = height * lean_deg.to_radians().tan();
+    // The profile in (x, z), left to right, and the side each face faces.
+    let profile = [
+        (-floor, 0.0),
+        (0.0, 0.0),
+        (-overhang, height),
+        (top, height),
+    ];
+    let lean = lean_deg.to_radians();
+    let facing_dirs = [V3::z(), V3::new(-lean.cos(), 0.0, -lean.sin()), V3::z()];
+    let mut soup = Vec::new();
+    for k in 0..3 {
+        let (a, b) = (profile[k], profile[k + 1]);
+        for s in 0..steps {
+            let (y0, y1) = (
+                length * s as f64 / steps as f64,
+                length * (s + 1) as f64 / steps as f64,
+            );
+            let p = |(x, z): (f64, f64), y: f64| P3::new(x, y, z);
+            let (q0, q1, q2, q3) = (p(a, y0), p(b, y0), p(b, y1), p(a, y1));
+            soup.push(facing([q0, q1, q2], facing_dirs[k]));
+            soup.push(facing([q0, q2, q3], facing_dirs[k]));
+        }
+    }
+    soup
+}

@@ -5,6 +5,11 @@
 //! sphere has `m = 20·f²` cells of nearly equal size (1,280 for `f = 8`, the
 //! nearest to the paper's 1,200; 20,480 for `f = 32`). Each cell stands for
 //! one tool-axis direction: the normalised mean of its three corners.
+//!
+//! The icosahedron is turned to a general position ([`ORIENTATION`]): in
+//! its usual position the coordinate axes are corners of six cells at every
+//! even frequency, so the direction an axis-aligned part most often wants
+//! (+z, past vertical walls) would touch six cells and lie inside none.
 
 use nalgebra::Vector3;
 
@@ -14,6 +19,10 @@ pub type Dir = Vector3<f64>;
 /// Most cells accepted: 2·10⁶ (f = 316); the visibility map of a large part
 /// grows as cells × triangles bits.
 pub const MAX_CELLS: usize = 2_000_000;
+
+/// The turn of the icosahedron (axis, angle in radians): a general
+/// position, so that no coordinate axis falls on a cell's corner or edge.
+pub const ORIENTATION: ([f64; 3], f64) = ([0.2645, 0.5831, 0.7683], 0.5372);
 
 /// Why a sphere could not be made.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -63,6 +72,11 @@ impl GeodesicSphere {
     pub fn with_frequency(f: usize) -> Self {
         let f = f.max(1);
         let (verts, faces) = icosahedron();
+        let turn = nalgebra::Rotation3::from_axis_angle(
+            &nalgebra::Unit::new_normalize(Dir::from(ORIENTATION.0)),
+            ORIENTATION.1,
+        );
+        let verts = verts.map(|v| turn * v);
         let mut cells = Vec::with_capacity(20 * f * f);
         let mut corners = Vec::with_capacity(20 * f * f);
         let mut vertices: Vec<Dir> = Vec::new();
@@ -431,6 +445,39 @@ mod tests {
                 .map(|c| c.dot(d).clamp(-1.0, 1.0).acos())
                 .fold(f64::INFINITY, f64::min);
             assert!(best < s.spacing(), "gap {best} ≥ spacing {}", s.spacing());
+        }
+    }
+
+    #[test]
+    fn no_coordinate_axis_lies_on_a_cell_edge() {
+        // Each of ±x, ±y, ±z is well inside one cell (not on a corner or
+        // an edge shared by several), at the frequencies in use.
+        for f in [1, 2, 3, 8, 10, 16, 20, 32] {
+            let s = GeodesicSphere::with_frequency(f);
+            for axis in [
+                Dir::x(),
+                Dir::y(),
+                Dir::z(),
+                -Dir::x(),
+                -Dir::y(),
+                -Dir::z(),
+            ] {
+                let holding: Vec<f64> = (0..s.len())
+                    .filter_map(|i| {
+                        let c = s.corners(i);
+                        (0..3)
+                            .map(|k| c[k].cross(&c[(k + 1) % 3]).normalize().dot(&axis))
+                            .reduce(f64::min)
+                            .filter(|&m| m >= 0.0)
+                    })
+                    .collect();
+                assert_eq!(holding.len(), 1, "f {f}: {axis:?} in {holding:?}");
+                // Clear of the edges by a fair part of the cell's size.
+                assert!(
+                    holding[0] > 0.02 * s.spacing(),
+                    "f {f}: {axis:?} {holding:?}"
+                );
+            }
         }
     }
 
