@@ -1,14 +1,12 @@
 //! Planning cost (non-RT work in `push` and `finish`): per segment, per
-//! second of planned motion, and the worst case of one block arriving while
-//! 1,000 are queued.
+//! second of planned motion, and the two halves apart (plan, commit).
 //!
 //! ```text
 //! cargo bench -p interp-core --bench plan
 //! ```
 //!
 //! Besides criterion's figures it prints the derived per-segment and
-//! per-second-of-motion costs and the slowest single `push` with 1,000
-//! blocks queued (max over 200 trials).
+//! per-second-of-motion costs, and plan and commit times (mean, max).
 
 #[path = "common/mod.rs"]
 mod common;
@@ -17,10 +15,10 @@ use core::hint::black_box;
 use std::time::Instant;
 
 use common::butterfly_blocks;
-use criterion::{Criterion, criterion_group, criterion_main};
+use criterion::{Criterion, criterion_group};
 use interp_core::geom::{Curve, Vec3};
 use interp_core::path::{Block, Line, Path};
-use interp_core::{InterpConfig, Interpolator, PlannedBlock, RunState};
+use interp_core::{BlockPlanner, InterpConfig, Interpolator, PlannedBlock, RunState};
 
 /// 1,001 short lines zig-zagging by 2° (a CAM polyline), 0.5 mm each.
 fn polyline(n: usize) -> Vec<Block> {
@@ -39,21 +37,36 @@ fn polyline(n: usize) -> Vec<Block> {
     out
 }
 
+/// Runs `blocks` to the end as `simulate` does (each block pushed as soon
+/// as it is taken, ticking while it waits); returns the ticks.
+fn run_all(ip: &mut Interpolator, blocks: &[Block]) -> u64 {
+    let mut n = 0u64;
+    for b in blocks {
+        loop {
+            match ip.push(b) {
+                Ok(()) => break,
+                Err(e) if e.is_wait() => {
+                    black_box(ip.tick());
+                    n += 1;
+                }
+                Err(e) => panic!("{e}"),
+            }
+        }
+    }
+    ip.finish();
+    while ip.tick().state != RunState::Done {
+        n += 1;
+    }
+    n
+}
+
 /// Seconds of motion the butterfly takes at 100 mm/s.
 fn motion_seconds(blocks: &[Block]) -> f64 {
     let cfg = InterpConfig::default();
     let s = blocks[0].path.start_point();
     let mut ip: Box<Interpolator> =
         Box::new(Interpolator::new(cfg, [s.x, s.y, s.z, 0.0, 0.0, 0.0]).unwrap());
-    for b in blocks {
-        ip.push(b).unwrap();
-    }
-    ip.finish();
-    let mut n = 0u64;
-    while ip.tick().state != RunState::Done {
-        n += 1;
-    }
-    n as f64 * cfg.period
+    run_all(&mut ip, blocks) as f64 * cfg.period
 }
 
 fn bench(c: &mut Criterion) {
@@ -63,16 +76,13 @@ fn bench(c: &mut Criterion) {
     let segs = butterfly.len();
     let seconds = motion_seconds(&butterfly);
     let mut group = c.benchmark_group("plan");
-    group.bench_function("butterfly_push_all_and_finish", |b| {
+    group.sample_size(10);
+    group.bench_function("butterfly_run_to_the_end", |b| {
         b.iter(|| {
             let mut ip: Box<Interpolator> = Box::new(
                 Interpolator::new(cfg, [start.x, start.y, start.z, 0.0, 0.0, 0.0]).unwrap(),
             );
-            for blk in &butterfly {
-                ip.push(blk).unwrap();
-            }
-            ip.finish();
-            black_box(ip.queued_length())
+            black_box(run_all(&mut ip, &butterfly))
         })
     });
     group.finish();
@@ -81,101 +91,131 @@ fn bench(c: &mut Criterion) {
     for _ in 0..20 {
         let mut ip: Box<Interpolator> =
             Box::new(Interpolator::new(cfg, [start.x, start.y, start.z, 0.0, 0.0, 0.0]).unwrap());
-        for blk in &butterfly {
-            ip.push(blk).unwrap();
-        }
-        ip.finish();
-        black_box(ip.queued_length());
+        black_box(run_all(&mut ip, &butterfly));
     }
     let per_run = t0.elapsed().as_secs_f64() / 20.0;
     println!(
-        "butterfly: {segs} segments, {seconds:.3} s of motion; planning {:.1} µs per segment, {:.2} ms per second of motion",
+        "butterfly: {segs} segments, {seconds:.3} s of motion; planning and ticking {:.1} µs per segment, {:.2} ms per second of motion",
         per_run / segs as f64 * 1e6,
         per_run / seconds * 1e3
     );
-    // Worst-case latency: one block arriving while 1,000 are queued.
-    one_block_with_1000_queued("push", |ip, b| {
-        let t = Instant::now();
-        ip.push(b).unwrap();
-        t.elapsed().as_secs_f64()
-    });
+    plan_and_commit();
 }
 
-/// Mean and max over 200 trials of `op` (which times itself, in seconds) on
-/// the 1,001st line of [`polyline`] with the first 1,000 queued.
-fn one_block_with_1000_queued(
-    what: &str,
-    mut op: impl FnMut(&mut Interpolator<1024>, &Block) -> f64,
-) {
-    let cfg = InterpConfig::default();
-    let lines = polyline(1_001);
-    let mut worst = 0.0f64;
-    let mut total = 0.0;
-    for _ in 0..200 {
-        let mut ip: Box<Interpolator<1024>> = Box::new(Interpolator::new(cfg, [0.0; 6]).unwrap());
-        for b in &lines[..1000] {
-            ip.push(b).unwrap();
-        }
-        let dt = op(&mut ip, &lines[1000]);
-        worst = worst.max(dt);
-        total += dt;
-        black_box(ip.queued_length());
-    }
-    println!(
-        "{what} with 1,000 blocks queued: mean {:.2} µs, max {:.2} µs (200 trials)",
-        total / 200.0 * 1e6,
-        worst * 1e6
-    );
-}
-
-/// The two halves of `push` apart: planning (any thread) and commit (the RT
-/// thread in the daemon), per butterfly segment and with 1,000 blocks queued.
+/// The two halves of `push` apart: planning (the control plane in the
+/// daemon: law sampling and the speed's linear program) and commit (the RT
+/// thread: copying the plan in), per part of the butterfly and per line of
+/// a dense polyline.
 fn plan_and_commit() {
     let cfg = InterpConfig::default();
     let butterfly = butterfly_blocks(100.0);
     let start = butterfly[0].path.start_point();
     let at = [start.x, start.y, start.z, 0.0, 0.0, 0.0];
-    let (mut plan_worst, mut commit_worst, mut plan_total, mut commit_total) =
-        (0.0f64, 0.0f64, 0.0, 0.0);
-    let reps = 20;
-    for _ in 0..reps {
+    let mut plans = Timing::default();
+    let mut commits = Timing::default();
+    for _ in 0..20 {
         let mut ip: Box<Interpolator> = Box::new(Interpolator::new(cfg, at).unwrap());
-        let mut planner = ip.planner();
+        let mut planner = Box::new(BlockPlanner::new(cfg, start, 0.0).unwrap());
         let mut plan = Box::new(PlannedBlock::new());
         for blk in &butterfly {
-            let t = Instant::now();
-            planner.plan(blk, &mut plan).unwrap();
-            let dt = t.elapsed().as_secs_f64();
-            plan_worst = plan_worst.max(dt);
-            plan_total += dt;
-            let t = Instant::now();
-            ip.commit(&plan).unwrap();
-            let dt = t.elapsed().as_secs_f64();
-            commit_worst = commit_worst.max(dt);
-            commit_total += dt;
+            let mut first = true;
+            while first || planner.has_pending() {
+                let (s, rest) = ip.executor().plan_position();
+                planner.set_machine(s, rest);
+                let t = Instant::now();
+                let r = if first {
+                    planner.plan(blk, &mut plan)
+                } else {
+                    planner.plan_pending(&mut plan)
+                };
+                if r.is_err() {
+                    // The look-ahead reaches far enough for now.
+                    black_box(ip.tick());
+                    continue;
+                }
+                plans.add(t.elapsed().as_secs_f64());
+                first = false;
+                let t = Instant::now();
+                ip.commit(&plan).unwrap();
+                commits.add(t.elapsed().as_secs_f64());
+                // Let the machine move on.
+                for _ in 0..50 {
+                    black_box(ip.tick());
+                }
+            }
         }
-        black_box(ip.queued_length());
     }
-    let n = (reps * butterfly.len()) as f64;
     println!(
-        "butterfly per segment: plan mean {:.1} µs max {:.1} µs; commit mean {:.2} µs max {:.2} µs",
-        plan_total / n * 1e6,
-        plan_worst * 1e6,
-        commit_total / n * 1e6,
-        commit_worst * 1e6
+        "butterfly per part: plan mean {:.0} µs max {:.0} µs; commit mean {:.2} µs max {:.2} µs",
+        plans.mean() * 1e6,
+        plans.max * 1e6,
+        commits.mean() * 1e6,
+        commits.max * 1e6
     );
-    one_block_with_1000_queued("commit", |ip, b| {
-        let mut plan = Box::new(PlannedBlock::new());
-        ip.planner().plan(b, &mut plan).unwrap();
+    let lines = polyline(1_001);
+    let mut plans = Timing::default();
+    let mut commits = Timing::default();
+    let mut ip: Box<Interpolator<1024>> = Box::new(Interpolator::new(cfg, [0.0; 6]).unwrap());
+    let mut planner = Box::new(BlockPlanner::new(cfg, Vec3::zeros(), 0.0).unwrap());
+    let mut plan = Box::new(PlannedBlock::new());
+    for b in &lines {
+        loop {
+            let (s, rest) = ip.executor().plan_position();
+            planner.set_machine(s, rest);
+            let t = Instant::now();
+            match planner.plan(b, &mut plan) {
+                Ok(()) => {
+                    plans.add(t.elapsed().as_secs_f64());
+                    break;
+                }
+                Err(_) => {
+                    black_box(ip.tick());
+                }
+            }
+        }
         let t = Instant::now();
         ip.commit(&plan).unwrap();
-        t.elapsed().as_secs_f64()
-    });
+        commits.add(t.elapsed().as_secs_f64());
+    }
+    println!(
+        "polyline of 0.5 mm lines: plan mean {:.0} µs max {:.0} µs; commit mean {:.2} µs max {:.2} µs ({} lines)",
+        plans.mean() * 1e6,
+        plans.max * 1e6,
+        commits.mean() * 1e6,
+        commits.max * 1e6,
+        plans.n
+    );
 }
 
-fn bench_split(_: &mut Criterion) {
-    plan_and_commit();
+#[derive(Default)]
+struct Timing {
+    n: usize,
+    total: f64,
+    max: f64,
 }
 
-criterion_group!(benches, bench, bench_split);
-criterion_main!(benches);
+impl Timing {
+    fn add(&mut self, dt: f64) {
+        self.n += 1;
+        self.total += dt;
+        self.max = self.max.max(dt);
+    }
+    fn mean(&self) -> f64 {
+        self.total / self.n.max(1) as f64
+    }
+}
+
+criterion_group!(benches, bench);
+// The interpolator is built on the stack before it is boxed (about 2 MiB,
+// more in an unoptimised build): run on a thread with room for it.
+fn main() {
+    std::thread::Builder::new()
+        .stack_size(64 << 20)
+        .spawn(|| {
+            benches();
+            Criterion::default().configure_from_args().final_summary();
+        })
+        .expect("bench thread")
+        .join()
+        .expect("bench thread panicked");
+}

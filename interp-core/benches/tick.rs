@@ -1,4 +1,5 @@
-//! Criterion bench: the cost of one `Interpolator::tick()` in steady running.
+//! Criterion bench: the cost of one `Executor::tick()` in steady running (the
+//! plans made beforehand and committed at their ticks, as on the RT thread).
 //!
 //! Curves: the 3-D rational cubic of `common::rational_cubic` (30 control
 //! points, weights in [0.5, 2], ≈ 330 mm) and the LinuxCNC butterfly, both at
@@ -20,7 +21,7 @@ use core::time::Duration;
 use std::time::Instant;
 
 use common::{MODES, butterfly_blocks, config_with, cubic_blocks, loaded, mode_name, reload};
-use criterion::{Criterion, criterion_group, criterion_main};
+use criterion::{Criterion, criterion_group};
 use interp_core::{Block, RunState};
 
 fn bench_curve(c: &mut Criterion, curve: &str, blocks: &[Block]) {
@@ -67,4 +68,16 @@ criterion_group! {
         .sample_size(50);
     targets = ticks
 }
-criterion_main!(benches);
+// The interpolator is built on the stack before it is boxed (about 2 MiB,
+// more in an unoptimised build): run on a thread with room for it.
+fn main() {
+    std::thread::Builder::new()
+        .stack_size(64 << 20)
+        .spawn(|| {
+            benches();
+            Criterion::default().configure_from_args().final_summary();
+        })
+        .expect("bench thread")
+        .join()
+        .expect("bench thread panicked");
+}

@@ -115,7 +115,7 @@ fn main() {
     if csv {
         println!(
             "curve,mode,ticks,moving_ticks,max_abs_fluct,max_abs_fluct_before_last,rms_fluct,min_fluct,max_fluct,worst_seq,\
-             segments_done,brake_overruns,max_newton_iters"
+             segments_done,newton_unconverged,max_newton_iters"
         );
         for r in &rows {
             println!(
@@ -130,7 +130,7 @@ fn main() {
                 r.max,
                 r.worst_seq,
                 r.stats.segments_done,
-                r.stats.brake_overruns,
+                r.stats.newton_unconverged,
                 r.stats.max_newton_iters
             );
         }
@@ -140,7 +140,7 @@ fn main() {
         "feed fluctuation |chord|/(feed·Ts) − 1 — {curve}, F = {FEED} mm/s, Ts = 1 ms, ER = 1 µm"
     );
     println!(
-        "{:<13} {:>7} {:>7} {:>10} {:>10} {:>10} {:>11} {:>11} {:>7}  stats (segments_done, brake_overruns, max_newton_iters)",
+        "{:<13} {:>7} {:>7} {:>10} {:>10} {:>10} {:>11} {:>11} {:>7}  stats (segments_done, newton_unconverged, max_newton_iters)",
         "mode", "ticks", "moving", "max|f|", "w/o last", "rms f", "min f", "max f", "at seq"
     );
     for r in &rows {
@@ -156,7 +156,7 @@ fn main() {
             r.max,
             r.worst_seq,
             r.stats.segments_done,
-            r.stats.brake_overruns,
+            r.stats.newton_unconverged,
             r.stats.max_newton_iters
         );
     }

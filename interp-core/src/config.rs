@@ -21,9 +21,6 @@ pub enum ParamUpdate {
     Corrected,
 }
 
-/// Longest jerk filter (moving average) the interpolator holds, ticks.
-pub const MAX_FILTER: usize = 1024;
-
 /// Interpolator configuration (mm, s). `Default` gives the documented values.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -41,10 +38,7 @@ pub struct InterpConfig {
     pub max_path_speed: f64,
     /// Tangential acceleration limit, mm/s². Default 2000.
     pub max_path_accel: f64,
-    /// Tangential jerk limit, mm/s³. Default 100 000. The schedule passes its
-    /// step through a moving average of `ceil(2·A/(J·Ts))` ticks (a jerk
-    /// filter), which bounds the jerk by `J` even when the acceleration
-    /// reverses from `+A` to `−A`.
+    /// Tangential jerk limit, mm/s³. Default 100 000.
     pub max_path_jerk: f64,
     /// Centripetal acceleration limit `v²·|k| ≤ this`, mm/s². Default 2000.
     pub max_centripetal_accel: f64,
@@ -54,10 +48,11 @@ pub struct InterpConfig {
     pub axis_max_accel: [f64; 3],
     /// Per-axis jerk limits X Y Z, mm/s³. Default 200 000 each.
     pub axis_max_jerk: [f64; 3],
-    /// Share of each axis's acceleration and jerk given to the path's own
-    /// tangential motion (the rest goes to curvature and corners), in (0, 1).
-    /// The path's effective limits are `min(A, share·A_axis)` and likewise for
-    /// jerk. Default 0.5.
+    /// Share of each axis's acceleration given to the path's own tangential
+    /// motion (the rest goes to curvature and corners), in (0, 1): the path's
+    /// tangential acceleration is at most `min(A, share·A_axis)`. Feed hold
+    /// brakes with the same share of the axes' jerk. (The schedule holds
+    /// each axis's jerk exactly, along the planned profile.) Default 0.5.
     pub axis_tangential_share: f64,
     /// Every limit is planned at `(1 − planning_margin)` of its value, which
     /// absorbs discrete-time effects (chord versus arc, law sampling). Default 0.02.
@@ -67,15 +62,9 @@ pub struct InterpConfig {
     pub junction_min_speed: f64,
     /// Largest feed override accepted (1 = 100 %). Default 2.0.
     pub max_feed_override: f64,
-    /// How fast the applied override follows a new command, per second
-    /// (1.0 = 100 % per second). Default 4.0.
-    pub override_rate: f64,
-    /// Fraction of `max_path_accel` held back when planning braking, so that the
-    /// chord-versus-arc difference of a tick never forces a harder stop.
-    /// Default 0.05.
-    pub brake_reserve: f64,
-    /// Target spacing of the look-ahead profile nodes, mm; never below one
-    /// tick's travel at the block's feed. Default 0.25.
+    /// Length of the pieces of the planned speed (the look-ahead grid), mm;
+    /// made a whole multiple large enough for one tick's travel at the top
+    /// speed. Default 0.25.
     pub profile_step: f64,
     /// Samples of the feed laws per profile interval (the interval's limit is
     /// their minimum). Default 8.
@@ -119,8 +108,6 @@ impl Default for InterpConfig {
             planning_margin: 0.02,
             junction_min_speed: 0.5,
             max_feed_override: 2.0,
-            override_rate: 4.0,
-            brake_reserve: 0.05,
             profile_step: 0.25,
             law_samples_per_interval: 8,
             tangent_tolerance: 1e-6,
@@ -169,19 +156,6 @@ impl InterpConfig {
         self.max_path_jerk.min(self.axis_tangential_share * axis) * (1.0 - self.planning_margin)
     }
 
-    /// Length of the jerk filter's moving average, ticks: `ceil(2·A/(J·Ts))`
-    /// with the planned limits (1 means no filter).
-    pub fn filter_ticks(&self) -> usize {
-        // A ratio that is whole up to round-off (as in scaled units) is that whole number.
-        let x = 2.0 * self.planned_accel() / (self.planned_jerk() * self.period);
-        let n = libm::ceil(x * (1.0 - 1e-12));
-        if n.is_finite() && n >= 1.0 {
-            n.min(1e9) as usize
-        } else {
-            1
-        }
-    }
-
     /// Checks every field; the error names the first one out of range.
     pub fn validate(&self) -> Result<(), ConfigError> {
         let pos = |v: f64| v.is_finite() && v > 0.0;
@@ -224,15 +198,7 @@ impl InterpConfig {
         if !(self.max_feed_override >= 1.0 && self.max_feed_override <= 10.0) {
             return Err(ConfigError::OutOfRange("max-feed-override"));
         }
-        if !pos(self.override_rate) {
-            return Err(ConfigError::OutOfRange("override-rate"));
-        }
-        if self.filter_ticks() > MAX_FILTER {
-            return Err(ConfigError::OutOfRange("max-path-jerk"));
-        }
-        if !(self.brake_reserve >= 0.0 && self.brake_reserve < 0.5) {
-            return Err(ConfigError::OutOfRange("brake-reserve"));
-        }
+
         if !pos(self.profile_step) {
             return Err(ConfigError::OutOfRange("profile-step"));
         }

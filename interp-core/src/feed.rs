@@ -132,6 +132,24 @@ pub fn machine_limit(d: &Derivs, cfg: &InterpConfig, budget: f64) -> f64 {
             v = v.min(libm::sqrt(budget * keep * cfg.max_centripetal_accel / k));
         }
         v = v.min(axis_limit(&a, cfg, budget));
+        v = v.min(steady_jerk_speed(&a, cfg));
+    }
+    v
+}
+
+/// The speed at which a path followed at constant speed meets an axis's
+/// jerk limit, mm/s: `C_sss,i·v³ ≤ J_i`, the axis jerk of the curvature
+/// alone. No plan passes a point faster than that (it would have to pass it
+/// at constant speed at least), so it is a pointwise machine limit; the
+/// schedule's linear program holds the whole axis jerk along its profile.
+pub fn steady_jerk_speed(a: &ArcLengthDerivs, cfg: &InterpConfig) -> f64 {
+    let keep = 1.0 - cfg.planning_margin;
+    let mut v = f64::INFINITY;
+    for i in 0..3 {
+        let csss = libm::fabs(a.c_sss[i]);
+        if csss > 0.0 {
+            v = v.min(libm::cbrt(keep * cfg.axis_max_jerk[i] / csss));
+        }
     }
     v
 }
@@ -209,19 +227,20 @@ impl ArcLengthDerivs {
     }
 }
 
-/// Per-axis limit on the path speed, mm/s. With path speed `v`, tangential
-/// acceleration `a` and jerk `j`, axis `i` moves with velocity `t_i·v`,
-/// acceleration `C_ss,i·v² + t_i·a` and jerk `C_sss,i·v³ + 3·C_ss,i·v·a + t_i·j`.
-/// The schedule holds `|a|` and `|j|` to the planned (shared) path limits, so
-/// each axis keeps `budget` of what is left for the curvature terms.
+/// Per-axis limit on the path speed, mm/s. With path speed `v` and
+/// tangential acceleration `a`, axis `i` moves with velocity `t_i·v` and
+/// acceleration `C_ss,i·v² + t_i·a`. The schedule holds `|a|` to the planned
+/// path acceleration, so each axis keeps `budget` of what is left for the
+/// curvature term. (Axis jerk, `C_sss,i·v³ + 3·C_ss,i·v·a + t_i·j`, depends
+/// on the planned `a` and `j`: the schedule's linear program holds it
+/// exactly, see [`crate::plan`].)
 pub fn axis_limit(a: &ArcLengthDerivs, cfg: &InterpConfig, budget: f64) -> f64 {
     let keep = 1.0 - cfg.planning_margin;
-    let (pa, pj) = (cfg.planned_accel(), cfg.planned_jerk());
+    let pa = cfg.planned_accel();
     let mut v = f64::INFINITY;
     for i in 0..3 {
         let t = libm::fabs(a.t[i]);
         let css = libm::fabs(a.c_ss[i]);
-        let csss = libm::fabs(a.c_sss[i]);
         if t > 0.0 {
             v = v.min(keep * cfg.axis_max_velocity[i] / t);
         }
@@ -229,40 +248,8 @@ pub fn axis_limit(a: &ArcLengthDerivs, cfg: &InterpConfig, budget: f64) -> f64 {
         if css > 0.0 {
             v = v.min(libm::sqrt(acc.max(0.0) / css));
         }
-        let jerk = budget * (keep * cfg.axis_max_jerk[i] - t * pj);
-        v = v.min(cubic_speed(csss, 3.0 * css * pa, jerk.max(0.0)));
     }
     v
-}
-
-/// Largest `v ≥ 0` with `c3·v³ + c1·v ≤ r` (`c3, c1, r ≥ 0`).
-fn cubic_speed(c3: f64, c1: f64, r: f64) -> f64 {
-    if c3 <= 0.0 && c1 <= 0.0 {
-        return f64::INFINITY;
-    }
-    // Each term alone bounds the root from above; Newton from above on this
-    // convex increasing function stays above the root and converges.
-    let mut v = f64::INFINITY;
-    if c3 > 0.0 {
-        v = v.min(libm::cbrt(r / c3));
-    }
-    if c1 > 0.0 {
-        v = v.min(r / c1);
-    }
-    for _ in 0..60 {
-        let f = c3 * v * v * v + c1 * v - r;
-        let df = 3.0 * c3 * v * v + c1;
-        if !(f > 0.0 && df > 0.0) {
-            break;
-        }
-        let next = v - f / df;
-        if !(next < v) {
-            break;
-        }
-        v = next;
-    }
-    // Newton stops at or just above the root: step below it.
-    (v * (1.0 - 1e-12)).max(0.0)
 }
 
 /// Speed at which the path may pass a junction between a piece ending with

@@ -1,37 +1,41 @@
 //! The fixed-period interpolator: `tick()` turns the queued segments and
-//! their planned profile into one setpoint per period. No allocation, lock or
-//! system call in `tick`.
+//! their planned speed into one setpoint per period. No allocation, lock or
+//! system call in [`Executor::tick`].
 //!
-//! Two layers run each tick:
+//! Two halves:
 //!
-//! 1. **Reference schedule** (one dimension, arc length). The step is
-//!    `Δ = min(Δ_prev + a, limit·Ts, brake_step(node) for every node and stop
-//!    within stopping distance)`, never below `Δ_prev − a`, with
-//!    `a = A·Ts²`: acceleration-limited and always able to stop within what
-//!    is queued. Feed hold and abort lower it by `a` per tick to rest.
-//! 2. **Jerk filter**: the machine follows the mean of the last
-//!    `N = ceil(2·A/(J·Ts))` reference positions (a moving average, like the
-//!    jerk filters of industrial controllers). A mean of acceleration-limited
-//!    steps changes its acceleration by at most `2a/N ≤ J·Ts³` per tick, so
-//!    jerk is bounded however the reference accelerates or brakes. The limits
-//!    the reference follows are eroded ([`Profile::erode`]) so that the mean
-//!    still keeps every limit where the machine is.
+//! - [`Executor`] (real time): the segment queue, a ring of pieces of the
+//!   planned speed spline `v(s)² = S(s)` ([`crate::spline`]), and the tick.
+//!   Each tick moves the arc length along the spline by exactly one period
+//!   (closed form, [`crate::spline::advance`]); the parameter update
+//!   ([`ParamUpdate`]) then finds the next `u` whose chord from the last point
+//!   reaches that arc length, carrying the rest of a step across segment
+//!   ends in the same tick. Feed hold and abort leave the plan for the
+//!   fastest jerk-limited stop ([`crate::stop::Stop`]).
+//! - [`BlockPlanner`] (non-real-time): law sampling, junctions and the
+//!   speed's linear program ([`crate::plan`]); it hands the executor
+//!   [`PlannedBlock`]s.
 //!
-//! The parameter update ([`ParamUpdate`]) then finds the next `u` whose chord
-//! from the last point is the filtered step; a segment end inside the tick
-//! carries the rest of the step into the next segment in the same tick.
+//! [`Interpolator`] puts both in one value for single-threaded use
+//! (`simulate`, tests, benches): `push` is plan then commit.
 
 use heapless::Deque;
 
-use crate::config::{ConfigError, InterpConfig, MAX_FILTER, ParamUpdate};
-use crate::feed::junction_speed;
-use crate::geom::{Curve, Derivs, Vec3};
+use crate::config::{ConfigError, InterpConfig, ParamUpdate};
+use crate::driver::Driver;
+use crate::geom::{Curve, Vec3};
 use crate::path::{Block, Path, SplitAtError};
-use crate::plan::{Erosion, MAX_PROFILE, Profile, Segment, brake_step, stop_distance};
-use crate::prepare::{BlockPlanner, PlannedBlock, Room};
+use crate::prepare::{BlockPlanner, PlannedBlock, Segment};
+use crate::spline::{self, Piece};
+use crate::stop::Stop;
 
 /// Default segment-queue capacity.
 pub const DEFAULT_QUEUE: usize = 64;
+
+/// Pieces of the speed spline the executor holds (from the machine to the
+/// end of the plan): room for everything the planner's window can plan, and
+/// the pieces the machine is still on.
+pub const RING: usize = crate::plan::WINDOW + 64;
 
 /// At rest this close to a stop (mm), the point is set on the stop exactly:
 /// arc length and parameter reach the end together only up to round-off.
@@ -96,8 +100,8 @@ pub enum PushError {
         /// Segments free.
         free: usize,
     },
-    /// The look-ahead profile cannot reach that far ahead yet (`MAX_PROFILE`
-    /// grid steps): push again once the machine has moved on.
+    /// The look-ahead (window or speed ring) reaches far enough ahead for
+    /// now: push again once the machine has moved on.
     ProfileFull,
     /// The block does not start where the previous one ends (gap in mm).
     Discontinuous {
@@ -116,12 +120,27 @@ pub enum PushError {
     TooManyCorners,
     /// An abort is under way; push again once the interpolator is idle.
     Aborting,
-    /// The plan was made against another end of the queue (an abort moved
-    /// it, or another block came first): plan it again.
+    /// The plan was made against another end of the queue, or for a part of
+    /// the speed the machine has reached already: plan it again.
     Stale,
-    /// The block is longer than the look-ahead profile can ever hold
-    /// (`MAX_PROFILE` grid intervals): cut it into shorter blocks.
-    TooLong,
+    /// The rest of a long block is still being planned: plan it
+    /// ([`BlockPlanner::plan_pending`]) before the next block.
+    Pending,
+    /// The speed's linear program failed even with a rest point at the old
+    /// end of the queue (a bug: please report the program).
+    Schedule,
+}
+
+impl PushError {
+    /// Refused for now, not for what the block is: the queue, the
+    /// look-ahead window or the parts of a long block before it need the
+    /// machine to move on. Offer the block again after a tick.
+    pub fn is_wait(&self) -> bool {
+        matches!(
+            self,
+            PushError::Full { .. } | PushError::ProfileFull | PushError::Pending
+        )
+    }
 }
 
 impl core::fmt::Display for PushError {
@@ -130,7 +149,7 @@ impl core::fmt::Display for PushError {
             PushError::Full { needed, free } => {
                 write!(f, "queue full: block needs {needed} segments, {free} free")
             }
-            PushError::ProfileFull => write!(f, "look-ahead profile full"),
+            PushError::ProfileFull => write!(f, "look-ahead full"),
             PushError::Discontinuous { gap } => {
                 write!(f, "block does not start at the previous end (gap {gap} mm)")
             }
@@ -142,11 +161,9 @@ impl core::fmt::Display for PushError {
                 write!(f, "NURBS has more than {} corners", MAX_PIECES - 1)
             }
             PushError::Aborting => write!(f, "abort under way"),
-            PushError::Stale => write!(f, "planned against another end of the queue"),
-            PushError::TooLong => write!(
-                f,
-                "block longer than the look-ahead profile ({MAX_PROFILE} grid intervals)"
-            ),
+            PushError::Stale => write!(f, "planned against another state of the queue"),
+            PushError::Pending => write!(f, "the rest of a long block is still being planned"),
+            PushError::Schedule => write!(f, "the feed schedule could not be solved"),
         }
     }
 }
@@ -171,54 +188,67 @@ pub struct Stats {
     pub ticks: u64,
     /// Segments completed.
     pub segments_done: u64,
-    /// Ticks where the schedule asked for more deceleration than the limit
-    /// allows (the step was held at `Δ_prev − a`). Zero in a correct plan.
-    pub brake_overruns: u64,
     /// Largest Newton iteration count used in one tick.
     pub max_newton_iters: u32,
     /// Ticks whose chord missed `Δ` by more than the Newton tolerance (the
     /// best iterate was used).
     pub newton_unconverged: u64,
-    /// Junctions passed without stopping (speed limited by [`junction_speed`]).
+    /// Joins between segments planned without a stop.
     pub junctions_blended: u64,
-    /// Junctions that needed a full stop.
+    /// Joins planned as rest points (corners, exact stops).
     pub junctions_stopped: u64,
-}
-
-/// The longest move the look-ahead takes in one block without waiting for
-/// an empty profile: a quarter of its reach (`MAX_PROFILE` grid intervals).
-/// Longer moves are cut into equal parts before planning
-/// (`traces::Pipeline`), so a move of any length runs at speed through them.
-pub fn max_move_length(cfg: &InterpConfig) -> f64 {
-    MAX_PROFILE as f64 / 4.0 * cfg.profile_step * grid_multiple(cfg) as f64
+    /// Ticks spent at rest at the end of what was queued while the program
+    /// was not finished (the queue starved).
+    pub starved_ticks: u64,
+    /// Plans refused because the machine had reached their freeze point.
+    pub stale_plans: u64,
+    /// Plans offered to [`Executor::commit`] (accepted or not).
+    pub commits: u64,
 }
 
 /// Upper bound on the pieces one block is cut into at tangent breaks (a
-/// degree-1 NURBS of `MAX_CTRL` points has `MAX_CTRL − 2` corners). `push`
-/// keeps this many paths on its stack (~45 KiB).
+/// degree-1 NURBS of `MAX_CTRL` points has `MAX_CTRL − 2` corners).
 pub const MAX_PIECES: usize = crate::nurbs::MAX_CTRL;
 
-/// The interpolator with a segment queue of capacity `Q`.
+/// Planned distance ahead of a machine at speed `v` below which the rest of
+/// the queue is planned (see [`BlockPlanner::plan_ahead`]): more than it
+/// needs to come to rest, so the plan has not begun to brake for its end.
+pub fn guard_distance(cfg: &InterpConfig, v: f64) -> f64 {
+    let (a, j) = (cfg.planned_accel(), cfg.max_path_jerk);
+    1.25 * Stop::new(v, a, a, j).distance() + 4.0 * grid_step(cfg)
+}
+
+/// Profile grid spacing: the smallest whole multiple of `profile_step` not
+/// below one tick's travel at the machine's top speed.
+pub fn grid_step(cfg: &InterpConfig) -> f64 {
+    cfg.profile_step * grid_multiple(cfg) as f64
+}
+
+/// The real-time half of the interpolator, with a segment queue of capacity `Q`.
 #[derive(Debug)]
-pub struct Interpolator<const Q: usize = DEFAULT_QUEUE> {
+pub struct Executor<const Q: usize = DEFAULT_QUEUE> {
     cfg: InterpConfig,
     queue: Deque<Segment, Q>,
-    profile: Profile,
-    /// Displacement of the last tick (the filtered step), mm.
-    step: f64,
-    /// Reference schedule: arc length and step of the last tick.
-    s_ref: f64,
-    step_ref: f64,
-    /// Jerk filter: the last `filter_len` reference positions (a ring).
-    window: [f64; MAX_FILTER],
-    filter_len: usize,
-    window_head: usize,
+    /// The speed spline from the machine's piece on (a ring; `ring[head]`
+    /// is the piece the machine is on).
+    ring: [Piece; RING],
+    rest: [bool; RING],
+    head: usize,
+    len: usize,
+    /// Position on the current piece (mm from its start) and speed.
+    x: f64,
+    v: f64,
+    /// Feed hold or abort: the stop, the time into it, and where it began.
+    stop: Option<(Stop, f64, f64)>,
+    /// Arrived at a rest point in the last tick: stay there one tick (a
+    /// setpoint at rest on the corner; the acceleration's steps on either
+    /// side of it then stay one tick of jerk apart).
+    dwell: bool,
     /// Parameter in the front segment.
     u: f64,
     /// Arc length of the run at the current point, mm.
     s: f64,
-    /// Kahan compensation of `s`: thousands of ~0.1 mm steps added to ~100 mm
-    /// would otherwise drift by round-off from the exact segment starts.
+    /// Kahan compensation of `s`.
     s_comp: f64,
     /// Current position (X Y Z).
     point: Vec3,
@@ -226,40 +256,34 @@ pub struct Interpolator<const Q: usize = DEFAULT_QUEUE> {
     /// End of everything queued so far (where the next block must start).
     tail: Vec3,
     tail_s: f64,
-    /// Derivatives (order 3) at the end of the last queued segment.
-    tail_derivs: Option<Derivs>,
-    /// The last queued block asks to come to rest at its end (G61.1).
-    tail_exact_stop: bool,
     seq: u64,
     block_id: u32,
     finished: bool,
     hold: bool,
     abort: bool,
-    /// Feed override: commanded and applied (ramped) values.
-    override_cmd: f64,
-    override_now: f64,
     state: RunState,
     stats: Stats,
 }
 
-impl<const Q: usize> Interpolator<Q> {
-    /// A new interpolator at rest at `position` (X Y Z A B C).
+impl<const Q: usize> Executor<Q> {
+    /// A new executor at rest at `position` (X Y Z A B C), arc length 0.
     pub fn new(cfg: InterpConfig, position: [f64; 6]) -> Result<Self, ConfigError> {
         cfg.validate()?;
         let p = Vec3::new(position[0], position[1], position[2]);
         if !p.iter().all(|c| c.is_finite()) {
             return Err(ConfigError::OutOfRange("position"));
         }
-        Ok(Interpolator {
+        Ok(Executor {
             cfg,
             queue: Deque::new(),
-            profile: Profile::new(Self::grid_step(&cfg)),
-            step: 0.0,
-            s_ref: 0.0,
-            step_ref: 0.0,
-            window: [0.0; MAX_FILTER],
-            filter_len: cfg.filter_ticks(),
-            window_head: 0,
+            ring: [Piece::default(); RING],
+            rest: [false; RING],
+            head: 0,
+            len: 0,
+            x: 0.0,
+            v: 0.0,
+            stop: None,
+            dwell: false,
             u: 0.0,
             s: 0.0,
             s_comp: 0.0,
@@ -267,25 +291,14 @@ impl<const Q: usize> Interpolator<Q> {
             abc: [position[3], position[4], position[5]],
             tail: p,
             tail_s: 0.0,
-            tail_derivs: None,
-            tail_exact_stop: false,
             seq: 0,
             block_id: 0,
             finished: false,
             hold: false,
             abort: false,
-            override_cmd: 1.0,
-            override_now: 1.0,
             state: RunState::Idle,
             stats: Stats::default(),
         })
-    }
-
-    /// Profile grid spacing: the smallest whole multiple of `profile_step` not
-    /// below one tick's travel at the machine's top speed, so one step spans
-    /// at most two intervals.
-    pub fn grid_step(cfg: &InterpConfig) -> f64 {
-        cfg.profile_step * grid_multiple(cfg) as f64
     }
 
     /// The configuration in force.
@@ -312,50 +325,89 @@ impl<const Q: usize> Interpolator<Q> {
     pub fn queued_length(&self) -> f64 {
         self.tail_s - self.s
     }
-    /// Length of the jerk filter, ticks.
-    pub fn filter_ticks(&self) -> usize {
-        self.filter_len
+    /// Free pieces in the speed ring.
+    pub fn free_pieces(&self) -> usize {
+        RING - self.len
     }
-    /// The feed override applied in the last tick (1 = 100 %).
-    pub fn feed_override(&self) -> f64 {
-        self.override_now
+    /// End of the queue (X Y Z) and its arc length.
+    pub fn tail(&self) -> (Vec3, f64) {
+        (self.tail, self.tail_s)
+    }
+    /// Path speed, mm/s.
+    pub fn speed(&self) -> f64 {
+        match &self.stop {
+            Some((stop, t, _)) => stop.at(*t).1,
+            None => self.v,
+        }
+    }
+    /// A feed hold or abort stop is running or done (the plan is left).
+    pub fn is_stopping(&self) -> bool {
+        self.stop.is_some()
+    }
+    /// The program's end was committed.
+    pub fn is_finished(&self) -> bool {
+        self.finished
+    }
+    /// An abort is braking.
+    pub fn is_aborting(&self) -> bool {
+        self.abort
+    }
+    /// Where the machine is on the plan (arc length of the run), and whether
+    /// it is at rest (not moving and not about to).
+    pub fn plan_position(&self) -> (f64, bool) {
+        if let Some((stop, t, s0)) = &self.stop {
+            let (ds, v, _) = stop.at(*t);
+            return (s0 + ds, v == 0.0);
+        }
+        match self.current() {
+            Some(p) => (p.x0 + self.x, self.v == 0.0 && self.x == 0.0),
+            // No plan (yet, or any more): at rest where it stands.
+            None => (self.s, true),
+        }
+    }
+    /// The point (X Y Z) and its arc length.
+    pub fn position(&self) -> (Vec3, f64) {
+        (self.point, self.s)
     }
 
-    /// Marks the end of the program: reaching the end of the queue then means
-    /// `Done`. The end of the queue stops being provisional, so the limits
-    /// near it rise (non-RT work, like `push`).
+    #[inline]
+    fn current(&self) -> Option<&Piece> {
+        (self.len > 0).then(|| &self.ring[self.head])
+    }
+
+    #[inline]
+    fn ring_at(&self, i: usize) -> usize {
+        (self.head + i) % RING
+    }
+
+    /// Marks the end of the program: reaching the end of the queue then means `Done`.
     pub fn finish(&mut self) {
         if self.finished {
             return;
         }
         self.finished = true;
-        if self.queue.is_empty() {
-            if self.state == RunState::Idle {
-                self.state = RunState::Done;
-            }
-            return;
+        // Idle, or run to the end of the queue and resting there (a starved
+        // program whose end comes after its last move): done.
+        if self.queue.is_empty() && matches!(self.state, RunState::Idle | RunState::Running) {
+            self.state = RunState::Done;
         }
-        let from = self.profile.index_of(self.tail_s) - 2;
-        self.replan(from, self.tail_s);
     }
 
-    /// The profile (grid caps and node limits) ahead of the machine.
-    pub fn profile(&self) -> &Profile {
-        &self.profile
-    }
-
-    /// Feed hold: decelerate to rest on the path (within the limits) and stay
-    /// there until [`resume`](Self::resume). Takes effect at the next tick.
+    /// Feed hold: the fastest stop on the path within the limits, then rest
+    /// until [`resume`](Self::resume). Takes effect at the next tick.
     pub fn feed_hold(&mut self) {
         if matches!(self.state, RunState::Running | RunState::Idle) && !self.abort {
             self.hold = true;
             if self.state == RunState::Running {
+                self.begin_stop();
                 self.state = RunState::Holding;
             }
         }
     }
 
-    /// Leave a feed hold: accelerate again from where the machine is.
+    /// Leave a feed hold. Motion goes on once a plan from the rest point is
+    /// committed ([`BlockPlanner::replan`] with the machine at rest); a hold
+    /// still braking brakes to rest first.
     pub fn resume(&mut self) {
         if self.hold && !self.abort {
             self.hold = false;
@@ -365,12 +417,25 @@ impl<const Q: usize> Interpolator<Q> {
         }
     }
 
+    /// Does the machine wait at rest, off its plan, for a plan from where it
+    /// stands (after a hold was resumed)?
+    pub fn needs_plan(&self) -> bool {
+        !self.hold && !self.abort && self.stop.is_some() && self.stop_done()
+    }
+
+    fn stop_done(&self) -> bool {
+        matches!(self.stop, Some((st, t, _)) if t >= st.duration())
+    }
+
     /// Abort: the fastest stop on the path within the limits, then the queue
-    /// is flushed and the interpolator is idle where it stopped (the next
-    /// block must start there). A finished program may be followed by a new one.
+    /// is flushed and the executor is idle where it stopped. A finished
+    /// program may be followed by a new one.
     pub fn abort(&mut self) {
         if matches!(self.state, RunState::Running | RunState::Holding) {
             self.abort = true;
+            if self.stop.is_none() {
+                self.begin_stop();
+            }
             self.state = RunState::Stopping;
         } else if self.state == RunState::Done {
             self.finished = false;
@@ -378,238 +443,169 @@ impl<const Q: usize> Interpolator<Q> {
         }
     }
 
-    /// Set the feed override (1 = 100 %, up to `max_feed_override`). It
-    /// scales the programmed feed and the MRR law, never the machine's
-    /// limits, and is applied as a ramp of `override_rate` per second.
-    pub fn set_feed_override(&mut self, value: f64) -> Result<(), OverrideError> {
-        if !(value >= 0.0 && value <= self.cfg.max_feed_override) {
-            return Err(OverrideError::OutOfRange);
+    fn begin_stop(&mut self) {
+        if self.stop.is_some() {
+            return;
         }
-        self.override_cmd = value;
-        Ok(())
+        let (v, a, s) = match self.current() {
+            Some(p) => (self.v, p.accel(self.x), p.x0 + self.x),
+            // No plan: at rest where the machine stands (not where the queue ends).
+            None => (0.0, 0.0, self.s),
+        };
+        let (am, jm) = (self.cfg.planned_accel(), self.cfg.planned_jerk());
+        self.stop = Some((Stop::new(v, a, am, jm), 0.0, s));
     }
 
     /// Arc length at which the machine would come to rest if a feed hold
     /// were given now (the run's arc length, mm).
     pub fn hold_stop_position(&self) -> f64 {
-        let a = self.cfg.planned_accel() * self.cfg.period * self.cfg.period;
-        self.s_ref + stop_distance(self.step_ref - a, a)
-    }
-
-    /// Queue a block: cut at tangent breaks, sample the feed laws onto the
-    /// grid, price the junctions, erode for the jerk filter and run the
-    /// backward pass (non-RT work). All or nothing: on error nothing was queued.
-    ///
-    /// Exactly [`BlockPlanner::plan`] then [`commit`](Self::commit); a caller
-    /// with an RT thread plans elsewhere and commits there.
-    pub fn push(&mut self, block: &Block) -> Result<(), PushError> {
-        self.check_accepting()?;
-        let room = Room {
-            segments: self.free_segments(),
-            last_interval: self.ring_base() + MAX_PROFILE as i64 - 1,
-        };
-        let mut plan = PlannedBlock::new();
-        self.planner().plan_within(block, &mut plan, Some(room))?;
-        self.commit(&plan)
-    }
-
-    /// A planner for blocks that follow what is queued now.
-    pub fn planner(&self) -> BlockPlanner {
-        // The config was validated at construction and the tail is finite.
-        BlockPlanner::from_parts(self.cfg, self.profile.h(), self.tail, self.tail_s)
-    }
-
-    fn check_accepting(&self) -> Result<(), PushError> {
-        if self.finished {
-            return Err(PushError::Finished);
+        if let Some((st, _, s0)) = &self.stop {
+            return s0 + st.distance();
         }
+        match self.current() {
+            Some(p) => {
+                let (am, jm) = (self.cfg.planned_accel(), self.cfg.planned_jerk());
+                p.x0 + self.x + Stop::new(self.v, p.accel(self.x), am, jm).distance()
+            }
+            None => self.s,
+        }
+    }
+
+    /// Queue a plan: its segments (if any) and its speed-spline update. All
+    /// or nothing; a plan for another end of the queue, or one whose first
+    /// changed piece the machine has reached, is refused with
+    /// [`PushError::Stale`]. Linear in the plan's pieces, no allocation.
+    pub fn commit(&mut self, plan: &PlannedBlock) -> Result<(), PushError> {
+        self.stats.commits += 1;
+        let r = self.commit_inner(plan);
+        if plan.finish {
+            // The end holds even if the speed update could not go in: the
+            // machine then rests where its plan ends, and the guard plans on.
+            self.finish();
+        }
+        r
+    }
+
+    fn commit_inner(&mut self, plan: &PlannedBlock) -> Result<(), PushError> {
         if self.abort {
             return Err(PushError::Aborting);
         }
+        if plan.n_segments > 0 {
+            if self.finished {
+                return Err(PushError::Finished);
+            }
+            if plan.s0.to_bits() != self.tail_s.to_bits() || plan.tail != self.tail {
+                self.stats.stale_plans += 1;
+                return Err(PushError::Stale);
+            }
+            if plan.n_segments > self.free_segments() {
+                return Err(PushError::Full {
+                    needed: plan.n_segments,
+                    free: self.free_segments(),
+                });
+            }
+        }
+        if plan.n_pieces == 0 {
+            // Segments only: their speed is planned later.
+            if plan.n_segments > 0 {
+                self.queue_segments(plan);
+            }
+            self.wake();
+            return Ok(());
+        }
+        // Where the update goes in the ring.
+        let at = if plan.rest_start && self.at_rest_on(plan.from_x) {
+            // From where the machine rests: replace its piece and the rest.
+            Some(0)
+        } else {
+            (1..self.len).find(|&i| self.ring[self.ring_at(i)].x0 == plan.from_x)
+        };
+        let at = match at {
+            Some(i) => i,
+            None if self.len == 0 && plan.rest_start => 0,
+            None if plan.rest_start && plan.from_x == self.ring_end() => self.len,
+            None => {
+                self.stats.stale_plans += 1;
+                return Err(PushError::Stale);
+            }
+        };
+        if at + plan.n_pieces > RING {
+            return Err(PushError::ProfileFull);
+        }
+        // From here on nothing fails.
+        if plan.n_segments > 0 {
+            self.queue_segments(plan);
+        }
+        if at == 0 {
+            // Restart on the new plan from rest.
+            self.x = 0.0;
+            self.v = 0.0;
+            self.stop = None;
+        }
+        for k in 0..plan.n_pieces {
+            let i = self.ring_at(at + k);
+            self.ring[i] = plan.pieces[k];
+            self.rest[i] = plan.rests[k];
+        }
+        self.len = at + plan.n_pieces;
+        self.wake();
         Ok(())
     }
 
-    /// First grid interval of the profile ring once the next block is queued.
-    fn ring_base(&self) -> i64 {
-        if self.queue.is_empty() {
-            self.profile.index_of(self.s)
-        } else {
-            self.profile.base()
-        }
-    }
-
-    /// Queue a block planned by [`BlockPlanner::plan`]: merge its limits into
-    /// the profile, price the junction with what is queued, erode and run the
-    /// backward pass. Linear in the block's grid intervals, no allocation:
-    /// the RT half of [`push`](Self::push). All or nothing; a plan made
-    /// against another end of the queue is refused with [`PushError::Stale`].
-    pub fn commit(&mut self, plan: &PlannedBlock) -> Result<(), PushError> {
-        self.check_accepting()?;
-        if plan.s0.to_bits() != self.tail_s.to_bits()
-            || plan.tail != self.tail
-            || plan.h.to_bits() != self.profile.h().to_bits()
-        {
-            return Err(PushError::Stale);
-        }
-        let n_pieces = plan.n_segments;
-        if n_pieces > self.free_segments() {
-            return Err(PushError::Full {
-                needed: n_pieces,
-                free: self.free_segments(),
-            });
-        }
-        if self.queue.is_empty() {
-            // Nothing ahead: restart the ring where the machine stands.
-            let g = self.profile.index_of(self.s);
-            self.profile.reset_at(g);
-        }
-        let g_last = self.profile.index_of(plan.s1);
-        if !self.profile.can_extend_to(g_last) {
-            return Err(PushError::ProfileFull);
-        }
-        // From here on nothing can fail.
+    /// Queue a plan's segments (room checked by the caller).
+    fn queue_segments(&mut self, plan: &PlannedBlock) {
         let was_empty = self.queue.is_empty();
-        let old_tail_s = self.tail_s;
-        self.profile.extend_to(g_last);
-        // The junction with what is queued (the old tail was a provisional stop).
-        if let (Some(left), false) = (self.tail_derivs, was_empty) {
-            let v = if self.tail_exact_stop {
-                0.0
-            } else {
-                junction_speed(&left, &plan.entry, &self.cfg)
-            };
-            let stop = self.apply_junction(v, old_tail_s);
-            if let Some(last) = self.queue.back_mut() {
-                last.stop_at_end = stop;
-            }
+        if let Some(last) = self.queue.back_mut() {
+            last.stop_at_end = plan.stop_at_join;
+            self.count_junction(plan.stop_at_join);
         }
-        for i in 0..plan.n_caps {
-            let g = plan.g0 + i as i64;
-            self.profile.lower_cap(g, plan.raw[i]);
-            self.profile.lower_feed_cap(g, plan.raw_feed[i]);
-        }
-        for (k, seg) in plan.pieces().enumerate() {
-            if k > 0 {
-                // A tangent break inside the block.
-                let stop = self.apply_junction(plan.corner[k], seg.s0);
-                if let Some(last) = self.queue.back_mut() {
-                    last.stop_at_end = stop;
-                }
+        for seg in plan.pieces_geometry() {
+            if seg.s1() < plan.s1 {
+                self.count_junction(seg.stop_at_end);
             }
-            let _ = self.queue.push_back(*seg); // room checked above
+            let _ = self.queue.push_back(*seg);
         }
         self.tail = plan.end;
         self.tail_s = plan.s1;
-        self.tail_derivs = Some(plan.exit);
-        self.tail_exact_stop = plan.exact_stop;
-        let from = self.profile.index_of(old_tail_s) - 2;
-        self.replan(from, old_tail_s);
         if let (true, Some(front)) = (was_empty, self.queue.front()) {
             self.u = front.path.u_start();
         }
+    }
+
+    /// Idle with something to do: running (or holding, if held).
+    fn wake(&mut self) {
         match self.state {
             RunState::Idle if self.hold => self.state = RunState::Holding,
-            RunState::Idle => self.state = RunState::Running,
+            RunState::Idle if !self.queue.is_empty() => self.state = RunState::Running,
             _ => {}
         }
-        Ok(())
     }
 
-    /// Junction of speed limit `v` at arc length `s`: lower the limits there,
-    /// or mark a full stop. Returns whether it stops.
-    fn apply_junction(&mut self, v: f64, s: f64) -> bool {
-        let g = self.profile.index_of(s);
-        if v < self.cfg.junction_min_speed {
+    /// Distance the machine has planned ahead of it (to where its plan rests), mm.
+    pub fn planned_ahead(&self) -> f64 {
+        let (s, _) = self.plan_position();
+        (self.ring_end() - s).max(0.0)
+    }
+
+    fn count_junction(&mut self, stop: bool) {
+        if stop {
             self.stats.junctions_stopped += 1;
-            self.profile.mark_stop(g);
-            if g as f64 * self.profile.h() == s {
-                self.profile.mark_stop(g - 1);
-            }
-            true
         } else {
-            if v.is_finite() {
-                self.stats.junctions_blended += 1;
-            }
-            self.profile.lower_cap(g, v);
-            // Only the interval holding the junction: the one before it is in
-            // use already and may only be lowered when the junction is its end.
-            if g as f64 * self.profile.h() == s {
-                self.profile.lower_cap(g - 1, v);
-            }
-            false
+            self.stats.junctions_blended += 1;
         }
     }
 
-    /// Erode the limits from interval `from` on and run the backward pass.
-    fn replan(&mut self, from: i64, changed_from: f64) {
-        let h = self.profile.h();
-        let window = self.filter_len as f64 * self.cfg.period;
-        let erosion = if self.filter_len > 1 {
-            Erosion {
-                slope: h / window,
-                feed_slope: h / (window * self.cfg.max_feed_override),
-                cone_from: (!self.finished).then(|| libm::ceil(self.tail_s / h) as i64 - 1),
-                // Every law is capped at the machine's top speed.
-                top: self.cfg.max_path_speed,
-            }
-        } else {
-            Erosion {
-                slope: f64::INFINITY,
-                feed_slope: f64::INFINITY,
-                cone_from: None,
-                top: self.cfg.max_path_speed,
-            }
-        };
-        // Erosion reaches back as far as the cone of the highest limit.
-        let back = if self.filter_len > 1 {
-            let top = self.cfg.max_path_speed;
-            libm::ceil(top / erosion.feed_slope.min(erosion.slope)) as i64 + 2
-        } else {
-            0
-        };
-        self.profile.erode(from - back, erosion);
-        self.backward_pass(changed_from - back as f64 * h);
+    /// Is the machine at rest exactly at arc length `x` (on its plan or after a stop)?
+    fn at_rest_on(&self, x: f64) -> bool {
+        let (s, rest) = self.plan_position();
+        rest && s == x
     }
 
-    /// Backward pass over the grid nodes from the end of the queue. Stops
-    /// early once it reaches nodes before `changed_from` whose limit did not change.
-    fn backward_pass(&mut self, changed_from: f64) {
-        let h = self.profile.h();
-        let accel = self.cfg.planned_accel() * (1.0 - self.cfg.brake_reserve);
-        let two_a_h = 2.0 * accel * h;
-        let ovr_max = self.cfg.max_feed_override;
-        let last = self.profile.index_of(self.tail_s);
-        let first = self.profile.base();
-        let mut segs = self.queue.iter().rev().peekable();
-        let mut nearest_stop = self.tail_s;
-        let mut next_v: Option<f64> = None; // limit at node g + 1 when it is before the stop
-        let mut g = last;
-        while g >= first {
-            let x = g as f64 * h;
-            // Stops at or after x: the nearest one constrains this node.
-            while let Some(seg) = segs.peek() {
-                if seg.s1() >= x {
-                    if seg.stop_at_end {
-                        nearest_stop = seg.s1();
-                        next_v = next_v.filter(|_| (g + 1) as f64 * h <= nearest_stop);
-                    }
-                    segs.next();
-                } else {
-                    break;
-                }
-            }
-            let mut v = self.profile.raw_node(g, ovr_max);
-            v = v.min(libm::sqrt(2.0 * accel * (nearest_stop - x).max(0.0)));
-            if let Some(vn) = next_v {
-                v = v.min(libm::sqrt(vn * vn + two_a_h));
-            }
-            let old = self.profile.node(g);
-            self.profile.set_node(g, v);
-            if x < changed_from - h && old == v {
-                break;
-            }
-            next_v = Some(v);
-            g -= 1;
+    fn ring_end(&self) -> f64 {
+        if self.len == 0 {
+            self.s
+        } else {
+            self.ring[self.ring_at(self.len - 1)].x1()
         }
     }
 
@@ -619,7 +615,6 @@ impl<const Q: usize> Interpolator<Q> {
         self.stats.ticks += 1;
         self.seq += 1;
         let ts = self.cfg.period;
-        self.ramp_override();
         let mut delta = 0.0;
         let active = matches!(
             self.state,
@@ -629,10 +624,7 @@ impl<const Q: usize> Interpolator<Q> {
             if let Some(front) = self.queue.front() {
                 self.block_id = front.block_id;
             }
-            let d = self.reference_step();
-            self.step_ref = d;
-            self.push_window();
-            let target = self.filtered();
+            let target = self.next_target(ts);
             let c = target - self.s;
             if c > 0.0 {
                 delta = self.advance(c);
@@ -641,7 +633,7 @@ impl<const Q: usize> Interpolator<Q> {
                 // At rest on a stop: continue past a corner, or end.
                 self.settle_at_end();
             }
-            if (self.hold || self.abort) && self.at_rest() {
+            if (self.hold || self.abort) && self.stop_done() {
                 if self.abort {
                     self.flush();
                 } else {
@@ -651,7 +643,6 @@ impl<const Q: usize> Interpolator<Q> {
         } else if active && self.abort {
             self.flush();
         }
-        self.step = delta;
         Setpoint {
             seq: self.seq,
             time: self.seq as f64 * ts,
@@ -671,26 +662,61 @@ impl<const Q: usize> Interpolator<Q> {
         }
     }
 
+    /// The planned arc length one period from now; moves along the spline
+    /// (or the stop).
     #[inline]
-    fn ramp_override(&mut self) {
-        let step = self.cfg.override_rate * self.cfg.period;
-        let d = self.override_cmd - self.override_now;
-        self.override_now = if libm::fabs(d) <= step {
-            self.override_cmd
-        } else {
-            self.override_now + step.copysign(d)
-        };
-    }
-
-    /// The reference has stopped and the filter has drained.
-    #[inline]
-    fn at_rest(&self) -> bool {
-        self.step_ref == 0.0
-            && self
-                .window
-                .iter()
-                .take(self.filter_len)
-                .all(|&x| x == self.s_ref)
+    fn next_target(&mut self, ts: f64) -> f64 {
+        if let Some((stop, t, s0)) = &mut self.stop {
+            *t = (*t + ts).min(stop.duration());
+            return *s0 + stop.at(*t).0;
+        }
+        let mut left = ts;
+        if self.dwell {
+            self.dwell = false;
+            if let Some(p) = self.current() {
+                return p.x0 + self.x;
+            }
+        }
+        loop {
+            let Some(p) = self.current().copied() else {
+                return self.tail_s;
+            };
+            match spline::time_to_end(&p, self.x, self.v, left) {
+                None => {
+                    let (x, v) = spline::advance(&p, self.x, self.v, left);
+                    self.x = x.min(p.h);
+                    self.v = v;
+                    return p.x0 + self.x;
+                }
+                Some(t) => {
+                    let (_, v) = spline::advance(&p, self.x, self.v, t);
+                    left -= t;
+                    let next_rest = self.len < 2 || self.rest[self.ring_at(1)];
+                    if self.len < 2 {
+                        // The end of the plan: rest there.
+                        self.x = p.h;
+                        self.v = 0.0;
+                        if !self.finished {
+                            self.stats.starved_ticks += 1;
+                        }
+                        return p.x1();
+                    }
+                    self.head = self.ring_at(1);
+                    self.len -= 1;
+                    self.x = 0.0;
+                    if next_rest {
+                        // A rest point: the rest of this tick and the next one there.
+                        self.v = 0.0;
+                        self.dwell = true;
+                        return p.x1();
+                    }
+                    self.v = v;
+                    if left <= 0.0 {
+                        return p.x1();
+                    }
+                }
+            }
+        }
     }
 
     /// Abort finished: drop everything queued; idle where the machine stands.
@@ -699,97 +725,13 @@ impl<const Q: usize> Interpolator<Q> {
         self.abort = false;
         self.hold = false;
         self.finished = false;
+        self.stop = None;
         self.tail = self.point;
         self.tail_s = self.s;
-        self.tail_derivs = None;
-        self.s_ref = self.s;
-        self.step_ref = 0.0;
-        self.window = [self.s; MAX_FILTER];
-        let g = self.profile.index_of(self.s);
-        self.profile.reset_at(g);
+        self.len = 0;
+        self.x = 0.0;
+        self.v = 0.0;
         self.state = RunState::Idle;
-    }
-
-    /// Record the new reference position in the filter window.
-    #[inline]
-    fn push_window(&mut self) {
-        self.window_head = (self.window_head + 1) % self.filter_len;
-        self.window[self.window_head] = self.s_ref;
-    }
-
-    /// Mean of the window, taken relative to the newest position so that a
-    /// window of equal positions gives that position exactly.
-    #[inline]
-    fn filtered(&self) -> f64 {
-        let n = self.filter_len;
-        let sum: f64 = self.window[..n].iter().map(|&x| x - self.s_ref).sum();
-        self.s_ref + sum / n as f64
-    }
-
-    /// The reference schedule's step for this tick; moves `s_ref`.
-    #[inline]
-    fn reference_step(&mut self) -> f64 {
-        let ts = self.cfg.period;
-        let a = self.cfg.planned_accel() * ts * ts;
-        let ab = a * (1.0 - self.cfg.brake_reserve);
-        let ovr = self.override_now;
-        let h = self.profile.h();
-        let g0 = self.profile.index_of(self.s);
-        self.profile.drop_before(g0);
-        let s = self.s_ref;
-        let g = self.profile.index_of(s);
-        let mut cand = (self.step_ref + a).min(self.profile.limit(g, ovr) * ts);
-        if self.hold || self.abort {
-            cand = cand.min(self.step_ref - a);
-        }
-        let mut reach = stop_distance(cand, ab);
-        // Grid nodes ahead within stopping distance.
-        let last = self.profile.index_of(self.tail_s);
-        let mut k = g + 1;
-        while k <= last {
-            let r = k as f64 * h - s;
-            if r >= reach {
-                break;
-            }
-            let w = self.profile.node(k).min(self.profile.raw_node(k, ovr)) * ts;
-            if w < cand {
-                cand = cand.min(brake_step(r, w, ab));
-                reach = stop_distance(cand, ab);
-            }
-            k += 1;
-        }
-        // Stops (corners, end of queue) within stopping distance.
-        let mut stop_at = f64::INFINITY;
-        for seg in self.queue.iter() {
-            let r = seg.s1() - s;
-            if r < 0.0 {
-                continue; // behind the reference
-            }
-            if seg.s0 - s >= reach {
-                break;
-            }
-            if seg.stop_at_end {
-                cand = cand.min(brake_step(r, 0.0, ab));
-                reach = stop_distance(cand, ab);
-                stop_at = stop_at.min(seg.s1());
-            }
-        }
-        let lower = self.step_ref - a;
-        if cand < lower {
-            if !(self.hold || self.abort) {
-                self.stats.brake_overruns += 1;
-            }
-            cand = lower;
-        }
-        let mut d = cand.max(0.0);
-        // Land exactly on a stop within reach of round-off.
-        if s + d + END_SNAP_TOL >= stop_at {
-            d = stop_at - s;
-            self.s_ref = stop_at;
-        } else {
-            self.s_ref = s + d;
-        }
-        d
     }
 
     /// Move the point by `delta` along the path, across segment ends. Returns
@@ -818,8 +760,13 @@ impl<const Q: usize> Interpolator<Q> {
             // A stop within reach (by the chord, or by the arc the schedule
             // counts, with the resolution of the coordinates) is landed on exactly.
             let lands = seg.stop_at_end && arc_left <= delta + END_SNAP_TOL;
+            // Sitting on a rest point the plan has left: go on past it.
+            let leaving = seg.stop_at_end
+                && arc_left <= END_SNAP_TOL
+                && (end - from).norm() <= END_SNAP_TOL
+                && self.queue.len() > 1;
             if (to_end <= delta && reachable) || lands {
-                if seg.stop_at_end {
+                if seg.stop_at_end && !leaving {
                     // Land exactly on the end point.
                     self.u = seg.path.u_end();
                     self.s = seg.s1();
@@ -895,11 +842,9 @@ impl<const Q: usize> Interpolator<Q> {
     /// At rest at a stop: continue past a corner, or report the end of the queue.
     fn settle_at_end(&mut self) {
         let Some(seg) = self.queue.front() else {
-            self.state = if self.finished {
-                RunState::Done
-            } else {
-                RunState::Idle
-            };
+            if self.finished {
+                self.state = RunState::Done;
+            }
             return;
         };
         if self.u < seg.path.u_end() {
@@ -921,13 +866,144 @@ impl<const Q: usize> Interpolator<Q> {
                 self.u = next.path.u_start();
                 self.block_id = next.block_id;
             } else {
-                self.state = if self.finished {
-                    RunState::Done
-                } else {
-                    RunState::Idle
-                };
+                // At the end of the queue: done, or waiting on the path for more.
+                self.len = 0;
+                if self.finished {
+                    self.state = RunState::Done;
+                }
             }
         }
+    }
+}
+
+/// The planning side and the executor in one value, for single-threaded use
+/// (`simulate`, tests, benches): `push` plans and commits at once, and
+/// between ticks whatever the [`Driver`] finds due is planned and committed.
+/// Real-time callers run the [`Executor`] on one thread and a [`Driver`] on
+/// another instead.
+///
+/// About 1.6 MiB: box it.
+#[derive(Debug)]
+pub struct Interpolator<const Q: usize = DEFAULT_QUEUE> {
+    exec: Executor<Q>,
+    driver: Driver,
+}
+
+impl<const Q: usize> Interpolator<Q> {
+    /// A new interpolator at rest at `position` (X Y Z A B C).
+    pub fn new(cfg: InterpConfig, position: [f64; 6]) -> Result<Self, ConfigError> {
+        let exec = Executor::new(cfg, position)?;
+        let p = Vec3::new(position[0], position[1], position[2]);
+        Ok(Interpolator {
+            exec,
+            driver: Driver::new(cfg, p, 0.0)?,
+        })
+    }
+
+    /// Profile grid spacing (see [`grid_step`]).
+    pub fn grid_step(cfg: &InterpConfig) -> f64 {
+        grid_step(cfg)
+    }
+    /// The configuration in force.
+    pub fn config(&self) -> &InterpConfig {
+        self.exec.config()
+    }
+    /// Counters.
+    pub fn stats(&self) -> Stats {
+        self.exec.stats()
+    }
+    /// Current state.
+    pub fn state(&self) -> RunState {
+        self.exec.state()
+    }
+    /// Free segment slots.
+    pub fn free_segments(&self) -> usize {
+        self.exec.free_segments()
+    }
+    /// Queued segments (including the one being executed).
+    pub fn queued_segments(&self) -> usize {
+        self.exec.queued_segments()
+    }
+    /// Arc length queued but not yet travelled, mm.
+    pub fn queued_length(&self) -> f64 {
+        self.exec.queued_length()
+    }
+    /// The feed override in force (1 = 100 %).
+    pub fn feed_override(&self) -> f64 {
+        self.driver.feed_override()
+    }
+    /// The last error of planning done on the caller's behalf (`finish`,
+    /// `resume`, `set_feed_override`, the later parts of a long block);
+    /// `None` when all went through.
+    pub fn last_error(&self) -> Option<PushError> {
+        self.driver.last_error()
+    }
+    /// The executor (real-time half).
+    pub fn executor(&self) -> &Executor<Q> {
+        &self.exec
+    }
+    /// The planner (non-real-time half).
+    pub fn planner(&self) -> &BlockPlanner {
+        self.driver.planner()
+    }
+    /// The planner's look-ahead window, to set its diagnostics
+    /// ([`crate::plan::Window::trace`]).
+    pub fn window_mut(&mut self) -> &mut crate::plan::Window {
+        self.driver.window_mut()
+    }
+
+    /// Marks the end of the program: reaching the end of the queue then means `Done`.
+    pub fn finish(&mut self) {
+        self.driver.finish_into(&mut self.exec, &mut |_| {});
+    }
+
+    /// Feed hold (see [`Executor::feed_hold`]).
+    pub fn feed_hold(&mut self) {
+        self.exec.feed_hold();
+    }
+
+    /// Leave a feed hold: once at rest, the speed is planned again from there.
+    pub fn resume(&mut self) {
+        self.driver.resume_into(&mut self.exec, &mut |_| {});
+    }
+
+    /// Abort (see [`Executor::abort`]); the planner follows once the machine is idle.
+    pub fn abort(&mut self) {
+        self.exec.abort();
+    }
+
+    /// Set the feed override (see [`Driver::set_feed_override`]); the speed
+    /// is planned again from the next piece on.
+    pub fn set_feed_override(&mut self, value: f64) -> Result<(), OverrideError> {
+        self.driver
+            .set_feed_override_into(&mut self.exec, value, &mut |_| {})
+    }
+
+    /// Arc length at which the machine would come to rest if a feed hold
+    /// were given now (the run's arc length, mm).
+    pub fn hold_stop_position(&self) -> f64 {
+        self.exec.hold_stop_position()
+    }
+
+    /// Queue a block: plan it (non-real-time work) and commit it. All or
+    /// nothing: on error nothing was queued. A block longer than the
+    /// look-ahead's part is accepted whole; its later parts are planned as
+    /// the machine moves on (in `push`, `finish` and `tick`).
+    pub fn push(&mut self, block: &Block) -> Result<(), PushError> {
+        self.driver.push_into(&mut self.exec, block, &mut |_| {})
+    }
+
+    /// Queue a plan made by another planner (see [`Executor::commit`]).
+    pub fn commit(&mut self, plan: &PlannedBlock) -> Result<(), PushError> {
+        self.exec.commit(plan)
+    }
+
+    /// One period (see [`Executor::tick`]). Before it, whatever planning is
+    /// due is done and committed (non-real-time work: real-time callers drive
+    /// [`Executor`] instead).
+    pub fn tick(&mut self) -> Setpoint {
+        self.driver.drive(&mut self.exec, &mut |_| {});
+        self.exec.tick()
     }
 }
 

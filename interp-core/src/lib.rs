@@ -13,11 +13,13 @@
 #![warn(clippy::std_instead_of_core, clippy::alloc_instead_of_core)]
 
 pub mod config;
+pub mod driver;
 pub mod feed;
 pub mod fit;
 pub mod geom;
 pub mod interp;
 pub mod kinematics;
+pub mod lp;
 pub mod metrics;
 pub mod nurbs;
 pub mod path;
@@ -25,10 +27,13 @@ pub mod plan;
 pub mod prepare;
 pub mod samples;
 pub mod smooth;
+pub mod spline;
+pub mod stop;
 
 pub use config::{InterpConfig, ParamUpdate};
+pub use driver::{Driver, ExecStatus, PlanSink};
 pub use geom::{Curve, Derivs, Vec3};
-pub use interp::{Interpolator, RunState, Setpoint};
+pub use interp::{Executor, Interpolator, RunState, Setpoint};
 pub use nurbs::{Nurbs, NurbsError};
 pub use path::{Arc, Blending, Block, Line, Path};
 pub use prepare::{BlockPlanner, PlannedBlock};

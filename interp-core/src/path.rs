@@ -52,13 +52,16 @@ fn finite(v: &Vec3) -> bool {
     v.iter().all(|c| c.is_finite())
 }
 
-/// Straight segment, parametrised by arc length `u ∈ [0, length]`.
+/// Straight segment, parametrised by arc length `u ∈ [u0, u0 + length]`
+/// (`u0 = 0` but for the second half of a split line, which keeps the
+/// whole line's parameter).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Line {
     start: Vec3,
     end: Vec3,
     dir: Vec3,
     length: f64,
+    u0: f64,
 }
 
 impl Line {
@@ -77,6 +80,7 @@ impl Line {
             end,
             dir: d / length,
             length,
+            u0: 0.0,
         })
     }
     /// Length, mm.
@@ -87,13 +91,13 @@ impl Line {
 
 impl Curve for Line {
     fn u_start(&self) -> f64 {
-        0.0
+        self.u0
     }
     fn u_end(&self) -> f64 {
-        self.length
+        self.u0 + self.length
     }
     fn eval(&self, u: f64, _order: usize) -> Derivs {
-        let u = u.clamp(0.0, self.length);
+        let u = (u - self.u0).clamp(0.0, self.length);
         Derivs {
             p: self.start + self.dir * u,
             d1: self.dir,
@@ -108,7 +112,9 @@ impl Curve for Line {
     }
 }
 
-/// Circular arc, optionally helical, parametrised by the swept angle `u ∈ [0, sweep]`.
+/// Circular arc, optionally helical, parametrised by the swept angle `u ∈
+/// [ua, ub]` (`[0, sweep]` but for the parts of a split arc, which keep the
+/// whole arc's parameter).
 ///
 /// `p(u) = c + r(cos u·e1 + sin u·e2) + axis·(rise·u/sweep)`, counter-clockwise
 /// about `axis` (right-hand rule). A clockwise arc is the same with `axis` negated.
@@ -121,6 +127,8 @@ pub struct Arc {
     radius: f64,
     sweep: f64,
     rise: f64,
+    ua: f64,
+    ub: f64,
     start: Vec3,
     end: Vec3,
 }
@@ -179,6 +187,8 @@ impl Arc {
             radius: r0,
             sweep,
             rise,
+            ua: 0.0,
+            ub: sweep,
             start,
             end,
         })
@@ -190,11 +200,15 @@ impl Arc {
     }
     /// Swept angle, rad (> 0).
     pub fn sweep(&self) -> f64 {
-        self.sweep
+        self.ub - self.ua
+    }
+    /// Length per radian of sweep (the helix's slant radius), mm.
+    pub fn length_per_radian(&self) -> f64 {
+        libm::hypot(self.radius, self.rise / self.sweep)
     }
     /// Length of the (helical) arc, mm.
     pub fn length(&self) -> f64 {
-        libm::hypot(self.radius * self.sweep, self.rise)
+        self.length_per_radian() * (self.ub - self.ua)
     }
     /// Unit axis (counter-clockwise about it).
     pub fn axis(&self) -> Vec3 {
@@ -204,13 +218,13 @@ impl Arc {
 
 impl Curve for Arc {
     fn u_start(&self) -> f64 {
-        0.0
+        self.ua
     }
     fn u_end(&self) -> f64 {
-        self.sweep
+        self.ub
     }
     fn eval(&self, u: f64, order: usize) -> Derivs {
-        let u = u.clamp(0.0, self.sweep);
+        let u = u.clamp(self.ua, self.ub);
         let (s, c) = (libm::sin(u), libm::cos(u));
         let radial = self.e1 * c + self.e2 * s;
         let tangential = self.e2 * c - self.e1 * s;
@@ -255,7 +269,7 @@ impl Path {
     pub fn arc_length(&self, ua: f64, ub: f64) -> f64 {
         match self {
             Path::Line(_) => ub - ua,
-            Path::Arc(a) => (ub - ua) * a.length() / a.sweep,
+            Path::Arc(a) => (ub - ua) * a.length_per_radian(),
             Path::Nurbs(n) => n.arc_length(ua, ub, ARC_LENGTH_TOL),
         }
     }
@@ -327,25 +341,22 @@ impl Path {
         }
         match self {
             Path::Line(l) => {
+                // Both halves keep the whole line's parameter.
                 let mid = l.eval(u, 0).p;
-                // Both halves are non-degenerate because u is strictly interior.
-                let a = Line::new(l.start, mid).map_err(|_| SplitAtError::NotInterior)?;
-                let b = Line::new(mid, l.end).map_err(|_| SplitAtError::NotInterior)?;
+                let mut a = Line::new(l.start, mid).map_err(|_| SplitAtError::NotInterior)?;
+                let mut b = Line::new(mid, l.end).map_err(|_| SplitAtError::NotInterior)?;
+                a.u0 = l.u0;
+                b.u0 = u;
                 Ok((Path::Line(a), Path::Line(b)))
             }
             Path::Arc(a) => {
+                // Both parts keep the whole arc's frame and parameter.
                 let mid = a.eval(u, 0).p;
                 let mut first = *a;
-                first.sweep = u;
-                first.rise = a.rise * u / a.sweep;
+                first.ub = u;
                 first.end = mid;
                 let mut second = *a;
-                let (s, c) = (libm::sin(u), libm::cos(u));
-                second.e1 = a.e1 * c + a.e2 * s;
-                second.e2 = a.axis.cross(&second.e1);
-                second.sweep = a.sweep - u;
-                second.rise = a.rise - first.rise;
-                second.centre = a.centre + a.axis * first.rise;
+                second.ua = u;
                 second.start = mid;
                 Ok((Path::Arc(first), Path::Arc(second)))
             }

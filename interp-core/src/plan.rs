@@ -1,714 +1,1082 @@
-//! Feed scheduling (non-RT): a speed-limit profile on a global arc-length
-//! grid, and the look-ahead pass under the tangential acceleration limit.
+//! Feed scheduling (non-real-time): the look-ahead window and the linear
+//! program that gives the planned speed.
 //!
-//! The grid has spacing `h` and is anchored at arc length 0 of the run, not at
-//! block boundaries, so where a curve is cut into blocks or segments does not
-//! change the schedule (a split curve gives the same setpoints as the whole).
-//! Interval `g` covers `[g·h, (g+1)·h]`; its `cap` is the minimum of the feed
-//! laws over `law_samples_per_interval + 1` points evenly spaced in arc length.
-//! Node `g` (at `g·h`) gets `min(cap[g−1], cap[g])`, then the backward pass
-//! lowers node limits so the machine can brake, at every node, to every later
-//! limit and to rest at each stop (corner, end of the queue). The RT tick only
-//! reads these numbers.
+//! The planned speed is `v(s)² = S(s)`, a C¹ quadratic spline in arc length
+//! ([`crate::spline`]) whose pieces are the global grid intervals
+//! `[g·h, (g+1)·h]`, cut where the path must come to rest (a corner, an exact
+//! stop, the end of what is queued). A rest point is a C⁰ knot with `S = 0`.
+//! Unknowns are the middle Bernstein coefficients `d_p`, one per piece; the
+//! value at a C¹ knot is the weighted mean of its neighbours',
+//! `e = (h_{p+1}·d_p + h_p·d_{p+1})/(h_p + h_{p+1})`. Every limit is then
+//! linear in three consecutive unknowns:
+//!
+//! | limit | constraint on piece `p` |
+//! |---|---|
+//! | pointwise laws `V(s)` (feed, chord error, MRR, centripetal, axis velocity and acceleration) | the Bernstein hull `0 ≤ e, d ≤ V_p²` |
+//! | tangential acceleration `\|S'/2\| ≤ A` | at the knots, where the linear `S'` peaks |
+//! | tangential jerk `\|α·v\| ≤ J`, `α = S''/2` | `\|e_p − 2d_p + e_{p+1}\| ≤ J·h²/V_p` |
+//! | axis jerk `v·(C'''_i·S + 1.5·C''_i·S' + 0.5·t_i·S'') ` | at the per-axis samples, `≤ J_i/V_p` |
+//! | rest points | `\|S'/2\| ≤ J·Ts/2` next to them: arriving and leaving, the acceleration steps by at most one tick of jerk |
+//!
+//! (`C''`, `C'''` are the path's derivatives in arc length, `t` its tangent;
+//! `v ≤ V_p` on the piece, which makes the jerk rows linear and safe.) The
+//! objective is `max ∫S ds`. [`crate::lp`] solves it in O(n) per iteration.
+//!
+//! Blocks stream in. Each one lifts the provisional rest point at the old
+//! end of the queue, so the program is re-solved from a *freeze point* a
+//! stopping distance before it: everything before stays as planned (the
+//! machine may be executing it), the spline's value and slope at the freeze
+//! point are kept, and the rest is solved anew.
 
-use crate::path::{MrrParams, Path};
+use crate::config::InterpConfig;
+use crate::lp::{self, LpError, LpOptions, LpWork, Problem, Row};
+use crate::spline::Piece;
+use crate::stop::Stop;
 
-/// Grid intervals the profile ring holds (look-ahead distance = this × `h`).
-pub const MAX_PROFILE: usize = 4096;
+/// Pieces one linear program can hold: from the machine to the end of the
+/// queue (a resumed hold is planned again from where the machine rests),
+/// so also the longest look-ahead, 96 mm at the default 0.25 mm grid.
+pub const REGION: usize = 384;
+/// Grid intervals the planner keeps (from the machine to the end of the
+/// queue: the look-ahead distance is at most about `REGION` intervals).
+pub const WINDOW: usize = REGION + 8;
+/// Longest stretch of a block planned at once, in grid intervals: longer
+/// blocks are planned in parts of this size (at fixed arc lengths, so the
+/// parts do not depend on timing).
+pub const CHUNK: usize = 192;
+/// Per-axis derivative samples kept per grid interval.
+pub const SAMPLES_PER_INTERVAL: usize = 18;
+/// Rest points the window can hold.
+pub const MAX_STOPS: usize = 256;
+/// Rows of one linear program.
+pub const MAX_ROWS: usize = REGION * 8;
 
-/// A piece of a block in the RT queue.
-#[derive(Clone, Copy, Debug)]
-pub struct Segment {
-    /// Geometry.
-    pub path: Path,
-    /// Id of the block this piece belongs to.
-    pub block_id: u32,
-    /// Programmed feed, mm/s.
-    pub feed: f64,
-    /// MRR law parameters of the block.
-    pub mrr: Option<MrrParams>,
-    /// Arc length of the run at the start of this segment, mm.
-    pub s0: f64,
-    /// Arc length of this segment, mm.
-    pub length: f64,
-    /// The path must come to rest at the end of this segment (a corner, or
-    /// the end of what is queued).
-    pub stop_at_end: bool,
+/// The path's derivatives in arc length at one point, for the per-axis jerk
+/// rows: tangent `t`, `C''` and `C'''`.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct AxisSample {
+    /// Arc length of the run, mm.
+    pub s: f64,
+    /// Unit tangent.
+    pub t: [f64; 3],
+    /// `d²C/ds²`.
+    pub css: [f64; 3],
+    /// `d³C/ds³`.
+    pub csss: [f64; 3],
 }
 
-impl Segment {
-    /// Arc length of the run at the end of this segment, mm.
-    #[inline]
-    pub fn s1(&self) -> f64 {
-        self.s0 + self.length
-    }
-}
-
-/// Fixed-capacity ring of grid intervals.
-///
-/// Per interval it holds the raw limits sampled from the feed laws (`raw`:
-/// machine, chord-error, centripetal and per-axis laws; `raw_feed`: the
-/// programmed feed and the MRR law, which the feed override scales), the same
-/// two limits eroded for the jerk filter (`cap`, `feed_cap`, see
-/// [`Profile::erode`]), the planned node limit at the interval's start (`v`,
-/// from the backward pass) and whether a full stop lies inside it.
-#[derive(Clone, Debug)]
-pub struct Profile {
-    h: f64,
-    /// Grid index of the first interval held.
-    base: i64,
-    head: usize,
-    len: usize,
-    raw: [f64; MAX_PROFILE],
-    raw_feed: [f64; MAX_PROFILE],
-    cap: [f64; MAX_PROFILE],
-    feed_cap: [f64; MAX_PROFILE],
-    v: [f64; MAX_PROFILE],
-    stop: [bool; MAX_PROFILE],
-    /// Scratch space of `erode`: candidate indices and values, right-side results.
-    scratch_q: [i64; MAX_PROFILE + 1],
-    scratch_c: [f64; MAX_PROFILE + 1],
-    scratch_val: [f64; MAX_PROFILE],
-}
-
-/// How [`Profile::erode`] shapes the limits around each interval.
+/// What the planner knows about one grid interval.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Erosion {
-    /// Speed allowed per interval of distance from a lower limit, mm/s: `h/T`
-    /// for a filter window `T` (infinite: no erosion).
-    pub slope: f64,
-    /// The same for the override-scaled feed limit: `h/(T·max_override)`.
-    pub feed_slope: f64,
-    /// Intervals from this one on are unknown yet (the queue may grow): they
-    /// count as a zero limit. `None` once the program is finished.
-    pub cone_from: Option<i64>,
-    /// An upper bound on every raw limit held (the machine's top speed): no
-    /// candidate farther than `top/slope` intervals can be the minimum, so
-    /// erosion looks no farther back. Infinite: scan the ring for it (linear
-    /// in what is queued, not in what changed).
-    pub top: f64,
+pub struct Interval {
+    /// Smallest machine-law speed over the covered part, mm/s.
+    pub machine: f64,
+    /// Smallest feed-law speed at 100 % override, mm/s.
+    pub feed: f64,
+    /// Tangential acceleration limit, mm/s² (lines fold the axes' in).
+    pub accel: f64,
+    /// Tangential jerk limit, mm/s³ (lines fold the axes' in).
+    pub jerk: f64,
+    /// Per-axis samples (curves only).
+    pub samples: [AxisSample; SAMPLES_PER_INTERVAL],
+    /// Samples held.
+    pub n_samples: u8,
+    /// A sample could not be kept (the interval had more than the capacity):
+    /// its piece is planned with the worst case of the ones kept.
+    pub overflow: bool,
 }
 
-impl Profile {
-    /// An empty profile with grid spacing `h` (mm).
-    pub fn new(h: f64) -> Self {
-        Profile {
-            h,
-            base: 0,
-            head: 0,
-            len: 0,
-            raw: [f64::INFINITY; MAX_PROFILE],
-            raw_feed: [f64::INFINITY; MAX_PROFILE],
-            cap: [f64::INFINITY; MAX_PROFILE],
-            feed_cap: [f64::INFINITY; MAX_PROFILE],
-            v: [0.0; MAX_PROFILE],
-            stop: [false; MAX_PROFILE],
-            scratch_q: [0; MAX_PROFILE + 1],
-            scratch_c: [0.0; MAX_PROFILE + 1],
-            scratch_val: [0.0; MAX_PROFILE],
+impl Interval {
+    fn open(cfg: &InterpConfig) -> Self {
+        Interval {
+            machine: f64::INFINITY,
+            feed: f64::INFINITY,
+            accel: cfg.planned_accel(),
+            jerk: cfg.max_path_jerk * (1.0 - cfg.planning_margin),
+            samples: [AxisSample::default(); SAMPLES_PER_INTERVAL],
+            n_samples: 0,
+            overflow: false,
         }
     }
-    /// Grid spacing, mm.
-    #[inline]
-    pub fn h(&self) -> f64 {
-        self.h
+    /// Keep a per-axis sample (the first ones; then the worst by curvature).
+    pub fn add_sample(&mut self, a: AxisSample) {
+        let n = self.n_samples as usize;
+        if n < SAMPLES_PER_INTERVAL {
+            self.samples[n] = a;
+            self.n_samples += 1;
+            return;
+        }
+        self.overflow = true;
+        // Replace the sample with the smallest curvature terms.
+        let weight = |x: &AxisSample| {
+            x.css.iter().map(|v| v.abs()).sum::<f64>() + x.csss.iter().map(|v| v.abs()).sum::<f64>()
+        };
+        let (mut k, mut w) = (0, f64::INFINITY);
+        for (i, s) in self.samples.iter().enumerate() {
+            if weight(s) < w {
+                w = weight(s);
+                k = i;
+            }
+        }
+        if weight(&a) > w {
+            self.samples[k] = a;
+        }
     }
-    /// Grid index of the interval containing arc length `s`.
-    #[inline]
-    pub fn index_of(&self, s: f64) -> i64 {
-        libm::floor(s / self.h) as i64
+}
+
+/// Why a plan could not be made.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PlanError {
+    /// The window or the stop list is full: plan again once the machine has
+    /// moved on (the caller's queue frees room as it executes).
+    Full,
+    /// The linear program failed (it should not: the fallback keeps a rest
+    /// point, which is always feasible). The plan was not changed.
+    Solver(LpError),
+}
+
+impl core::fmt::Display for PlanError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            PlanError::Full => write!(f, "look-ahead window full"),
+            PlanError::Solver(e) => write!(f, "feed schedule: {e}"),
+        }
     }
-    /// First grid index held.
+}
+
+/// A piece of the window: bounds, its interval, whether it starts at a rest
+/// point, and its current solution (the middle Bernstein coefficient).
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+struct WPiece {
+    x0: f64,
+    x1: f64,
+    g: i64,
+    rest_start: bool,
+    d: f64,
+}
+
+impl WPiece {
     #[inline]
-    pub fn base(&self) -> i64 {
-        self.base
+    fn h(&self) -> f64 {
+        self.x1 - self.x0
     }
-    /// One past the last grid index held.
-    #[inline]
-    pub fn end(&self) -> i64 {
-        self.base + self.len as i64
-    }
-    #[inline]
-    fn held(&self, g: i64) -> bool {
-        g >= self.base && g < self.end()
-    }
+}
+
+/// Where a re-solve starts (see [`Window::freeze`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Freeze {
+    /// Keep the pieces before this index as they are, and its coefficient.
+    At(usize),
+    /// Plan from rest at this arc length.
+    Rest(f64),
+}
+
+/// What the last solve did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SolveStats {
+    /// Unknowns.
+    pub variables: usize,
+    /// Rows.
+    pub rows: usize,
+    /// Interior-point iterations.
+    pub iterations: u32,
+    /// The program could not be planned through the old end of the queue:
+    /// the machine comes to rest there.
+    pub fell_back: bool,
+    /// The linear program failed even so: the new stretch is planned as a
+    /// crawl that rests at every knot (feasible by construction; slow).
+    pub crawled: bool,
+    /// The solved stretch, from the first unknown to the rest point at its end, mm.
+    pub range: (f64, f64),
+}
+
+/// The linear program's pull towards the pieces' limits (see
+/// [`LpOptions::pull`]): where the time objective is flat (pieces at the
+/// same limit), it picks the fastest plan, and one that does not depend on
+/// rows that do not bind or on round-off.
+const PULL: f64 = 1e-4;
+
+/// Pieces shorter than this fraction of the grid step are merged into their
+/// neighbour (round-off between a block end and a grid line).
+pub const SLIVER: f64 = 1e-3;
+
+/// Smallest squared speed the objective's weights use, as a fraction of the
+/// top speed's square (relative, so the plan does not depend on the units).
+const MIN_SPEED2: f64 = 1e-12;
+
+/// The look-ahead data: intervals from the window start to the end of the
+/// queue, the rest points in it, and the current solution's pieces.
+#[derive(Clone, Debug)]
+struct Data {
+    cfg: InterpConfig,
+    h: f64,
+    /// Intervals `g_base ..g_base + n_int` (a ring).
+    g_base: i64,
+    int_head: usize,
+    n_int: usize,
+    ints: [Interval; WINDOW],
+    /// Rest points in the window, ascending.
+    stops: [f64; MAX_STOPS],
+    n_stops: usize,
+    /// The solution's pieces from the window start to the tail.
+    pieces: [WPiece; WINDOW],
+    n_pieces: usize,
+    /// Length and coefficient of the piece before the first one (when the
+    /// first piece does not start at rest).
+    prev: (f64, f64),
+    /// End of the queue, mm.
+    tail: f64,
+    /// Where the window starts at rest while nothing is planned yet.
+    origin: f64,
+}
+
+/// Scratch of the linear program.
+#[derive(Clone, Debug)]
+struct Scratch {
+    lp: LpWork<REGION, MAX_ROWS>,
+    c: [f64; REGION],
+    lo: [f64; REGION],
+    hi: [f64; REGION],
+    x: [f64; REGION],
+    /// The plan before a solve, to fall back on.
+    backup: [WPiece; WINDOW],
+}
+
+/// The look-ahead window and its solver.
+#[derive(Clone, Debug)]
+pub struct Window {
+    data: Data,
+    scratch: Scratch,
+    ovr: f64,
+    /// What the last solve did.
+    pub last: SolveStats,
+    /// Called after every iteration of the linear program (diagnostics).
+    pub trace: Option<fn(lp::Iteration)>,
+}
+
+impl Data {
     #[inline]
     fn slot(&self, g: i64) -> usize {
-        debug_assert!(self.held(g));
-        (self.head + (g - self.base) as usize) % MAX_PROFILE
+        debug_assert!(g >= self.g_base && g < self.g_base + self.n_int as i64);
+        (self.int_head + (g - self.g_base) as usize) % WINDOW
     }
-    /// Eroded machine-law limit of interval `g` (mm/s); infinity outside what is held.
-    #[inline]
-    pub fn cap(&self, g: i64) -> f64 {
-        if self.held(g) {
-            self.cap[self.slot(g)]
+
+    fn interval(&self, g: i64) -> &Interval {
+        &self.ints[self.slot(g)]
+    }
+
+    /// The coefficient of piece `q` (`q = −1`: the fixed neighbour before the window).
+    fn coef(&self, q: isize) -> f64 {
+        if q < 0 {
+            self.prev.1
         } else {
-            f64::INFINITY
+            self.pieces[q as usize].d
         }
     }
-    /// Eroded feed limit of interval `g` at 100 % override (mm/s).
-    #[inline]
-    pub fn feed_cap(&self, g: i64) -> f64 {
-        if self.held(g) {
-            self.feed_cap[self.slot(g)]
-        } else {
-            f64::INFINITY
+
+    /// Coefficients of the knot value at the start of piece `i` on the
+    /// unknowns of pieces `(i−1, i)` (zero at a rest point).
+    fn knot(&self, i: usize) -> [f64; 2] {
+        let p = &self.pieces[i];
+        if p.rest_start {
+            return [0.0, 0.0];
         }
-    }
-    /// Raw (sampled, not eroded) machine-law limit of interval `g`.
-    #[inline]
-    pub fn raw_cap(&self, g: i64) -> f64 {
-        if self.held(g) {
-            self.raw[self.slot(g)]
+        let h = p.h();
+        let hq = if i == 0 {
+            self.prev.0
         } else {
-            f64::INFINITY
-        }
+            self.pieces[i - 1].h()
+        };
+        [h / (hq + h), hq / (hq + h)]
     }
-    /// The limit of interval `g` at feed override `ovr`.
-    #[inline]
-    pub fn limit(&self, g: i64, ovr: f64) -> f64 {
-        self.cap(g).min(ovr * self.feed_cap(g))
-    }
-    /// Planned limit at node `g` (mm/s); zero outside what is held.
-    #[inline]
-    pub fn node(&self, g: i64) -> f64 {
-        if self.held(g) {
-            self.v[self.slot(g)]
-        } else {
+
+    /// Piece `i` of the current solution with its knot values.
+    fn piece(&self, i: usize) -> Piece {
+        let w = &self.pieces[i];
+        let k0 = self.knot(i);
+        let e0 = k0[0] * self.coef(i as isize - 1) + k0[1] * w.d;
+        let e1 = if i + 1 >= self.n_pieces {
             0.0
+        } else {
+            let k1 = self.knot(i + 1);
+            k1[0] * w.d + k1[1] * self.pieces[i + 1].d
+        };
+        Piece {
+            x0: w.x0,
+            h: w.h(),
+            e0,
+            d: w.d,
+            e1,
         }
     }
-    /// Does a full stop lie inside interval `g`?
-    #[inline]
-    pub fn has_stop(&self, g: i64) -> bool {
-        self.held(g) && self.stop[self.slot(g)]
+
+    /// The per-axis samples on piece `p` (from its interval and, within
+    /// round-off of its ends, its neighbours': a sample on a knot belongs to
+    /// both pieces, whichever interval it was stored in).
+    fn piece_samples<'a>(&'a self, p: &'a WPiece) -> impl Iterator<Item = &'a AxisSample> + 'a {
+        let tol = SLIVER * self.h;
+        let held = |g: i64| g >= self.g_base && g < self.g_base + self.n_int as i64;
+        (p.g - 1..=p.g + 1)
+            .filter(move |&g| held(g))
+            .flat_map(move |g| {
+                let it = self.interval(g);
+                it.samples[..it.n_samples as usize].iter()
+            })
+            .filter(move |smp| smp.s >= p.x0 - tol && smp.s <= p.x1 + tol)
     }
-    /// Room to extend the ring up to and including interval `g`?
-    pub fn can_extend_to(&self, g: i64) -> bool {
-        g < self.base + MAX_PROFILE as i64
+
+    /// The squared speed limit of piece `i` at override `ovr`.
+    fn limit2(&self, i: usize, ovr: f64, lift: &Option<(f64, Stop)>) -> f64 {
+        let p = &self.pieces[i];
+        let it = self.interval(p.g);
+        let top = self.cfg.max_path_speed;
+        let mut v = it.machine.min(ovr * it.feed).min(top);
+        if let Some((x_f, stop)) = lift {
+            // The feed may not fall faster than the machine can brake.
+            let vb = stop.speed_after(p.x0 - x_f);
+            v = v.max(vb.min(it.machine).min(top));
+        }
+        if !v.is_finite() {
+            v = top;
+        }
+        v * v
     }
-    /// Make intervals up to and including `g` present (new ones uncapped).
-    /// Returns false (changing nothing) when the ring is too small.
+
+    /// Drop intervals and rest points before arc length `x`.
+    fn drop_before(&mut self, x: f64) {
+        let g = index_of(x, self.h);
+        while self.n_int > 0 && self.g_base < g {
+            self.int_head = (self.int_head + 1) % WINDOW;
+            self.g_base += 1;
+            self.n_int -= 1;
+        }
+        if self.n_int == 0 {
+            self.g_base = g;
+        }
+        let k = self.stops[..self.n_stops].partition_point(|&s| s < x);
+        if k > 0 {
+            self.stops.copy_within(k..self.n_stops, 0);
+            self.n_stops -= k;
+        }
+    }
+
+    /// Rebuild pieces `from..` (starting at `x`) up to the tail out of the
+    /// intervals and rest points.
+    fn rebuild_from(
+        &mut self,
+        from: usize,
+        mut x: f64,
+        mut rest: bool,
+        end: f64,
+    ) -> Result<(), PlanError> {
+        let mut n = from;
+        let mut si = self.stops[..self.n_stops].partition_point(|&s| s <= x);
+        // A cut closer than this to the next one would leave a sliver piece
+        // (round-off between a block end and a grid line): merge it.
+        let sliver = SLIVER * self.h;
+        while x < end {
+            let g0 = index_of(x, self.h);
+            let mut x1 = ((g0 + 1) as f64 * self.h).min(end);
+            if x1 - x <= sliver {
+                // Just before a grid line (round-off): run to the next one.
+                x1 = ((g0 + 2) as f64 * self.h).min(end);
+            }
+            let mut stop_here = false;
+            if si < self.n_stops && self.stops[si] <= x1 + sliver {
+                x1 = self.stops[si];
+                stop_here = true;
+                si += 1;
+            } else if end - x1 <= sliver {
+                x1 = end;
+            }
+            if x1 > x {
+                if n >= WINDOW {
+                    return Err(PlanError::Full);
+                }
+                let d = if n < self.n_pieces && self.pieces[n].x0 == x {
+                    self.pieces[n].d
+                } else {
+                    0.0
+                };
+                self.pieces[n] = WPiece {
+                    x0: x,
+                    x1,
+                    g: index_of(0.5 * (x + x1), self.h),
+                    rest_start: rest,
+                    d,
+                };
+                n += 1;
+                rest = false;
+            }
+            if stop_here {
+                rest = true;
+            }
+            x = x1;
+        }
+        self.n_pieces = n;
+        Ok(())
+    }
+}
+
+impl Window {
+    /// An empty window at rest at arc length `s`, grid spacing `h`.
+    pub fn new(cfg: InterpConfig, h: f64, s: f64) -> Self {
+        let open = Interval::open(&cfg);
+        Window {
+            data: Data {
+                cfg,
+                h,
+                g_base: index_of(s, h),
+                int_head: 0,
+                n_int: 0,
+                ints: [open; WINDOW],
+                stops: [0.0; MAX_STOPS],
+                n_stops: 0,
+                pieces: [WPiece::default(); WINDOW],
+                n_pieces: 0,
+                prev: (0.0, 0.0),
+                tail: s,
+                origin: s,
+            },
+            scratch: Scratch {
+                lp: LpWork::new(),
+                c: [0.0; REGION],
+                lo: [0.0; REGION],
+                hi: [0.0; REGION],
+                x: [0.0; REGION],
+                backup: [WPiece::default(); WINDOW],
+            },
+            ovr: 1.0,
+            last: SolveStats::default(),
+            trace: None,
+        }
+    }
+
+    /// Restart empty, at rest at arc length `s`.
+    pub fn reset(&mut self, s: f64) {
+        let d = &mut self.data;
+        d.g_base = index_of(s, d.h);
+        d.int_head = 0;
+        d.n_int = 0;
+        d.n_stops = 0;
+        d.n_pieces = 0;
+        d.prev = (0.0, 0.0);
+        d.tail = s;
+        d.origin = s;
+    }
+
+    /// Grid spacing, mm.
+    pub fn h(&self) -> f64 {
+        self.data.h
+    }
+    /// End of the queue, mm.
+    pub fn tail(&self) -> f64 {
+        self.data.tail
+    }
+    /// Feed override of the last solve.
+    pub fn feed_override(&self) -> f64 {
+        self.ovr
+    }
+    /// Pieces of the current solution.
+    pub fn n_pieces(&self) -> usize {
+        self.data.n_pieces
+    }
+    /// Piece `i` of the current solution.
+    pub fn piece(&self, i: usize) -> Piece {
+        self.data.piece(i)
+    }
+    /// The data of the interval holding arc length `s` (diagnostics).
+    pub fn interval_at(&self, s: f64) -> Option<&Interval> {
+        let g = index_of(s, self.data.h);
+        let d = &self.data;
+        (g >= d.g_base && g < d.g_base + d.n_int as i64).then(|| d.interval(g))
+    }
+    /// The last linear program as held (diagnostics): rows, objective and
+    /// bounds of its unknowns.
+    pub fn lp_dump(&self) -> (usize, &[f64], &[f64], &[f64], &LpWork<REGION, MAX_ROWS>) {
+        let n = self.last.variables;
+        (
+            n,
+            &self.scratch.c[..n],
+            &self.scratch.lo[..n],
+            &self.scratch.hi[..n],
+            &self.scratch.lp,
+        )
+    }
+    /// Residuals of the last linear program (diagnostics).
+    pub fn lp_residuals(&self) -> (f64, f64, f64) {
+        self.scratch.lp.residuals
+    }
+    /// Does piece `i` start at a rest point?
+    pub fn rest_start(&self, i: usize) -> bool {
+        self.data.pieces[i].rest_start
+    }
+
+    /// Forget the intervals and rest points behind the machine (at arc
+    /// length `machine`): no plan will ever reach back there.
+    pub fn release_before(&mut self, machine: f64) {
+        let d = &mut self.data;
+        let g = index_of(machine, d.h) - 1;
+        while d.n_int > 0 && d.g_base < g {
+            d.int_head = (d.int_head + 1) % WINDOW;
+            d.g_base += 1;
+            d.n_int -= 1;
+        }
+        let k = d.stops[..d.n_stops].partition_point(|&s| s < machine);
+        if k > 0 {
+            d.stops.copy_within(k..d.n_stops, 0);
+            d.n_stops -= k;
+        }
+    }
+
+    /// Room for intervals up to `g` and `stops` more rest points, with the
+    /// machine at arc length `machine`: the pieces from there to `g` must fit
+    /// one linear program (see [`REGION`]).
+    pub fn has_room(&self, g: i64, stops: usize, machine: f64) -> bool {
+        let d = &self.data;
+        let from = index_of(machine, d.h).max(d.g_base);
+        let pieces = (g - from + 2).max(0) as usize + d.n_stops + stops;
+        // (Margin: a fallback rest point or two, and the kept pieces before
+        // the machine.)
+        g < d.g_base + (WINDOW - 2) as i64 && d.n_stops + stops <= MAX_STOPS && pieces + 8 <= REGION
+    }
+
+    /// Make intervals up to `g` present (new ones open). False when full.
     pub fn extend_to(&mut self, g: i64) -> bool {
-        if !self.can_extend_to(g) {
+        if g >= self.data.g_base + (WINDOW - 2) as i64 {
             return false;
         }
-        while self.end() <= g {
-            let slot = (self.head + self.len) % MAX_PROFILE;
-            self.raw[slot] = f64::INFINITY;
-            self.raw_feed[slot] = f64::INFINITY;
-            self.cap[slot] = f64::INFINITY;
-            self.feed_cap[slot] = f64::INFINITY;
-            self.v[slot] = 0.0;
-            self.stop[slot] = false;
-            self.len += 1;
+        let d = &mut self.data;
+        let open = Interval::open(&d.cfg);
+        while d.g_base + (d.n_int as i64) <= g {
+            let k = (d.int_head + d.n_int) % WINDOW;
+            d.ints[k] = open;
+            d.n_int += 1;
         }
         true
     }
-    /// Restart an empty ring at grid index `g`.
-    pub fn reset_at(&mut self, g: i64) {
-        self.base = g;
-        self.head = 0;
-        self.len = 0;
-    }
-    /// Lower the raw machine-law limit of interval `g` to `c`.
-    #[inline]
-    pub fn lower_cap(&mut self, g: i64, c: f64) {
-        if self.held(g) {
-            let k = self.slot(g);
-            if c < self.raw[k] {
-                self.raw[k] = c;
-            }
-        }
-    }
-    /// Lower the raw feed limit (100 % override) of interval `g` to `c`.
-    #[inline]
-    pub fn lower_feed_cap(&mut self, g: i64, c: f64) {
-        if self.held(g) {
-            let k = self.slot(g);
-            if c < self.raw_feed[k] {
-                self.raw_feed[k] = c;
-            }
-        }
-    }
-    /// Mark a full stop inside interval `g`.
-    #[inline]
-    pub fn mark_stop(&mut self, g: i64) {
-        if self.held(g) {
-            let k = self.slot(g);
-            self.stop[k] = true;
-        }
-    }
-    /// Set node `g`'s limit.
-    #[inline]
-    pub fn set_node(&mut self, g: i64, v: f64) {
-        if self.held(g) {
-            let k = self.slot(g);
-            self.v[k] = v;
-        }
-    }
-    /// A node's limit before look-ahead: the smaller limit of its two
-    /// intervals, with the feed limit at override `ovr`.
-    #[inline]
-    pub fn raw_node(&self, g: i64, ovr: f64) -> f64 {
-        let left = if g > self.base {
-            self.limit(g - 1, ovr)
+
+    /// The data of interval `g`, if held.
+    pub fn interval_mut(&mut self, g: i64) -> Option<&mut Interval> {
+        let d = &mut self.data;
+        if g >= d.g_base && g < d.g_base + d.n_int as i64 {
+            let k = d.slot(g);
+            Some(&mut d.ints[k])
         } else {
-            f64::INFINITY
-        };
-        left.min(self.limit(g, ovr))
-    }
-    /// Drop intervals before `g` (the machine has passed them). O(1) per interval.
-    #[inline]
-    pub fn drop_before(&mut self, g: i64) {
-        while self.len > 0 && self.base < g {
-            self.head = (self.head + 1) % MAX_PROFILE;
-            self.base += 1;
-            self.len -= 1;
+            None
         }
     }
 
-    /// Recompute the eroded limits of intervals `from..end()`.
-    ///
-    /// The jerk filter outputs the mean of the last `N` reference positions,
-    /// so its speed is the mean reference speed over a window `T = N·Ts` that
-    /// reaches both sides of where the machine is. With the reference held to
-    /// `e(x) = min_y max(c(y), |y − x|/T)`, the filtered speed never exceeds
-    /// `c` where the machine is: a window longer than `T·c(x)` would take the
-    /// reference longer than `T` to cross. On the grid, distance counts whole
-    /// intervals between (`(|g − g'| − 1)·h`, one interval of slack). Full
-    /// stops bound the window (the reference waits at a stop until the filter
-    /// has drained), and intervals from `cone_from` on count as zero so that
-    /// blocks arriving later can only raise limits already in use.
-    pub fn erode(&mut self, from: i64, e: Erosion) {
-        let from = from.max(self.base);
-        let end = self.end();
-        if from >= end {
-            return;
+    /// Add a rest point at `s` (at or after every one held). False when full.
+    pub fn add_stop(&mut self, s: f64) -> bool {
+        let d = &mut self.data;
+        if d.n_stops > 0 && d.stops[d.n_stops - 1] >= s {
+            return true;
         }
-        for which in 0..2 {
-            let slope = if which == 0 { e.slope } else { e.feed_slope };
-            let val = |p: &Profile, q: i64| -> f64 {
-                if e.cone_from.is_some_and(|c| q >= c) {
-                    0.0
-                } else if which == 0 {
-                    p.raw[p.slot(q)]
-                } else {
-                    p.raw_feed[p.slot(q)]
-                }
-            };
-            if !(slope.is_finite() && slope > 0.0) {
-                for g in from..end {
-                    let v = val(self, g);
-                    self.store(which, g, v);
-                }
-                continue;
-            }
-            // Right side (candidates q > g), g from the end down; results in `scratch_val`.
-            let mut stack = Hull::new();
-            for g in (from..end).rev() {
-                let q = g + 1;
-                if q < end {
-                    stack.insert(self, q, val(self, q), self.has_stop(q));
-                } else if e.cone_from.is_some() {
-                    // Unknown intervals past the end: only the nearest zero matters.
-                    stack.insert(self, q, 0.0, false);
-                }
-                self.scratch_val[(g - from) as usize] = stack.best(self, g, slope, 1);
-            }
-            // Left side (candidates q < g), g upwards from where the cone of the
-            // highest limit can still reach `from`.
-            let top = if e.top.is_finite() {
-                e.top
-            } else {
-                self.raw_top(which)
-            };
-            let reach = if top.is_finite() {
-                (libm::ceil(top / slope) as i64).saturating_add(2)
-            } else {
-                MAX_PROFILE as i64
-            };
-            let lo = (from - reach).max(self.base);
-            let mut stack = Hull::new();
-            for g in lo..end {
-                let q = g - 1;
-                if q >= self.base {
-                    stack.insert(self, q, val(self, q), self.has_stop(q));
-                }
-                if g >= from {
-                    let left = stack.best(self, g, slope, -1);
-                    let right = self.scratch_val[(g - from) as usize];
-                    let v = val(self, g).min(left).min(right);
-                    self.store(which, g, v);
-                }
-            }
+        if d.n_stops >= MAX_STOPS {
+            return false;
         }
+        d.stops[d.n_stops] = s;
+        d.n_stops += 1;
+        true
     }
 
-    #[inline]
-    fn store(&mut self, which: usize, g: i64, v: f64) {
-        let k = self.slot(g);
-        if which == 0 {
-            self.cap[k] = v;
+    /// Move the end of the queue to `s`.
+    pub fn set_tail(&mut self, s: f64) {
+        self.data.tail = s;
+    }
+
+    /// Where a re-solve of everything ahead of the machine starts (a new
+    /// feed override, a resumed hold): the first piece strictly after
+    /// `machine`, or `machine` itself when the machine rests there.
+    pub fn freeze_after(&self, machine: f64, machine_at_rest: bool) -> Freeze {
+        let d = &self.data;
+        if d.n_pieces == 0 {
+            return Freeze::Rest(d.origin);
+        }
+        if machine_at_rest {
+            // At rest (where a hold stopped it, or on a rest point of the
+            // plan): planned again from that point.
+            return Freeze::Rest(machine.max(d.pieces[0].x0));
+        }
+        let mut f = 1;
+        while f < d.n_pieces && d.pieces[f].x0 <= machine {
+            f += 1;
+        }
+        if f < d.n_pieces {
+            Freeze::At(f)
         } else {
-            self.feed_cap[k] = v;
+            Freeze::Rest(d.pieces[d.n_pieces - 1].x1)
         }
     }
 
-    /// Highest finite raw limit held (bounds how far erosion reaches).
-    fn raw_top(&self, which: usize) -> f64 {
+    /// Where a re-solve starts. The freeze piece is the first one at least a
+    /// stopping distance (from the fastest planned speed on the way) before
+    /// the end of the current plan and strictly after `machine` (where the
+    /// machine may be when the plan is committed). A window that starts at
+    /// rest where the machine still rests is planned again from that point;
+    /// with no piece left, the new plan starts from rest where the current
+    /// one ends (the machine will have stopped there).
+    pub fn freeze(&self, machine: f64, machine_at_rest: bool) -> Freeze {
+        let d = &self.data;
+        if d.n_pieces == 0 {
+            return Freeze::Rest(d.origin);
+        }
+        let (a, j) = (d.cfg.planned_accel(), d.cfg.max_path_jerk);
+        let mut walked = 0.0;
         let mut top: f64 = 0.0;
-        for g in self.base..self.end() {
-            let k = self.slot(g);
-            let v = if which == 0 {
-                self.raw[k]
-            } else {
-                self.raw_feed[k]
-            };
-            if v.is_finite() {
-                top = top.max(v);
-            } else {
-                return f64::INFINITY;
+        let mut f = d.n_pieces - 1;
+        loop {
+            let p = d.piece(f);
+            top = top.max(libm::sqrt(p.e0.max(p.d).max(p.e1).max(0.0)));
+            walked += p.h;
+            let need = 1.5 * Stop::new(top, a, a, j).distance() + 2.0 * d.h;
+            if walked >= need || f == 0 {
+                break;
             }
+            f -= 1;
         }
-        top
-    }
-}
-
-/// Candidates for `min_q max(c_q, slope·(|q − g| − 1))` on one side of `g`,
-/// as `g` moves away from them: a stack, nearest on top, whose values rise
-/// towards the top (a nearer candidate with a value no higher hides every
-/// farther one for good). Along the stack `max(c, slope·d)` falls and then
-/// rises, and its minimum only moves towards the top as `g` moves on, so one
-/// pointer finds it in amortised O(1) per interval.
-struct Hull {
-    len: usize,
-    ptr: usize,
-}
-
-impl Hull {
-    fn new() -> Self {
-        Hull { len: 0, ptr: 0 }
-    }
-
-    /// Add the new nearest candidate `q` with value `c`; a stop drops every
-    /// farther candidate (the window does not reach past a stop).
-    #[inline]
-    fn insert(&mut self, p: &mut Profile, q: i64, c: f64, stop: bool) {
-        if stop {
-            self.len = 0;
+        if f == 0 && d.pieces[0].rest_start && machine_at_rest && machine <= d.pieces[0].x0 {
+            return Freeze::Rest(d.pieces[0].x0);
         }
-        while self.len > 0 && p.scratch_c[self.len - 1] >= c {
-            self.len -= 1;
+        f = f.max(1);
+        while f < d.n_pieces && d.pieces[f].x0 <= machine {
+            f += 1;
         }
-        p.scratch_q[self.len] = q;
-        p.scratch_c[self.len] = c;
-        self.len += 1;
-        if self.ptr >= self.len {
-            self.ptr = self.len - 1;
+        if f < d.n_pieces {
+            Freeze::At(f)
+        } else {
+            Freeze::Rest(d.pieces[d.n_pieces - 1].x1)
         }
     }
 
-    /// The minimum for interval `g` (`side` = +1: candidates after `g`, −1: before).
-    #[inline]
-    fn best(&mut self, p: &Profile, g: i64, slope: f64, side: i64) -> f64 {
-        if self.len == 0 {
-            return f64::INFINITY;
+    /// Re-solve from `freeze` to arc length `end` (a rest point: the end of
+    /// the queue, or a provisional one) with feed override `ovr`. `lift`: a braking curve from the state at the freeze point
+    /// (its arc length and the stop) that the feed limits may not push below,
+    /// for an override that drops faster than the machine can brake. Returns
+    /// the index of the first piece that changed: that one and every later
+    /// one make the update.
+    ///
+    /// If the program cannot be planned through the end of the current plan
+    /// (the linear program fails), that end is kept as a rest point and the
+    /// rest planned from it: always feasible, since the current plan stops
+    /// there. Without `fallback`, such a failure is returned instead (and
+    /// nothing changes).
+    pub fn solve(
+        &mut self,
+        freeze: Freeze,
+        end: f64,
+        ovr: f64,
+        lift: Option<(f64, Stop)>,
+        keep_from: f64,
+        fallback: bool,
+    ) -> Result<usize, PlanError> {
+        let (n, prev, origin) = (self.data.n_pieces, self.data.prev, self.data.origin);
+        let r = self.solve_inner(freeze, end, ovr, lift, keep_from, fallback);
+        if r.is_err() {
+            // Nothing changed: the plan as it was (the backup holds its pieces).
+            let d = &mut self.data;
+            d.pieces[..n].copy_from_slice(&self.scratch.backup[..n]);
+            d.n_pieces = n;
+            d.prev = prev;
+            d.origin = origin;
         }
-        let f = |i: usize| {
-            let d = ((p.scratch_q[i] - g) * side - 1).max(0) as f64;
-            p.scratch_c[i].max(slope * d)
+        r
+    }
+
+    fn solve_inner(
+        &mut self,
+        freeze: Freeze,
+        end: f64,
+        ovr: f64,
+        lift: Option<(f64, Stop)>,
+        keep_from: f64,
+        fallback: bool,
+    ) -> Result<usize, PlanError> {
+        // The current plan, to fall back on (it comes to rest at its end).
+        let backup_n = self.data.n_pieces;
+        self.scratch.backup[..backup_n].copy_from_slice(&self.data.pieces[..backup_n]);
+        let backup_prev = self.data.prev;
+        let old_end = {
+            let d = &self.data;
+            if d.n_pieces == 0 {
+                d.origin
+            } else {
+                d.pieces[d.n_pieces - 1].x1
+            }
         };
-        while self.ptr + 1 < self.len && f(self.ptr + 1) <= f(self.ptr) {
-            self.ptr += 1;
-        }
-        f(self.ptr)
-    }
-}
-
-/// Discrete braking: the largest step `Δ` (mm per tick) such that stepping
-/// `Δ, Δ−a, Δ−2a, …`, every step longer than `w` ends within `r` of here.
-///
-/// This is the exact discrete form of `v² ≤ w² + 2·A·r`: a continuous braking
-/// curve sampled once per tick would brake harder than `A`. The feasible set
-/// is `[0, Δ*]`, and once `Δ` was feasible, `Δ − a` is feasible one tick
-/// later, which is why the tick never needs to decelerate harder than `a`.
-#[inline]
-pub fn brake_step(r: f64, w: f64, a: f64) -> f64 {
-    if r <= w {
-        // Not even one step longer than w fits before the node.
-        return w;
-    }
-    // Largest n with n·w + a·n(n−1)/2 < r (the distance at which n steps
-    // just above w end).
-    let b = w - 0.5 * a;
-    let root = (-b + libm::sqrt(b * b + 2.0 * a * r)) / a;
-    let mut n = libm::ceil(root) - 1.0;
-    if n < 1.0 {
-        n = 1.0;
-    }
-    let band_start = |n: f64| n * w + 0.5 * a * n * (n - 1.0);
-    // Guard against round-off in the root.
-    while n > 1.0 && band_start(n) >= r {
-        n -= 1.0;
-    }
-    while band_start(n + 1.0) < r {
-        n += 1.0;
-    }
-    (w + n * a).min((r + 0.5 * a * n * (n - 1.0)) / n)
-}
-
-/// Distance needed to come to rest from step `d` braking by `a` per tick
-/// (all steps, including this one): `n·d − a·n(n−1)/2` with `n = ⌈d/a⌉`.
-#[inline]
-pub fn stop_distance(d: f64, a: f64) -> f64 {
-    if d <= 0.0 {
-        return 0.0;
-    }
-    let n = libm::ceil(d / a);
-    n * d - 0.5 * a * n * (n - 1.0)
-}
-
-#[cfg(test)]
-mod tests {
-    extern crate alloc;
-    use super::*;
-    use alloc::vec::Vec;
-
-    /// Distance covered by the steps longer than `w` when braking from `d`.
-    fn braking_distance(mut d: f64, w: f64, a: f64) -> f64 {
-        let mut pos = 0.0;
-        while d > w {
-            pos += d;
-            d -= a;
-        }
-        pos
-    }
-
-    #[test]
-    fn brake_step_is_the_largest_feasible_step() {
-        for &(r, w, a) in &[
-            (10.0, 0.0, 0.002),
-            (1.0, 0.05, 0.002),
-            (0.003, 0.0, 0.002),
-            (0.0005, 0.0, 0.002),
-            (5.0, 0.1, 0.01),
-            (0.25, 0.01, 0.001),
-        ] {
-            let d = brake_step(r, w, a);
-            assert!(
-                braking_distance(d, w, a) <= r * (1.0 + 1e-12),
-                "r={r} w={w} d={d}"
-            );
-            let more = d * (1.0 + 1e-9) + 1e-15;
-            assert!(
-                braking_distance(more, w, a) > r,
-                "not maximal: r={r} w={w} d={d}"
-            );
-        }
-    }
-
-    #[test]
-    fn brake_step_then_minus_a_stays_feasible() {
-        // The invariant the tick relies on.
-        let a = 0.002;
-        for i in 1..400 {
-            let r = i as f64 * 0.0137;
-            for &w in &[0.0, 0.01, 0.05] {
-                let d = brake_step(r, w, a);
-                if d > w {
-                    let d2 = brake_step(r - d, w, a);
-                    assert!(d2 >= d - a - 1e-15, "r={r} w={w} d={d} d2={d2}");
+        let (first, changed, from_x, rest) = match freeze {
+            Freeze::At(f) => {
+                // Keep pieces f−1 (as is) and f (its coefficient), and the
+                // ones from the machine's on: a later re-solve from the
+                // machine (a new override) starts from them. Those behind
+                // the machine go.
+                let d = &mut self.data;
+                let mut drop = 0;
+                while drop + 1 < f && d.pieces[drop].x1 <= keep_from {
+                    drop += 1;
                 }
+                if drop > 0 {
+                    let q = d.pieces[drop - 1];
+                    d.prev = (q.h(), q.d);
+                    d.pieces.copy_within(drop..d.n_pieces, 0);
+                    d.n_pieces -= drop;
+                }
+                let f = f - drop;
+                let x2 = d.pieces[f].x1;
+                let rest = d.stops[..d.n_stops].contains(&x2);
+                (f + 1, f, x2, rest)
             }
-        }
-    }
-
-    #[test]
-    fn stop_distance_matches_brake_step() {
-        let a = 0.003;
-        for i in 1..100 {
-            let r = i as f64 * 0.05;
-            let d = brake_step(r, 0.0, a);
-            assert!(stop_distance(d, a) <= r * (1.0 + 1e-12));
-            assert!((stop_distance(d, a) - braking_distance(d, 0.0, a)).abs() < 1e-12);
-        }
-    }
-
-    #[test]
-    fn profile_ring_wraps_and_refuses_overflow() {
-        let mut p = Profile::new(0.5);
-        assert!(p.extend_to(10));
-        p.lower_cap(3, 7.0);
-        assert_eq!(p.raw_cap(3), 7.0);
-        assert_eq!(p.raw_cap(4), f64::INFINITY);
-        p.drop_before(5);
-        assert_eq!(p.base(), 5);
-        assert!(!p.can_extend_to(5 + MAX_PROFILE as i64));
-        assert!(p.extend_to(4 + MAX_PROFILE as i64));
-        p.lower_cap(4 + MAX_PROFILE as i64, 1.0);
-        assert_eq!(p.raw_cap(4 + MAX_PROFILE as i64), 1.0);
-        assert!(!p.extend_to(5 + MAX_PROFILE as i64));
-    }
-
-    /// Brute force of `e(g) = min over g' of max(c(g'), slope·(|g − g'| − 1)⁺)`,
-    /// not past a stop, intervals from `cone` on (and one past the end) zero.
-    fn eroded(raw: &[f64], g: usize, slope: f64, stops: &[usize], cone: Option<usize>) -> f64 {
-        let val = |q: usize| {
-            if cone.is_some_and(|c| q >= c) {
-                0.0
-            } else {
-                raw[q]
+            Freeze::Rest(x) => {
+                let d = &mut self.data;
+                d.n_pieces = 0;
+                d.prev = (0.0, 0.0);
+                (0, 0, x, true)
             }
         };
-        let n = raw.len() + usize::from(cone.is_some());
-        let mut best = f64::INFINITY;
-        for q in 0..n {
-            let c = if q == raw.len() { 0.0 } else { val(q) };
-            let (lo, hi) = (g.min(q), g.max(q));
-            // A stop strictly between g and q bounds the window.
-            if stops.iter().any(|&st| st > lo && st < hi) {
+        self.ovr = ovr;
+        let mut fell_back = false;
+        loop {
+            self.data.rebuild_from(first, from_x, rest, end)?;
+            let n = self.data.n_pieces;
+            if n - first > REGION {
+                return Err(PlanError::Full);
+            }
+            if n <= first {
+                self.commit_region(freeze, keep_from, from_x);
+                return Ok(changed.min(n));
+            }
+            self.last.variables = n - first;
+            let trace = self.trace;
+            match assemble_and_solve(
+                &mut self.data,
+                &mut self.scratch,
+                first,
+                ovr,
+                &lift,
+                &mut |it| {
+                    if let Some(t) = trace {
+                        t(it)
+                    }
+                },
+            ) {
+                Ok(st) => {
+                    let x0 = self.data.pieces[first].x0;
+                    self.last = SolveStats {
+                        fell_back,
+                        range: (x0, end),
+                        ..st
+                    };
+                    self.commit_region(freeze, keep_from, from_x);
+                    return Ok(changed);
+                }
+                Err(e @ PlanError::Solver(_)) if !fallback => return Err(e),
+                Err(PlanError::Solver(_)) if !fell_back && old_end > from_x => {
+                    if !self.insert_stop(old_end) {
+                        return Err(PlanError::Full);
+                    }
+                    fell_back = true;
+                }
+                Err(PlanError::Solver(_)) => {
+                    // Last resort, never a stall: keep the current plan to its
+                    // end (at rest) and crawl from there, resting at every knot.
+                    let d = &mut self.data;
+                    d.pieces[..backup_n].copy_from_slice(&self.scratch.backup[..backup_n]);
+                    d.n_pieces = backup_n;
+                    d.prev = backup_prev;
+                    let start = backup_n;
+                    d.rebuild_from(start, old_end, true, end)?;
+                    crawl(d, start, ovr, &lift);
+                    self.last = SolveStats {
+                        crawled: true,
+                        ..SolveStats::default()
+                    };
+                    // The pieces before this plan's start stay as they are.
+                    let first_kept = self.data.pieces[0].x0;
+                    self.data.drop_before(first_kept.min(keep_from));
+                    return Ok(start);
+                }
+                Err(e) => return Err(e),
+            }
+        }
+    }
+
+    /// After a successful solve: forget the intervals and rest points no plan
+    /// can reach back to (before the kept pieces and the machine).
+    fn commit_region(&mut self, freeze: Freeze, keep_from: f64, from_x: f64) {
+        let x = match freeze {
+            Freeze::At(_) => self.data.pieces[0].x0,
+            Freeze::Rest(_) => {
+                self.data.origin = from_x;
+                from_x
+            }
+        };
+        self.data.drop_before(x.min(keep_from));
+    }
+
+    /// Insert a rest point at `x` (in order).
+    fn insert_stop(&mut self, x: f64) -> bool {
+        let d = &mut self.data;
+        let k = d.stops[..d.n_stops].partition_point(|&s| s < x);
+        if k < d.n_stops && d.stops[k] == x {
+            return true;
+        }
+        if d.n_stops >= MAX_STOPS {
+            return false;
+        }
+        d.stops.copy_within(k..d.n_stops, k + 1);
+        d.stops[k] = x;
+        d.n_stops += 1;
+        true
+    }
+}
+
+/// Rows being written for one linear program.
+struct RowSink<'a> {
+    lp: &'a mut LpWork<REGION, MAX_ROWS>,
+    first: usize,
+}
+
+impl RowSink<'_> {
+    /// Fold a linear form over the coefficients of pieces `(i−1, i, i+1)`
+    /// into a row on the unknowns (pieces `first..`): fixed pieces move into
+    /// the bounds.
+    fn push(
+        &mut self,
+        d: &Data,
+        i: usize,
+        mut a: [f64; 3],
+        lo: f64,
+        hi: f64,
+    ) -> Result<(), PlanError> {
+        let mut c = 0.0;
+        for (m, coef) in a.iter_mut().enumerate() {
+            let q = i as isize + m as isize - 1;
+            if *coef == 0.0 {
                 continue;
             }
-            let d = (hi - lo) as f64;
-            best = best.min(c.max(slope * (d - 1.0).max(0.0)));
+            if q >= d.n_pieces as isize {
+                *coef = 0.0;
+            } else if q < self.first as isize {
+                c += *coef * d.coef(q);
+                *coef = 0.0;
+            }
         }
-        best
-    }
-
-    #[test]
-    fn erosion_matches_brute_force_on_random_profiles() {
-        let mut seed = 0x2545_f491_4f6c_dd1du64;
-        let mut rnd = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64
+        let base = (i as isize - 1).max(self.first as isize);
+        let shift = (base - (i as isize - 1)) as usize;
+        let mut b = [0.0; 3];
+        b[..3 - shift].copy_from_slice(&a[shift..]);
+        if b.iter().all(|&v| v == 0.0) {
+            return Ok(());
+        }
+        let row = Row {
+            k: (base as usize - self.first) as u32,
+            a: b,
+            lo: lo - c,
+            hi: hi - c,
         };
-        for case in 0..300 {
-            let n = 5 + (rnd() * 120.0) as usize;
-            let raw: Vec<f64> = (0..n)
-                .map(|_| {
-                    if rnd() < 0.2 {
-                        rnd() * 2.0
-                    } else {
-                        5.0 + rnd() * 60.0
-                    }
-                })
-                .collect();
-            let feed: Vec<f64> = (0..n).map(|_| 1.0 + rnd() * 80.0).collect();
-            let stops: Vec<usize> = (0..(rnd() * 4.0) as usize)
-                .map(|_| (rnd() * n as f64) as usize)
-                .collect();
-            let cone = (rnd() < 0.5).then(|| (rnd() * n as f64) as usize);
-            let (slope, feed_slope) = (0.3 + rnd() * 8.0, 0.3 + rnd() * 8.0);
-            let mut p = Profile::new(0.25);
-            // Start the ring at a random offset so it wraps.
-            p.reset_at(1000 + case);
-            p.head = (rnd() * MAX_PROFILE as f64) as usize;
-            let base = p.base();
-            p.extend_to(base + n as i64 - 1);
-            for g in 0..n {
-                p.lower_cap(base + g as i64, raw[g]);
-                p.lower_feed_cap(base + g as i64, feed[g]);
-            }
-            for &st in &stops {
-                p.mark_stop(base + st as i64);
-            }
-            let from = (rnd() * n as f64) as i64;
-            // With the ring scanned for the top, and with a bound given.
-            let mut bounded = p.clone();
-            let e = Erosion {
-                slope,
-                feed_slope,
-                cone_from: cone.map(|c| base + c as i64),
-                top: f64::INFINITY,
-            };
-            p.erode(base + from, e);
-            let top = raw.iter().chain(&feed).fold(0.0f64, |a, &b| a.max(b)) * (1.0 + rnd());
-            bounded.erode(base + from, Erosion { top, ..e });
-            for g in from..n as i64 {
-                assert_eq!(
-                    bounded.cap(base + g),
-                    p.cap(base + g),
-                    "case {case} g={g} (top {top})"
-                );
-                assert_eq!(
-                    bounded.feed_cap(base + g),
-                    p.feed_cap(base + g),
-                    "case {case} g={g} (top {top})"
-                );
-            }
-            for g in from as usize..n {
-                let gi = base + g as i64;
-                assert_eq!(
-                    p.cap(gi),
-                    eroded(&raw, g, slope, &stops, cone),
-                    "case {case} g={g}"
-                );
-                assert_eq!(
-                    p.feed_cap(gi),
-                    eroded(&feed, g, feed_slope, &stops, cone),
-                    "case {case} g={g} (feed)"
-                );
-            }
+        if self.lp.push_row(row) {
+            Ok(())
+        } else {
+            Err(PlanError::Full)
         }
     }
+}
 
-    #[test]
-    fn erosion_matches_brute_force_and_respects_stops_and_the_cone() {
-        let raw: Vec<f64> = (0..60)
-            .map(|i| {
-                if i == 25 {
-                    1.0
-                } else {
-                    20.0 + 15.0 * ((i as f64) * 0.37).sin()
-                }
-            })
-            .collect();
-        for &(slope, stop) in &[(2.0, None), (0.7, Some(30usize)), (5.0, Some(10))] {
-            let mut p = Profile::new(0.5);
-            p.extend_to(raw.len() as i64 - 1);
-            for (g, &c) in raw.iter().enumerate() {
-                p.lower_cap(g as i64, c);
-                p.lower_feed_cap(g as i64, c * 2.0);
-            }
-            if let Some(st) = stop {
-                p.mark_stop(st as i64);
-            }
-            let e = Erosion {
-                slope,
-                feed_slope: slope,
-                cone_from: None,
-                top: f64::INFINITY,
+/// Build the linear program over the unknowns of pieces `first ..n` and
+/// solve it into the pieces.
+fn assemble_and_solve(
+    d: &mut Data,
+    sc: &mut Scratch,
+    first: usize,
+    ovr: f64,
+    lift: &Option<(f64, Stop)>,
+    trace: &mut dyn FnMut(lp::Iteration),
+) -> Result<SolveStats, PlanError> {
+    let n = d.n_pieces;
+    let nv = n - first;
+    let cfg = d.cfg;
+    let keep = 1.0 - cfg.planning_margin;
+    // Next to a rest point the acceleration steps by at most half a tick of
+    // jerk each way (arriving, then leaving: a full tick's worth together).
+    let a_rest = 0.5 * cfg.max_path_jerk * keep * cfg.period;
+    sc.c[..nv].fill(0.0);
+    // Per-axis rows that could bind: with S ≤ V², |S'| ≤ 2A and |S''| ≤ 2J/V,
+    // a sample whose worst case stays below the limit needs no row. If the
+    // rest would not fit, each piece gets one conservative row per axis.
+    let binds = |smp: &AxisSample, ax: usize, l2: f64| {
+        crate::prepare::axis_jerk_may_bind(smp, ax, l2, &cfg)
+    };
+    let lo_i = first.saturating_sub(1);
+    let mut needed = 0usize;
+    for i in lo_i..n {
+        let p = d.pieces[i];
+        let it = d.interval(p.g);
+        let l2 = d.limit2(i, ovr, lift);
+        needed += 3;
+        let _ = it;
+        for smp in d.piece_samples(&p) {
+            needed += (0..3).filter(|&ax| binds(smp, ax, l2)).count();
+        }
+    }
+    let aggregate = needed > MAX_ROWS;
+    sc.lp.clear_rows();
+    let mut sink = RowSink {
+        lp: &mut sc.lp,
+        first,
+    };
+    // The piece before the first unknown gets its rows too: its end moves.
+    for i in lo_i..n {
+        let p = d.pieces[i];
+        let h = p.h();
+        let it = *d.interval(p.g);
+        let l2 = d.limit2(i, ovr, lift);
+        let rest_end = i + 1 >= n || d.pieces[i + 1].rest_start;
+        if i >= first {
+            let j = i - first;
+            sc.lo[j] = 0.0;
+            sc.hi[j] = if p.rest_start || rest_end {
+                l2.min(a_rest * h)
+            } else {
+                l2
             };
-            p.erode(0, e);
-            let stops: Vec<usize> = stop.into_iter().collect();
-            for g in 0..raw.len() {
-                let want = eroded(&raw, g, slope, &stops, None);
-                assert_eq!(p.cap(g as i64), want, "g={g} slope={slope}");
-                let raw2: Vec<f64> = raw.iter().map(|c| c * 2.0).collect();
-                assert_eq!(p.feed_cap(g as i64), eroded(&raw2, g, slope, &stops, None));
-                assert!(p.cap(g as i64) <= raw[g]);
+        }
+        // Knot values (start, end) and the middle coefficient as forms on
+        // the coefficients of pieces (i−1, i, i+1).
+        let ks = d.knot(i);
+        let e0 = [ks[0], ks[1], 0.0];
+        let e1 = if rest_end {
+            [0.0; 3]
+        } else {
+            let kn = d.knot(i + 1);
+            [0.0, kn[0], kn[1]]
+        };
+        let mid = [0.0, 1.0, 0.0];
+        let curv = [
+            e0[0] + e1[0] - 2.0 * mid[0],
+            e0[1] + e1[1] - 2.0 * mid[1],
+            e0[2] + e1[2] - 2.0 * mid[2],
+        ];
+        // Objective: the path time ∫ds/√S, linearised about the limit
+        // (d(S^−½)/dS = −½·S^−³ᐟ²): maximise Σ ∫S ds / V_p³, which weighs
+        // slow pieces the most, where the time is spent.
+        let floor = MIN_SPEED2 * cfg.max_path_speed * cfg.max_path_speed;
+        let weight = h / (3.0 * l2.max(floor) * libm::sqrt(l2.max(floor)));
+        for m in 0..3 {
+            let q = i as isize + m as isize - 1;
+            if q >= first as isize && (q as usize) < n {
+                sc.c[q as usize - first] += (e0[m] + mid[m] + e1[m]) * weight;
             }
-            // With the cone, limits fall to zero towards it and are never
-            // above the finished profile's.
-            let finished: Vec<f64> = (0..raw.len() as i64).map(|g| p.cap(g)).collect();
-            p.erode(
-                0,
-                Erosion {
-                    cone_from: Some(50),
-                    ..e
-                },
-            );
-            for g in 0..raw.len() as i64 {
-                assert!(p.cap(g) <= finished[g as usize]);
-                if g >= 50 {
-                    assert_eq!(p.cap(g), 0.0);
-                } else if stop.is_none_or(|st| st as i64 <= g) {
-                    assert!(p.cap(g) <= slope * (50 - g - 1) as f64, "g={g}");
+        }
+        // Tangential jerk |α|·v ≤ J, α = (e0 − 2d + e1)/h², v ≤ √l2.
+        let vmax = libm::sqrt(l2).max(1e-9);
+        let jb = it.jerk * h * h / vmax;
+        sink.push(d, i, curv, -jb, jb)?;
+        if !rest_end {
+            // The end knot within both pieces' limits, and the acceleration there.
+            let l2n = d.limit2(i + 1, ovr, lift);
+            sink.push(d, i, e1, 0.0, l2.min(l2n))?;
+            let s = h + d.pieces[i + 1].h();
+            let acc = it.accel.min(d.interval(d.pieces[i + 1].g).accel);
+            sink.push(d, i, [0.0, -1.0 / s, 1.0 / s], -acc, acc)?;
+        }
+        // Per-axis jerk v·(C‴·S + 1.5·C″·S′ + 0.5·t·S″) at the samples in this piece.
+        let mut agg = [[0.0f64; 3]; 3];
+        let mut any = [false; 3];
+        for smp in d.piece_samples(&p) {
+            let u = ((smp.s - p.x0) / h).clamp(0.0, 1.0);
+            let (b0, b1, b2) = ((1.0 - u) * (1.0 - u), 2.0 * u * (1.0 - u), u * u);
+            for ax in 0..3 {
+                if !binds(smp, ax, l2) {
+                    continue;
+                }
+                let (t, css, csss) = (smp.t[ax], smp.css[ax], smp.csss[ax]);
+                let mut a = [0.0; 3];
+                for m in 0..3 {
+                    let sv = e0[m] * b0 + mid[m] * b1 + e1[m] * b2;
+                    let sd = 2.0 / h * ((mid[m] - e0[m]) * (1.0 - u) + (e1[m] - mid[m]) * u);
+                    let sdd = 2.0 / (h * h) * curv[m];
+                    a[m] = csss * sv + 1.5 * css * sd + 0.5 * t * sdd;
+                }
+                if aggregate {
+                    // |Σ a_m·d_m| ≤ Σ |a_m|·d_m for d ≥ 0: one row bounds every sample.
+                    for m in 0..3 {
+                        agg[ax][m] = agg[ax][m].max(libm::fabs(a[m]));
+                    }
+                    any[ax] = true;
+                } else {
+                    let jb = cfg.axis_max_jerk[ax] * keep / vmax;
+                    sink.push(d, i, a, -jb, jb)?;
                 }
             }
         }
+        for ax in 0..3 {
+            if any[ax] {
+                let jb = cfg.axis_max_jerk[ax] * keep / vmax;
+                sink.push(d, i, agg[ax], f64::NEG_INFINITY, jb)?;
+            }
+        }
     }
+    let nr = sc.lp.rows();
+    let problem = Problem {
+        c: &sc.c[..nv],
+        lo: &sc.lo[..nv],
+        hi: &sc.hi[..nv],
+    };
+    let opts = LpOptions {
+        pull: PULL,
+        ..LpOptions::default()
+    };
+    let st = lp::solve_traced(&problem, &opts, &mut sc.lp, &mut sc.x[..nv], trace)
+        .map_err(PlanError::Solver)?;
+    for j in 0..nv {
+        // Interior-point solutions sit a hair inside the bounds; clip the
+        // round-off that may step outside.
+        d.pieces[first + j].d = sc.x[j].clamp(sc.lo[j], sc.hi[j]);
+    }
+    Ok(SolveStats {
+        variables: nv,
+        rows: nr,
+        iterations: st.iterations,
+        ..SolveStats::default()
+    })
+}
+
+/// The fallback plan of pieces `from..`: each rests at both ends
+/// (`S = 2d·u(1−u)`), with the largest `d` that keeps every limit of the
+/// linear program's rows, in closed form (each piece depends on its own `d`
+/// alone).
+fn crawl(d: &mut Data, from: usize, ovr: f64, lift: &Option<(f64, Stop)>) {
+    let cfg = d.cfg;
+    let keep = 1.0 - cfg.planning_margin;
+    let a_rest = 0.5 * cfg.max_path_jerk * keep * cfg.period;
+    for i in from..d.n_pieces {
+        d.pieces[i].rest_start = true;
+    }
+    for i in from..d.n_pieces {
+        let p = d.pieces[i];
+        let h = p.h();
+        let it = *d.interval(p.g);
+        let l2 = d.limit2(i, ovr, lift);
+        let vmax = libm::sqrt(l2).max(1e-9);
+        // Hull, rests (|S'/2| = d/h at the ends), jerk (|S''|/2 = 2d/h²).
+        let mut best = l2.min(a_rest * h).min(it.jerk * h * h / (2.0 * vmax));
+        for smp in d.piece_samples(&p) {
+            let u = ((smp.s - p.x0) / h).clamp(0.0, 1.0);
+            for ax in 0..3 {
+                let coef = smp.csss[ax] * 2.0 * u * (1.0 - u)
+                    + 1.5 * smp.css[ax] * 2.0 / h * (1.0 - 2.0 * u)
+                    - 0.5 * smp.t[ax] * 4.0 / (h * h);
+                if coef != 0.0 {
+                    best = best.min(cfg.axis_max_jerk[ax] * keep / vmax / libm::fabs(coef));
+                }
+            }
+        }
+        d.pieces[i].d = best.max(0.0);
+    }
+}
+
+/// Grid index of the interval containing arc length `s` on a grid of spacing `h`.
+#[inline]
+pub fn index_of(s: f64, h: f64) -> i64 {
+    libm::floor(s / h) as i64
 }

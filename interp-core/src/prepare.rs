@@ -1,77 +1,85 @@
-//! Planning a block off the RT path, and committing it on the RT path.
+//! Planning blocks off the real-time path, and what a plan carries to it.
 //!
-//! [`Interpolator::push`](crate::Interpolator::push) is two halves:
+//! [`BlockPlanner`] (non-real-time) cuts each block at tangent breaks,
+//! samples the feed laws onto the global arc-length grid of the look-ahead
+//! [`Window`], prices the junctions (corners stop or slow the path), and
+//! re-solves the planned speed from a freeze point (see [`crate::plan`]).
+//! The result is a [`PlannedBlock`]: the block's segments and the new pieces
+//! of the speed spline from the freeze point to the end of the queue. The
+//! real-time side ([`crate::interp::Executor::commit`]) only copies it in.
 //!
-//! 1. **Planning** ([`BlockPlanner::plan`]): cut the block at tangent breaks,
-//!    measure the pieces, sample the feed laws onto the global arc-length grid
-//!    and price the corners inside the block. This is the costly part
-//!    (milliseconds for a long NURBS) and depends only on the block, the
-//!    configuration and where the queue ends (point and arc length), so it can
-//!    run on any thread ahead of time.
-//! 2. **Commit** ([`Interpolator::commit`](crate::Interpolator::commit)): merge
-//!    the planned limits into the profile (a minimum per interval), price the
-//!    junction with what is queued, erode and run the backward pass. Linear in
-//!    the block's intervals, a few microseconds, no allocation: the RT thread
-//!    can do it between ticks.
-//!
-//! `push` is exactly `plan` then `commit`, so a daemon that plans on one
-//! thread and commits on another gives bit-identical setpoints to `simulate`.
-//! A plan made against another queue end (after an abort) is refused with
+//! Blocks longer than [`CHUNK`] grid intervals are planned in parts cut at
+//! fixed arc lengths of the run, so the plan never depends on when the parts
+//! were made. A plan made against another end of the queue is refused with
 //! [`PushError::Stale`].
 
 use crate::config::{ConfigError, InterpConfig};
-use crate::feed::{feed_limit, junction_speed, machine_limit, stationary_offset};
-use crate::geom::{Curve, Derivs, Vec3, golden_section_min};
+use crate::feed::{ArcLengthDerivs, feed_limit, junction_speed, machine_limit, stationary_offset};
+use crate::geom::{Curve, Derivs, Vec3, golden_section_argmin};
 use crate::interp::{JOIN_TOLERANCE, MAX_PIECES, PushError, grid_multiple};
 use crate::nurbs::Side;
-use crate::path::{Block, Path};
-use crate::plan::{MAX_PROFILE, Segment};
+use crate::path::{Blending, Block, Path};
+use crate::plan::{AxisSample, CHUNK, Freeze, PlanError, SLIVER, WINDOW, Window, index_of};
+use crate::spline::Piece;
+use crate::stop::Stop;
 
-/// Grid intervals one planned block can cover: the whole profile ring and
-/// the interval on each side that law samples on a node and corner pricing touch.
-pub const PLAN_INTERVALS: usize = MAX_PROFILE + 3;
-
-/// Grid index of the interval containing arc length `s` on a grid of spacing `h`
-/// (the same formula as [`Profile::index_of`](crate::plan::Profile::index_of)).
-#[inline]
-fn index_of(s: f64, h: f64) -> i64 {
-    libm::floor(s / h) as i64
+/// A piece of a block in the real-time queue.
+#[derive(Clone, Copy, Debug)]
+pub struct Segment {
+    /// Geometry.
+    pub path: Path,
+    /// Id of the block this piece belongs to.
+    pub block_id: u32,
+    /// Arc length of the run at the start of this segment, mm.
+    pub s0: f64,
+    /// Arc length of this segment, mm.
+    pub length: f64,
+    /// The path comes to rest at the end of this segment (a corner, an exact
+    /// stop, or the end of what is queued): the speed spline has a rest
+    /// point there.
+    pub stop_at_end: bool,
 }
 
-/// A block planned by [`BlockPlanner::plan`], ready for
-/// [`Interpolator::commit`](crate::Interpolator::commit).
+impl Segment {
+    /// Arc length of the run at the end of this segment, mm.
+    #[inline]
+    pub fn s1(&self) -> f64 {
+        self.s0 + self.length
+    }
+}
+
+/// A plan for the real-time side: segments to queue (none for a re-plan of
+/// the speed alone) and the speed spline from `from_x` to the end of the queue.
 ///
-/// About 110 KiB: keep it in a reused buffer (a `Box` recycled through a
+/// About 80 KiB: keep it in a reused buffer (a `Box` recycled through a
 /// queue in the daemon), not on a small stack.
 #[derive(Clone, Debug)]
 pub struct PlannedBlock {
-    /// Grid spacing it was planned on, mm.
-    pub(crate) h: f64,
-    /// The block's id.
+    /// The block's id (0 for a re-plan).
     pub(crate) id: u32,
-    /// End of the queue it was planned against (where it starts), and the
-    /// run's arc length there.
+    /// End of the queue it was planned against (where its segments start),
+    /// and the run's arc length there.
     pub(crate) tail: Vec3,
     pub(crate) s0: f64,
-    /// Arc length of the run at its end.
+    /// Arc length of the run at its end, and its end point.
     pub(crate) s1: f64,
-    /// Its end point.
     pub(crate) end: Vec3,
-    /// Derivatives (order 3) at its start and end, for junction pricing.
-    pub(crate) entry: Derivs,
-    pub(crate) exit: Derivs,
-    /// The block asks to come to rest at its end (G61.1).
-    pub(crate) exact_stop: bool,
-    /// Pieces (cut at tangent breaks), with their arc lengths in the run.
+    /// Segments (cut at tangent breaks), in order.
     pub(crate) segments: [Option<Segment>; MAX_PIECES],
     pub(crate) n_segments: usize,
-    /// `corner[k]`: junction speed between piece `k − 1` and piece `k`.
-    pub(crate) corner: [f64; MAX_PIECES],
-    /// Raw limits of grid intervals `g0 ..g0 + n_caps` (machine laws; feed laws at 100 %).
-    pub(crate) g0: i64,
-    pub(crate) n_caps: usize,
-    pub(crate) raw: [f64; PLAN_INTERVALS],
-    pub(crate) raw_feed: [f64; PLAN_INTERVALS],
+    /// The last queued segment before these comes to rest at its end
+    /// (a corner or an exact stop at the join).
+    pub(crate) stop_at_join: bool,
+    /// The spline update: pieces from `from_x` on, the first starting at rest
+    /// when `rest_start`.
+    pub(crate) from_x: f64,
+    pub(crate) rest_start: bool,
+    pub(crate) pieces: [Piece; WINDOW],
+    pub(crate) rests: [bool; WINDOW],
+    pub(crate) n_pieces: usize,
+    /// The program ends with this plan: reaching the end of the queue then
+    /// means `Done` ([`crate::driver::Driver::finish`]).
+    pub(crate) finish: bool,
 }
 
 impl Default for PlannedBlock {
@@ -84,29 +92,27 @@ impl PlannedBlock {
     /// An empty plan (a buffer for [`BlockPlanner::plan`]).
     pub fn new() -> Self {
         PlannedBlock {
-            h: 0.0,
             id: 0,
             tail: Vec3::zeros(),
             s0: 0.0,
             s1: 0.0,
             end: Vec3::zeros(),
-            entry: Derivs::ZERO,
-            exit: Derivs::ZERO,
-            exact_stop: false,
             segments: [None; MAX_PIECES],
             n_segments: 0,
-            corner: [f64::INFINITY; MAX_PIECES],
-            g0: 0,
-            n_caps: 0,
-            raw: [f64::INFINITY; PLAN_INTERVALS],
-            raw_feed: [f64::INFINITY; PLAN_INTERVALS],
+            stop_at_join: false,
+            from_x: 0.0,
+            rest_start: true,
+            pieces: [Piece::default(); WINDOW],
+            rests: [false; WINDOW],
+            n_pieces: 0,
+            finish: false,
         }
     }
-    /// Id of the planned block.
+    /// Id of the planned block (0: a re-plan of the speed only).
     pub fn id(&self) -> u32 {
         self.id
     }
-    /// Segments (pieces) it becomes in the queue.
+    /// Segments it adds to the queue.
     pub fn segments(&self) -> usize {
         self.n_segments
     }
@@ -114,90 +120,78 @@ impl PlannedBlock {
     pub fn arc_range(&self) -> (f64, f64) {
         (self.s0, self.s1)
     }
-    /// Grid intervals whose limits it sets.
+    /// Pieces of the speed spline it replaces from its freeze point on.
     pub fn intervals(&self) -> usize {
-        self.n_caps
+        self.n_pieces
     }
-    /// The pieces, in order.
-    pub(crate) fn pieces(&self) -> impl Iterator<Item = &Segment> {
+    /// The segments, in order.
+    pub(crate) fn pieces_geometry(&self) -> impl Iterator<Item = &Segment> {
         self.segments[..self.n_segments].iter().flatten()
     }
-    #[inline]
-    fn slot(&self, g: i64) -> Option<usize> {
-        let i = g - self.g0;
-        (i >= 0 && (i as usize) < self.n_caps).then_some(i as usize)
-    }
-    /// Lower the raw machine-law limit of interval `g`.
-    #[inline]
-    fn lower_cap(&mut self, g: i64, c: f64) {
-        if let Some(k) = self.slot(g)
-            && c < self.raw[k]
-        {
-            self.raw[k] = c;
-        }
-    }
-    /// Lower the raw feed limit (100 % override) of interval `g`.
-    #[inline]
-    fn lower_feed_cap(&mut self, g: i64, c: f64) {
-        if let Some(k) = self.slot(g)
-            && c < self.raw_feed[k]
-        {
-            self.raw_feed[k] = c;
-        }
-    }
-    #[inline]
-    fn h(&self) -> f64 {
-        self.h
-    }
-    #[inline]
-    fn index_of(&self, s: f64) -> i64 {
-        index_of(s, self.h)
-    }
 }
 
-/// Room the caller has for a plan: refuse early (before any sampling) when
-/// the block cannot be committed now anyway.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Room {
-    /// Free segment slots.
-    pub segments: usize,
-    /// Last grid interval the profile can hold.
-    pub last_interval: i64,
-}
-
-/// The planning half of `push`: tracks where the queue will end and plans
-/// each block against it. Cheap to copy; runs on any thread.
-#[derive(Clone, Copy, Debug)]
+/// The planning half of the interpolator: tracks where the queue ends,
+/// holds the look-ahead window, and plans each block against it (non-real-time).
+///
+/// About 1.4 MiB: box it.
+#[derive(Clone, Debug)]
 pub struct BlockPlanner {
     cfg: InterpConfig,
     h: f64,
     tail: Vec3,
     tail_s: f64,
+    /// Derivatives (order 3) at the end of the last planned block.
+    tail_derivs: Option<Derivs>,
+    /// The last planned block asks to stop at its end (G61.1).
+    tail_exact_stop: bool,
+    window: Window,
+    /// The rest of a block longer than a part.
+    pending: Option<Block>,
+    /// Where the machine may be when the next plan is committed, and whether
+    /// it is at rest there ([`Self::set_machine`]).
+    machine: f64,
+    machine_at_rest: bool,
+    ovr: f64,
+    /// Where the current plan of the speed ends (a rest point): the end of
+    /// the queue once the program is finished, else the last chunk mark the
+    /// queue has passed (see [`Self::plan`]).
+    planned_to: f64,
+    /// The program's end was given ([`Self::finish`]): plans reach the end of the queue.
+    finished: bool,
+    /// The last block measured and its length: a block refused for room is
+    /// offered again every tick, and a NURBS's length costs a quadrature.
+    length_memo: Option<(Block, f64)>,
 }
 
 impl BlockPlanner {
     /// A planner for a queue that ends at `tail` (X Y Z), arc length `tail_s`
-    /// of the run (0 for a fresh interpolator, else
-    /// [`Interpolator::planner`](crate::Interpolator::planner) or the last setpoint's `s`).
+    /// of the run, with the machine at rest there.
     pub fn new(cfg: InterpConfig, tail: Vec3, tail_s: f64) -> Result<Self, ConfigError> {
         cfg.validate()?;
         if !(tail.iter().all(|c| c.is_finite()) && tail_s.is_finite()) {
             return Err(ConfigError::OutOfRange("position"));
         }
+        let h = crate::interp::grid_step(&cfg);
         Ok(BlockPlanner {
-            cfg,
-            h: crate::Interpolator::<1>::grid_step(&cfg),
-            tail,
-            tail_s,
-        })
-    }
-    pub(crate) fn from_parts(cfg: InterpConfig, h: f64, tail: Vec3, tail_s: f64) -> Self {
-        BlockPlanner {
             cfg,
             h,
             tail,
             tail_s,
-        }
+            tail_derivs: None,
+            tail_exact_stop: false,
+            window: Window::new(cfg, h, tail_s),
+            pending: None,
+            machine: tail_s,
+            machine_at_rest: true,
+            ovr: 1.0,
+            planned_to: tail_s,
+            finished: false,
+            length_memo: None,
+        })
+    }
+    /// The configuration it plans for.
+    pub fn config(&self) -> &InterpConfig {
+        &self.cfg
     }
     /// Where the next block must start.
     pub fn tail(&self) -> Vec3 {
@@ -207,26 +201,102 @@ impl BlockPlanner {
     pub fn tail_s(&self) -> f64 {
         self.tail_s
     }
+    /// The look-ahead window.
+    pub fn window(&self) -> &Window {
+        &self.window
+    }
+    /// The look-ahead window, to set its diagnostics.
+    pub fn window_mut(&mut self) -> &mut Window {
+        &mut self.window
+    }
+    /// A block longer than one part is still being planned: call
+    /// [`Self::plan_pending`] (when the real-time side has room) before the next block.
+    pub fn has_pending(&self) -> bool {
+        self.pending.is_some()
+    }
+    /// Feed override the plans are made for.
+    pub fn feed_override(&self) -> f64 {
+        self.ovr
+    }
+
+    /// Set the feed override for the next plans (without re-planning now).
+    pub fn set_feed_override(&mut self, ovr: f64) {
+        self.ovr = ovr;
+    }
+
+    /// Tell the planner where the machine may be (arc length of the run)
+    /// when the next plan is committed, and whether it rests there. The
+    /// freeze point of a re-solve is always after it.
+    pub fn set_machine(&mut self, s: f64, at_rest: bool) {
+        self.machine = s;
+        self.machine_at_rest = at_rest;
+    }
+
     /// Move the queue end (after an abort: where the machine stopped, the
-    /// last setpoint's X Y Z and `s`).
+    /// last setpoint's X Y Z and `s`). Forgets everything planned.
     pub fn resync(&mut self, tail: Vec3, tail_s: f64) {
         self.tail = tail;
         self.tail_s = tail_s;
+        self.tail_derivs = None;
+        self.tail_exact_stop = false;
+        self.pending = None;
+        self.machine = tail_s;
+        self.machine_at_rest = true;
+        self.planned_to = tail_s;
+        self.finished = false;
+        self.window.reset(tail_s);
     }
 
-    /// Plan `block` into `out` against the current queue end and move the end
-    /// past it. On error `out` is unspecified and the end has not moved.
+    /// Where the current plan of the speed ends, mm.
+    pub fn planned_to(&self) -> f64 {
+        self.planned_to
+    }
+
+    /// Is part of the queue not planned yet (past the last chunk mark)?
+    pub fn has_unplanned(&self) -> bool {
+        self.tail_s > self.planned_to + SLIVER * self.h
+    }
+
+    /// The program ends with what is queued: plan the speed to its end.
+    /// `out` gets no segments, only the speed (maybe none, if all is planned).
+    pub fn finish(&mut self, out: &mut PlannedBlock) -> Result<(), PushError> {
+        self.finished = true;
+        self.plan_ahead(out)
+    }
+
+    /// Plan the speed to the end of what is queued now (the machine would
+    /// otherwise run short of plan: the queue starves, or the program ends).
+    pub fn plan_ahead(&mut self, out: &mut PlannedBlock) -> Result<(), PushError> {
+        self.speed_only(out);
+        if !self.has_unplanned() {
+            return Ok(());
+        }
+        let freeze = self.freeze();
+        let end = self.tail_s;
+        self.solve_into(freeze, end, None, true, out)?;
+        self.planned_to = end;
+        Ok(())
+    }
+
+    /// `out` as a plan without segments.
+    pub(crate) fn speed_only(&self, out: &mut PlannedBlock) {
+        out.id = 0;
+        out.tail = self.tail;
+        out.s0 = self.tail_s;
+        out.s1 = self.tail_s;
+        out.end = self.tail;
+        out.n_segments = 0;
+        out.stop_at_join = false;
+        out.n_pieces = 0;
+    }
+
+    /// Plan `block` (or, if it is longer than a part, its first part) into
+    /// `out` against the current queue end and move the end past it. On
+    /// error `out` is unspecified and nothing moved.
     pub fn plan(&mut self, block: &Block, out: &mut PlannedBlock) -> Result<(), PushError> {
-        self.plan_within(block, out, None)
-    }
-
-    pub(crate) fn plan_within(
-        &mut self,
-        block: &Block,
-        out: &mut PlannedBlock,
-        room: Option<Room>,
-    ) -> Result<(), PushError> {
-        let cfg = self.cfg;
+        if self.pending.is_some() {
+            return Err(PushError::Pending);
+        }
         if !(block.feed.is_finite() && block.feed > 0.0) {
             return Err(PushError::Feed);
         }
@@ -234,6 +304,138 @@ impl BlockPlanner {
         if !(gap <= JOIN_TOLERANCE) {
             return Err(PushError::Discontinuous { gap });
         }
+        let length = match &self.length_memo {
+            Some((b, l)) if b == block => *l,
+            _ => {
+                let l = block.path.length();
+                self.length_memo = Some((*block, l));
+                l
+            }
+        };
+        if !(length > 0.0 && length.is_finite()) {
+            return Err(PushError::Empty);
+        }
+        // Cut at the next chunk mark if the block reaches past it.
+        let chunk = CHUNK as f64 * self.h;
+        // Refuse early (before any splitting) when not even one part fits yet.
+        let reach = (length.min(chunk) + self.tail_s) / self.h;
+        self.window.release_before(self.machine);
+        if !self
+            .window
+            .has_room(libm::floor(reach) as i64 + 1, 2, self.machine)
+        {
+            return Err(PushError::ProfileFull);
+        }
+        // (A part cut at a mark ends there only up to round-off: count it as reached.)
+        let mark = (libm::floor(self.tail_s / chunk + 1e-6) + 1.0) * chunk;
+        let (part, rest) = if self.tail_s + length > mark + self.h {
+            let u = block
+                .path
+                .param_at_arc_length(block.path.u_start(), mark - self.tail_s);
+            match block.path.split_at(u) {
+                Ok((a, b)) => (
+                    Block { path: a, ..*block },
+                    Some(Block { path: b, ..*block }),
+                ),
+                Err(_) => (*block, None),
+            }
+        } else {
+            (*block, None)
+        };
+        self.plan_part(&part, out)?;
+        self.pending = rest;
+        Ok(())
+    }
+
+    /// Plan the next part of a long block (see [`Self::has_pending`]).
+    pub fn plan_pending(&mut self, out: &mut PlannedBlock) -> Result<(), PushError> {
+        let Some(b) = self.pending.take() else {
+            return Ok(());
+        };
+        match self.plan(&b, out) {
+            Ok(()) => Ok(()),
+            Err(e) => {
+                self.pending = Some(b);
+                Err(e)
+            }
+        }
+    }
+
+    /// Re-plan the speed from where the machine may be (see
+    /// [`Self::set_machine`]) with feed override `ovr`; `state` is the
+    /// machine's speed and acceleration at the freeze point's side (for an
+    /// override that drops faster than the machine can brake). No segments.
+    pub fn replan(&mut self, ovr: f64, out: &mut PlannedBlock) -> Result<(), PushError> {
+        self.speed_only(out);
+        self.ovr = ovr;
+        // From the machine on (not only the plan's end): the new feed counts everywhere ahead.
+        let freeze = self.window.freeze_after(self.machine, self.machine_at_rest);
+        // The speed and acceleration the plan has at the freeze point: the
+        // new feed limit may not fall below what braking from there allows.
+        let end = self.planned_to;
+        let Freeze::At(f) = freeze else {
+            return self.solve_into(freeze, end, None, true, out);
+        };
+        // The new feed limit may not fall below what braking allows from
+        // where the unknowns start (the end of the kept freeze piece `f`),
+        // from the fastest and most accelerating state the kept piece
+        // allows there (the knot's value also depends on the next unknown).
+        // The spline follows a braking curve only approximately: if the
+        // linear program cannot, brake more gently (the override takes a
+        // little longer to take effect) rather than keep the old plan.
+        let p = self.window.piece(f);
+        let v0 = libm::sqrt(p.e0.max(p.d).max(p.e1).max(0.0));
+        let a0 = p.accel(0.0).max(p.accel(p.h)).max(0.0);
+        let (a, j) = (self.cfg.planned_accel(), self.cfg.planned_jerk());
+        let mut r = Ok(());
+        for (k, gentle) in LIFT_SOFTENING.iter().enumerate() {
+            let stop = Stop::new(v0, a0, a * gentle, j * gentle);
+            let last = k + 1 == LIFT_SOFTENING.len();
+            r = self.solve_into(freeze, end, Some((p.x1(), stop)), last, out);
+            if !matches!(r, Err(PushError::Schedule)) {
+                break;
+            }
+        }
+        r
+    }
+
+    fn freeze(&self) -> Freeze {
+        self.window.freeze(self.machine, self.machine_at_rest)
+    }
+
+    fn solve_into(
+        &mut self,
+        freeze: Freeze,
+        end: f64,
+        lift: Option<(f64, Stop)>,
+        fallback: bool,
+        out: &mut PlannedBlock,
+    ) -> Result<(), PushError> {
+        let from = self
+            .window
+            .solve(freeze, end, self.ovr, lift, self.machine, fallback)
+            .map_err(|e| match e {
+                PlanError::Full => PushError::ProfileFull,
+                PlanError::Solver(_) => PushError::Schedule,
+            })?;
+        let n = self.window.n_pieces();
+        out.n_pieces = 0;
+        out.from_x = if from < n {
+            self.window.piece(from).x0
+        } else {
+            self.tail_s
+        };
+        out.rest_start = from >= n || self.window.rest_start(from);
+        for i in from..n {
+            out.pieces[out.n_pieces] = self.window.piece(i);
+            out.rests[out.n_pieces] = self.window.rest_start(i);
+            out.n_pieces += 1;
+        }
+        Ok(())
+    }
+
+    fn plan_part(&mut self, block: &Block, out: &mut PlannedBlock) -> Result<(), PushError> {
+        let cfg = self.cfg;
         let mut pieces = [block.path; MAX_PIECES];
         let mut singular = [false; MAX_PIECES + 1];
         let n_pieces = split_at_tangent_breaks(
@@ -243,16 +445,8 @@ impl BlockPlanner {
             cfg.chord_tolerance,
             &mut singular,
         )?;
-        if let Some(r) = room
-            && n_pieces > r.segments
-        {
-            return Err(PushError::Full {
-                needed: n_pieces,
-                free: r.segments,
-            });
-        }
-        let mut total = 0.0;
         let mut lengths = [0.0; MAX_PIECES];
+        let mut total = 0.0;
         for (len, piece) in lengths.iter_mut().zip(&pieces[..n_pieces]) {
             *len = piece.length();
             if !(*len > 0.0 && len.is_finite()) {
@@ -273,102 +467,236 @@ impl BlockPlanner {
             );
         }
         let h = self.h;
-        let g_first = index_of(self.tail_s, h) - 1;
-        let g_last = index_of(self.tail_s + total, h);
-        if let Some(r) = room
-            && g_last > r.last_interval
-        {
+        let g_last = index_of(self.tail_s + total, h) + 1;
+        self.window.release_before(self.machine);
+        if !self.window.has_room(g_last, n_pieces + 2, self.machine) {
             return Err(PushError::ProfileFull);
         }
-        let n_caps = (g_last + 2 - g_first) as usize;
-        if n_caps > PLAN_INTERVALS {
-            return Err(PushError::TooLong);
-        }
-        // From here on nothing can fail.
-        out.h = h;
+        // From here on nothing fails but the solve (which leaves the window
+        // as it was on a fallback, and may only refuse for capacity).
         out.id = block.id;
         out.tail = self.tail;
         out.s0 = self.tail_s;
-        out.g0 = g_first;
-        out.n_caps = n_caps;
-        out.raw[..n_caps].fill(f64::INFINITY);
-        out.raw_feed[..n_caps].fill(f64::INFINITY);
-        out.entry = block.path.eval(windows[0].0, 3);
+        self.window.extend_to(g_last);
+        // The junction with what is queued before.
+        out.stop_at_join = false;
+        if let Some(left) = self.tail_derivs {
+            let entry = block.path.eval(windows[0].0, 3);
+            let v = if self.tail_exact_stop {
+                0.0
+            } else {
+                junction_speed(&left, &entry, &cfg)
+            };
+            if self.apply_junction(v, self.tail_s) {
+                out.stop_at_join = true;
+            }
+        }
         out.n_segments = n_pieces;
         let mut s = self.tail_s;
         for (k, piece) in pieces[..n_pieces].iter().enumerate() {
-            let seg = Segment {
-                path: *piece,
-                block_id: block.id,
-                feed: block.feed,
-                mrr: block.mrr,
-                s0: s,
-                length: lengths[k],
-                // Set at commit: corners and the end of the queue.
-                stop_at_end: true,
-            };
-            out.corner[k] = if k > 0 {
+            if k > 0 {
                 // A tangent break inside the block.
                 let left = pieces[k - 1].eval(windows[k - 1].1, 3);
                 let right = piece.eval(windows[k].0, 3);
-                junction_speed(&left, &right, &cfg)
-            } else {
-                f64::INFINITY
+                let v = junction_speed(&left, &right, &cfg);
+                let stop = self.apply_junction(v, s);
+                if let Some(prev) = out.segments[k - 1].as_mut() {
+                    prev.stop_at_end = stop;
+                }
+            }
+            let seg = Segment {
+                path: *piece,
+                block_id: block.id,
+                s0: s,
+                length: lengths[k],
+                stop_at_end: false,
             };
-            sample_laws(&seg, windows[k], &cfg, out);
+            sample_laws(&seg, windows[k], block, &cfg, &mut self.window, h);
             s += seg.length;
             out.segments[k] = Some(seg);
         }
+        if let Some(last) = out.segments[n_pieces - 1].as_mut() {
+            // The end of the queue is a rest point until more comes.
+            last.stop_at_end = true;
+        }
         let last = &pieces[n_pieces - 1];
-        out.exit = last.eval(windows[n_pieces - 1].1, 3);
-        out.exact_stop = block.blending == crate::path::Blending::ExactStop;
+        let saved = (
+            self.tail,
+            self.tail_s,
+            self.tail_derivs,
+            self.tail_exact_stop,
+        );
         out.end = block.path.end_point();
         out.s1 = s;
         self.tail = out.end;
         self.tail_s = s;
-        Ok(())
+        self.tail_derivs = Some(last.eval(windows[n_pieces - 1].1, 3));
+        self.tail_exact_stop = block.blending == Blending::ExactStop;
+        self.window.set_tail(s);
+        // The speed is planned when the queue passes a chunk mark (to that
+        // mark, a provisional rest point), so the plan depends on the path
+        // alone, not on how it was cut into blocks; the program's end and a
+        // starving machine have it planned further ([`Self::finish`],
+        // [`Self::plan_ahead`]).
+        let chunk = CHUNK as f64 * self.h;
+        let mark = libm::floor(s / chunk + 1e-9) * chunk;
+        out.n_pieces = 0;
+        let end = if self.finished { s } else { mark.min(s) };
+        let r = if end > self.planned_to + SLIVER * h {
+            let freeze = self.freeze();
+            self.solve_into(freeze, end, None, true, out).map(|()| {
+                self.planned_to = end;
+            })
+        } else {
+            Ok(())
+        };
+        if r.is_err() {
+            // All or nothing: the queue end stays where it was (the limits
+            // sampled past it are the block's own; planning it again finds them).
+            (
+                self.tail,
+                self.tail_s,
+                self.tail_derivs,
+                self.tail_exact_stop,
+            ) = saved;
+            self.window.set_tail(saved.1);
+        }
+        r
+    }
+
+    /// A junction of speed limit `v` at arc length `s`: a rest point, or a
+    /// lower limit there. Returns whether it is a rest point.
+    fn apply_junction(&mut self, v: f64, s: f64) -> bool {
+        let h = self.h;
+        if v < self.cfg.junction_min_speed {
+            let _ = self.window.add_stop(s);
+            true
+        } else {
+            let g = index_of(s, h);
+            for gi in [g - 1, g] {
+                if let Some(it) = self.window.interval_mut(gi)
+                    && (gi == g || g as f64 * h == s)
+                {
+                    it.machine = it.machine.min(v);
+                }
+            }
+            false
+        }
     }
 }
 
-/// Sample the feed laws of `seg` onto the global grid: sample `k` sits at
+/// Sample the feed laws of `seg` onto the window's grid: sample `k` sits at
 /// arc length `k·h/M` and feeds interval `⌊k/M⌋` (and the one before when it
 /// is on a node). A curvature peak can fall between samples, so every local
 /// minimum of the sampled law is refined by a golden-section search between
 /// its neighbours, and the refined value lowers the intervals it may lie in.
+/// Curves also leave per-axis derivative samples (four per interval, the
+/// refined minima, and the segment's ends) for the per-axis jerk rows; lines
+/// fold their axes' jerk limits into the interval's tangential jerk.
 ///
 /// The laws are evaluated with the parameter clamped into `window` (see
 /// [`law_window`]).
-fn sample_laws(seg: &Segment, window: (f64, f64), cfg: &InterpConfig, profile: &mut PlannedBlock) {
+fn sample_laws(
+    seg: &Segment,
+    window: (f64, f64),
+    block: &Block,
+    cfg: &InterpConfig,
+    w: &mut Window,
+    h: f64,
+) {
     let (u_lo, u_hi) = window;
-    // Law samples stay `profile_step / law_samples_per_interval` apart however
-    // long the period (a long period only widens the grid), so no feature of
-    // the curve hides between samples.
     let m = cfg.law_samples_per_interval as i64 * grid_multiple(cfg);
-    let hs = profile.h() / m as f64;
+    let hs = h / m as f64;
     let path = &seg.path;
-    // The machine laws (index 0) and the override-scaled feed laws (index 1).
-    let law = |u: f64, which: usize| {
-        let d = path.eval(u.clamp(u_lo, u_hi), 3);
+    let keep = 1.0 - cfg.planning_margin;
+    let law = |d: &Derivs, which: usize| {
         if which == 0 {
-            machine_limit(&d, cfg, 1.0)
+            machine_limit(d, cfg, 1.0)
         } else {
-            feed_limit(&d, seg.feed, seg.mrr.as_ref(), cfg)
+            feed_limit(d, block.feed, block.mrr.as_ref(), cfg)
         }
     };
-    let lower = |profile: &mut PlannedBlock, g: i64, which: usize, v: f64| {
-        if which == 0 {
-            profile.lower_cap(g, v);
-        } else {
-            profile.lower_feed_cap(g, v);
+    let lower = |w: &mut Window, g: i64, which: usize, v: f64| {
+        if let Some(it) = w.interval_mut(g) {
+            if which == 0 {
+                it.machine = it.machine.min(v);
+            } else {
+                it.feed = it.feed.min(v);
+            }
         }
     };
-    // Lines and arcs have constant curvature: nothing to refine.
-    let refine = matches!(path, Path::Nurbs(_));
-    let (g_first, g_last) = (profile.index_of(seg.s0), profile.index_of(seg.s1()));
-    let feed_top = seg.feed.min(cfg.max_path_speed);
+    // A per-axis sample is kept where the axis jerk could bind at the
+    // speed the laws allow there (elsewhere no row is needed); returns
+    // whether it was.
+    let sample = |w: &mut Window, s: f64, d: &Derivs| -> bool {
+        let Some(a) = ArcLengthDerivs::new(d) else {
+            return false;
+        };
+        let smp = AxisSample {
+            s,
+            t: [a.t.x, a.t.y, a.t.z],
+            css: [a.c_ss.x, a.c_ss.y, a.c_ss.z],
+            csss: [a.c_sss.x, a.c_sss.y, a.c_sss.z],
+        };
+        let v = law(d, 0).min(law(d, 1)).min(cfg.max_path_speed);
+        if !(0..3).any(|ax| axis_jerk_may_bind(&smp, ax, v * v, cfg)) {
+            return false;
+        }
+        if let Some(it) = w.interval_mut(index_of(s, h)) {
+            it.add_sample(smp);
+        }
+        true
+    };
+    let curve = !matches!(path, Path::Line(_));
+    let (g_first, g_last) = (index_of(seg.s0, h), index_of(seg.s1(), h));
+    let feed_top = block.feed.min(cfg.max_path_speed);
     for g in g_first..=g_last {
-        profile.lower_feed_cap(g, feed_top);
+        lower(w, g, 1, feed_top);
     }
+    if let Path::Line(_) = path {
+        // Constant tangent: the axes' jerk limits bound the tangential jerk.
+        let t = path.eval(path.u_start(), 1).d1;
+        let t = t / t.norm();
+        for g in g_first..=g_last {
+            if let Some(it) = w.interval_mut(g) {
+                for i in 0..3 {
+                    let ti = libm::fabs(t[i]);
+                    if ti > 0.0 {
+                        it.jerk = it.jerk.min(keep * cfg.axis_max_jerk[i] / ti);
+                    }
+                }
+            }
+        }
+    }
+    if curve {
+        sample(w, seg.s0, &path.eval(u_lo, 3));
+        sample(w, seg.s1(), &path.eval(u_hi, 3));
+    }
+    if curve && seg.length < 2.0 * hs {
+        // A curve shorter than the law spacing (a corner blend of a few µm)
+        // may hold no grid sample at all: its laws at its ends and at its
+        // worst point, and a per-axis sample there.
+        for which in 0..2 {
+            let at = |uu: f64| law(&path.eval(uu.clamp(u_lo, u_hi), 3), which);
+            let (u_min, v_min) = golden_section_argmin(at, u_lo, u_hi, GOLDEN_ITERS, 0.0);
+            let v = v_min.min(at(u_lo)).min(at(u_hi));
+            for g in g_first..=g_last {
+                lower(w, g, which, v);
+            }
+            if which == 0 && v_min.is_finite() {
+                let u_min = u_min.clamp(u_lo, u_hi);
+                sample(
+                    w,
+                    seg.s0 + path.arc_length(u_lo, u_min),
+                    &path.eval(u_min, 3),
+                );
+            }
+        }
+    }
+    // Whether the last law sample kept a per-axis sample (then the stretch to
+    // the next one is sampled at its middle too: the terms change fast there).
+    let mut last_kept = false;
+    let refine = matches!(path, Path::Nurbs(_));
     let k0 = libm::ceil(seg.s0 / hs) as i64;
     let k1 = libm::floor(seg.s1() / hs) as i64;
     let (mut u_prev, mut x_prev) = (path.u_start(), seg.s0);
@@ -381,24 +709,44 @@ fn sample_laws(seg: &Segment, window: (f64, f64), cfg: &InterpConfig, profile: &
         let g = k.div_euclid(m);
         // One evaluation for both laws at the sample.
         let d = path.eval(u.clamp(u_lo, u_hi), 3);
-        let both = [
-            machine_limit(&d, cfg, 1.0),
-            feed_limit(&d, seg.feed, seg.mrr.as_ref(), cfg),
-        ];
+        if curve {
+            let kept = sample(w, x, &d);
+            if (kept || last_kept) && k > k0 {
+                let um = (0.5 * (u_prev + u)).clamp(u_lo, u_hi);
+                sample(w, x - 0.5 * hs, &path.eval(um, 3));
+            }
+            last_kept = kept;
+        }
+        let both = [law(&d, 0), law(&d, 1)];
         for which in 0..2 {
             let v = both[which];
-            lower(profile, g, which, v);
+            lower(w, g, which, v);
             if k.rem_euclid(m) == 0 {
-                lower(profile, g - 1, which, v);
+                lower(w, g - 1, which, v);
             }
             // w2, w1, this: a local minimum at w1 is refined between w2 and this sample.
             if let (true, Some((ka, ua, va)), Some((_, _, vb))) = (refine, w2[which], w1[which])
                 && vb < va
                 && vb <= v
             {
-                let vmin = golden_section_min(|u| law(u, which), ua, u, GOLDEN_ITERS, 0.0).min(vb);
+                let (u_min, v_min) = golden_section_argmin(
+                    |uu| law(&path.eval(uu.clamp(u_lo, u_hi), 3), which),
+                    ua,
+                    u,
+                    GOLDEN_ITERS,
+                    0.0,
+                );
+                let vmin = v_min.min(vb);
                 for gi in ka.div_euclid(m)..=k.div_euclid(m) {
-                    lower(profile, gi, which, vmin);
+                    lower(w, gi, which, vmin);
+                }
+                if which == 0 && v_min.is_finite() {
+                    // Where a curvature peak lies: a per-axis sample there too.
+                    let u_min = u_min.clamp(u_lo, u_hi);
+                    // From the bracket's start (at arc length ka·hs), not
+                    // the block's: linear, not quadratic, in the block.
+                    let s_min = ka as f64 * hs + path.arc_length(ua, u_min);
+                    sample(w, s_min, &path.eval(u_min, 3));
                 }
             }
             w2[which] = w1[which];
@@ -415,6 +763,8 @@ fn sample_laws(seg: &Segment, window: (f64, f64), cfg: &InterpConfig, profile: &
         let (ua, ub) = (n.u_start(), n.u_end());
         let mut i = p + 1;
         let mut prev = ua;
+        // Arc length at `at_u`, carried from knot to knot.
+        let (mut at_u, mut at_s) = (ua, seg.s0);
         while i < knots.len() - p - 1 {
             let u = knots[i];
             let mut mult = 1;
@@ -425,10 +775,12 @@ fn sample_laws(seg: &Segment, window: (f64, f64), cfg: &InterpConfig, profile: &
                 let left = n.eval(u - (u - prev) * 1e-9, 3);
                 let right = n.eval(u, 3);
                 let v = junction_speed(&left, &right, cfg);
-                let g = profile.index_of(seg.s0 + path.arc_length(ua, u));
-                profile.lower_cap(g, v);
-                profile.lower_cap(g - 1, v);
-                profile.lower_cap(g + 1, v);
+                at_s += path.arc_length(at_u, u);
+                at_u = u;
+                let g = index_of(at_s, h);
+                for gi in [g - 1, g, g + 1] {
+                    lower(w, gi, 0, v);
+                }
             }
             if u > ua {
                 prev = u;
@@ -438,8 +790,23 @@ fn sample_laws(seg: &Segment, window: (f64, f64), cfg: &InterpConfig, profile: &
     }
 }
 
+/// Could the axis jerk `v·(C‴·S + 1.5·C″·S′ + 0.5·t·S″)` of axis `ax` reach
+/// its limit at this sample with `S ≤ l2`, `|S′| ≤ 2A`, `|S″| ≤ 2J/√l2`?
+pub(crate) fn axis_jerk_may_bind(smp: &AxisSample, ax: usize, l2: f64, cfg: &InterpConfig) -> bool {
+    let keep = 1.0 - cfg.planning_margin;
+    let v = libm::sqrt(l2).max(1e-9);
+    let worst = libm::fabs(smp.csss[ax]) * l2
+        + 3.0 * libm::fabs(smp.css[ax]) * cfg.planned_accel()
+        + libm::fabs(smp.t[ax]) * cfg.max_path_jerk * keep / v;
+    worst > cfg.axis_max_jerk[ax] * keep / v
+}
+
 /// Golden-section steps refining a sampled law minimum (bracket shrinks by 0.618 each).
 const GOLDEN_ITERS: usize = 40;
+
+/// Braking rates (fractions of the planned acceleration and jerk) a new
+/// override's braking curve is tried with, steepest first.
+const LIFT_SOFTENING: [f64; 4] = [1.0, 0.5, 0.25, 0.1];
 
 /// The parameters between which the laws of `path` (of length `len`, a piece
 /// of `block`) are evaluated: its whole range, narrowed by [`stationary_offset`]

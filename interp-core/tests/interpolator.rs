@@ -21,9 +21,76 @@ const ON_CURVE_TOL: f64 = 1e-9;
 const CHORD_REL_TOL: f64 = 1e-6;
 /// Corrected update: |chord − Δ| ≤ this · Δ (+ round-off floor below).
 const FLUCT_REL_TOL: f64 = 1e-9;
-/// Metamorphic variants agree within this, mm (the jerk filter's mean and
-/// the per-tick arc-length tracking leave a few 1e-10 mm).
-const SAME_POINT_TOL: f64 = 1e-8;
+/// Metamorphic variants (split, rescaled, translated, reversed) are the
+/// same motion: the same path, passed at the same times. The speed is the
+/// solution of a linear program whose optimum is flat in places, solved
+/// block by block, so variants agree to the solver's precision (~1e-6
+/// relative in speed), not bit for bit; over a run that is a time shift of
+/// well under a millisecond. A rest point (a corner) reached within
+/// round-off of a tick boundary may also be left a tick earlier or later.
+/// The time at which both pass each arc length must agree within this, s
+/// (plus two ticks per rest point, the end included, and `SAME_TIME_REL`
+/// of the time).
+const SAME_TIME_TOL: f64 = 1e-3;
+/// Relative part of the time tolerance.
+const SAME_TIME_REL: f64 = 1e-4;
+
+/// Two runs of the same path (the second's arc length scaled by `scale`,
+/// its points mapped by `f`): at every setpoint of the first, the second
+/// passed the same arc length at the same time (interpolated between its
+/// setpoints), the end points agree within `tol`, and the path times agree.
+fn same_run(
+    a: &[Setpoint],
+    b: &[Setpoint],
+    scale: f64,
+    tol: f64,
+    f: impl Fn(Vec3) -> Vec3,
+) -> Result<(), String> {
+    let (ta, tb) = (a.last().unwrap().time, b.last().unwrap().time);
+    let ts = a[0].time;
+    let rests = a
+        .windows(3)
+        .filter(|w| w[1].feed == 0.0 && w[0].feed > 0.0)
+        .count() as f64;
+    let time_tol = |t: f64| SAME_TIME_TOL + 2.0 * ts * (rests + 1.0) + SAME_TIME_REL * t;
+    if (ta - tb).abs() > time_tol(ta) {
+        return Err(format!("path times {ta} s and {tb} s"));
+    }
+    let mut j = 0;
+    // At rest, one arc length goes with many times: compare where A moves.
+    for x in a.iter().filter(|x| x.feed > 0.0) {
+        let s = x.s;
+        while j + 1 < b.len() && b[j + 1].s / scale < s {
+            j += 1;
+        }
+        if j + 1 >= b.len() {
+            break;
+        }
+        let (p, q) = (&b[j], &b[j + 1]);
+        let (sp, sq) = (p.s / scale, q.s / scale);
+        let t = if sq > sp {
+            p.time + (q.time - p.time) * ((s - sp) / (sq - sp)).clamp(0.0, 1.0)
+        } else {
+            p.time
+        };
+        if (t - x.time).abs() > time_tol(x.time) {
+            return Err(format!(
+                "arc length {s} passed at {} s and at {t} s",
+                x.time
+            ));
+        }
+    }
+    let (la, lb) = (a.last().unwrap(), b.last().unwrap());
+    let d = (v3(&la.axes) - f(v3(&lb.axes))).norm();
+    if !(d <= tol * (1.0 + v3(&la.axes).amax())) {
+        return Err(format!("end points {d} apart"));
+    }
+    Ok(())
+}
+
+/// End points of metamorphic variants agree within this (relative to the
+/// coordinates' size), mm.
+const SAME_POINT_TOL: f64 = 1e-12;
 
 /// Random curves with a near-cusp (the chord law then allows under
 /// `CRAWL_FRACTION` of the feed somewhere) crawl for minutes; the properties
@@ -47,34 +114,23 @@ fn run(cfg: InterpConfig, blocks: &[Block]) -> (Vec<Setpoint>, interp_core::inte
     let start = blocks[0].path.start_point();
     let mut ip: Box<Interpolator> =
         Box::new(Interpolator::new(cfg, [start.x, start.y, start.z, 0.0, 0.0, 0.0]).unwrap());
-    for b in blocks {
-        ip.push(b).unwrap();
-    }
-    ip.finish();
     let total: f64 = blocks.iter().map(|b| b.path.length()).sum();
     // Generous bound: the whole path at 1/1000 of the programmed feed.
     let min_feed = blocks.iter().map(|b| b.feed).fold(f64::INFINITY, f64::min);
     let limit = (total / (min_feed * 1e-3) / cfg.period) as usize + 100_000;
     let mut out = Vec::new();
+    let mut next = 0;
     loop {
+        next += common::push_what_fits(&mut ip, &blocks[next..]);
+        if next == blocks.len() {
+            ip.finish();
+        }
         let sp = ip.tick();
         out.push(sp);
         if sp.state == RunState::Done {
             break;
         }
         if out.len() >= limit {
-            let pr = ip.profile();
-            let g = pr.index_of(sp.s);
-            for k in g - 3..g + 4 {
-                eprintln!(
-                    "g {k}: raw {} cap {} feed {} node {} stop {}",
-                    pr.raw_cap(k),
-                    pr.cap(k),
-                    pr.feed_cap(k),
-                    pr.node(k),
-                    pr.has_stop(k)
-                );
-            }
             panic!(
                 "did not finish in {limit} ticks: last {sp:?}, queued {} mm, stats {:?}",
                 ip.queued_length(),
@@ -226,7 +282,7 @@ proptest! {
         let blocks = [Block::new(1, Path::Nurbs(curve), feed)];
         let (sps, stats) = run(cfg, &blocks);
         check_properties(&cfg, &blocks, &sps);
-        prop_assert_eq!(stats.brake_overruns, 0);
+        prop_assert_eq!(stats.stale_plans, 0);
         prop_assert_eq!(stats.newton_unconverged, 0);
     }
 
@@ -239,12 +295,8 @@ proptest! {
         let parts = [Block::new(1, Path::Nurbs(a), feed), Block::new(2, Path::Nurbs(b), feed)];
         let (s1, _) = run(cfg, &whole);
         let (s2, _) = run(cfg, &parts);
-        prop_assert_eq!(s1.len(), s2.len());
-        for (x, y) in s1.iter().zip(&s2) {
-            let d = (v3(&x.axes) - v3(&y.axes)).norm();
-            prop_assert!(d <= SAME_POINT_TOL, "seq {} differs by {}", x.seq, d);
-            prop_assert!((x.feed - y.feed).abs() <= 1e-6 * cfg.max_path_speed);
-        }
+        let r = same_run(&s1, &s2, 1.0, SAME_POINT_TOL, |p| p);
+        prop_assert!(r.is_ok(), "{:?}", r);
     }
 
     #[test]
@@ -269,11 +321,8 @@ proptest! {
         let inch = [Block::new(1, Path::Nurbs(curve.scaled(k)), feed * k)];
         let (s1, _) = run(cfg, &mm);
         let (s2, _) = run(cfg_in, &inch);
-        prop_assert_eq!(s1.len(), s2.len());
-        for (x, y) in s1.iter().zip(&s2) {
-            let d = (v3(&x.axes) - v3(&y.axes) / k).norm();
-            prop_assert!(d <= SAME_POINT_TOL * (1.0 + v3(&x.axes).amax()), "seq {} differs by {}", x.seq, d);
-        }
+        let r = same_run(&s1, &s2, k, SAME_POINT_TOL, |p| p / k);
+        prop_assert!(r.is_ok(), "{:?}", r);
     }
 }
 
@@ -290,10 +339,7 @@ fn translated_curve_gives_translated_setpoints() {
         .collect();
     let (s1, _) = run(cfg, &a);
     let (s2, _) = run(cfg, &b);
-    assert_eq!(s1.len(), s2.len());
-    for (x, y) in s1.iter().zip(&s2) {
-        assert!((v3(&x.axes) + shift - v3(&y.axes)).norm() <= SAME_POINT_TOL * 300.0);
-    }
+    same_run(&s1, &s2, 1.0, SAME_POINT_TOL, |p| p - shift).unwrap();
 }
 
 #[test]
@@ -353,7 +399,7 @@ fn butterfly_respects_every_limit_for_each_update() {
         let (sps, stats) = run(cfg, &blocks);
         if update == ParamUpdate::Corrected {
             check_properties(&cfg, &blocks, &sps);
-            assert_eq!(stats.brake_overruns, 0);
+            assert_eq!(stats.stale_plans, 0);
         } else {
             // Taylor updates miss the commanded chord (that is their feed
             // fluctuation) but still end exactly at the end point.
@@ -374,7 +420,7 @@ fn long_periods_keep_the_chord_tolerance() {
         let blocks: Vec<Block> = common::butterfly_blocks(100.0);
         let (sps, stats) = run(cfg, &blocks);
         check_properties(&cfg, &blocks, &sps);
-        assert_eq!(stats.brake_overruns, 0);
+        assert_eq!(stats.stale_plans, 0);
     }
 }
 
@@ -411,7 +457,7 @@ fn lines_arcs_and_helices_run_exactly() {
     let cfg = InterpConfig::default();
     let (sps, stats) = run(cfg, &blocks);
     check_properties(&cfg, &blocks, &sps);
-    assert_eq!(stats.brake_overruns, 0);
+    assert_eq!(stats.stale_plans, 0);
     // The arc-to-helix junction is a corner in 3-D (the helix climbs): the
     // path passes it at the limit-respecting junction speed, not at rest.
     let corner = Vec3::new(40.0, 10.0, 0.0);
@@ -501,11 +547,11 @@ fn starving_queue_stops_at_the_end_of_what_is_queued_and_resumes() {
         Box::new(Interpolator::new(cfg, [start.x, start.y, start.z, 0.0, 0.0, 0.0]).unwrap());
     ip.push(&Block::new(1, Path::Nurbs(segs[0]), 100.0))
         .unwrap();
-    // Starved: it comes to rest on the path short of the end of the queue
-    // (the last stretch waits for what comes next) and stays there.
+    // Starved: it comes to rest on the path at the end of the queue, and
+    // waits there for what comes next.
     let mut sps: Vec<Setpoint> = Vec::new();
     let mut rest = 0;
-    while rest < 2 * ip.filter_ticks() + 10 {
+    while rest < 50 {
         let sp = ip.tick();
         sps.push(sp);
         rest = if sp.feed == 0.0 && sps.len() > 1 {
@@ -520,14 +566,21 @@ fn starving_queue_stops_at_the_end_of_what_is_queued_and_resumes() {
     let on = segs[0].eval(sp.u, 0).p;
     assert!((on - v3(&sp.axes)).norm() <= ON_CURVE_TOL);
     let len = Path::Nurbs(segs[0]).length();
-    assert!(sp.s < len && sp.s > 0.5 * len, "{sp:?}");
+    assert!((sp.s - len).abs() < 1e-9, "{sp:?}");
+    assert_eq!(v3(&sp.axes), segs[0].end_point());
     // More arrives: it moves on and finishes at the true end.
-    for (i, s) in segs.iter().enumerate().skip(1) {
-        ip.push(&Block::new(i as u32 + 1, Path::Nurbs(*s), 100.0))
-            .unwrap();
-    }
-    ip.finish();
+    let rest: Vec<Block> = segs
+        .iter()
+        .enumerate()
+        .skip(1)
+        .map(|(i, s)| Block::new(i as u32 + 1, Path::Nurbs(*s), 100.0))
+        .collect();
+    let mut next = 0;
     loop {
+        next += common::push_what_fits(&mut ip, &rest[next..]);
+        if next == rest.len() {
+            ip.finish();
+        }
         let sp = ip.tick();
         sps.push(sp);
         if sp.state == RunState::Done {
@@ -540,7 +593,7 @@ fn starving_queue_stops_at_the_end_of_what_is_queued_and_resumes() {
         v3(&sps.last().unwrap().axes),
         segs.last().unwrap().end_point()
     );
-    assert_eq!(ip.stats().brake_overruns, 0);
+    assert_eq!(ip.stats().stale_plans, 0);
 }
 
 #[test]
@@ -676,7 +729,7 @@ fn points_where_the_derivative_vanishes_are_run_through() {
         } else {
             check_properties(&cfg, &blocks, &sps);
         }
-        assert_eq!(stats.brake_overruns, 0, "{name}");
+        assert_eq!(stats.stale_plans, 0, "{name}");
         // The slowest tick inside the curve (away from its ends).
         let inner = &sps[sps.len() / 20..sps.len() * 19 / 20];
         let slowest = inner

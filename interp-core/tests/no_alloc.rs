@@ -1,5 +1,6 @@
 //! The RT path never allocates, and the same blocks + config give
-//! bit-identical setpoints: 1,000,000 ticks, twice, with blocks pushed as the
+//! bit-identical setpoints: 200,000 ticks (the operator schedule below once
+//! through, 3.3 minutes of machine time), twice, with blocks pushed as the
 //! queue frees up (push is non-RT but allocation-free too).
 //!
 //! A counting global allocator (`alloc-count`) counts allocations made on
@@ -14,7 +15,7 @@ use interp_core::{InterpConfig, Interpolator, RunState};
 #[global_allocator]
 static GLOBAL: alloc_count::Counting = alloc_count::Counting;
 
-const TICKS: u64 = 1_000_000;
+const TICKS: u64 = 200_000;
 
 /// FNV-1a over the bits of every field of every setpoint.
 fn fold(hash: &mut u64, words: &[u64]) {
@@ -74,7 +75,12 @@ fn run() -> (u64, u64, u64) {
                 .unwrap();
                 Block::new(99, Path::Arc(helix), 60.0)
             };
-            ip.push(&block).unwrap();
+            match ip.push(&block) {
+                Ok(()) => {}
+                // The look-ahead reaches far enough for now.
+                Err(e) if e.is_wait() => break,
+                Err(e) => panic!("{e}"),
+            }
             tail = block.path.end_point();
             next = (next + 1) % (lap.len() + 1);
         }
@@ -100,7 +106,7 @@ fn run() -> (u64, u64, u64) {
 }
 
 #[test]
-fn a_million_ticks_allocate_nothing_and_repeat_bit_for_bit() {
+fn two_hundred_thousand_ticks_allocate_nothing_and_repeat_bit_for_bit() {
     let (h1, a1, m1) = run();
     let (h2, a2, m2) = run();
     assert_eq!(a1, 0, "allocations during the first run");

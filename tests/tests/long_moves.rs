@@ -1,9 +1,10 @@
 //! Issue 15, long moves: a move longer than the look-ahead's reach (metres
 //! of travel, ordinary on large machines) runs to its end at the programmed
-//! feed, as `simulate`, `replay` and the daemon run it (`traces::Pipeline`
-//! cuts it into equal parts of at most `max_move_length`, the same geometry).
+//! feed, as `simulate`, `replay` and the daemon run it (the look-ahead plans
+//! it in parts of `CHUNK` grid intervals as the machine advances).
 
-use interp_core::interp::max_move_length;
+use interp_core::interp::grid_step;
+use interp_core::plan::CHUNK;
 use interp_core::{InterpConfig, RunState, Setpoint};
 use traces::Program;
 use traces::sim::{self, SimItem, SimSettings};
@@ -36,7 +37,7 @@ fn moves_of_metres_run_to_their_end_at_the_programmed_feed() {
     )
     .unwrap();
     assert!(
-        2000.0 > 4.0 * max_move_length(&cfg),
+        2000.0 > 4.0 * CHUNK as f64 * grid_step(&cfg),
         "the case is long enough"
     );
     let sps = run(&program, cfg);

@@ -9,7 +9,7 @@
 
 use interp_core::InterpConfig;
 use interp_core::config::ConfigError;
-use interp_core::interp::{JOIN_TOLERANCE, max_move_length};
+use interp_core::interp::JOIN_TOLERANCE;
 use interp_core::nurbs::{SplitError, split_program_curve};
 use interp_core::path::{MrrParams, PathError, ToolSide};
 use interp_core::smooth::{SmoothError, SmoothStats, Smoother};
@@ -360,9 +360,6 @@ pub struct Pipeline {
     cutter: Cutter,
     stage: Box<Smoother>,
     next_out: u32,
-    /// Released moves longer than this are cut into equal parts
-    /// ([`interp_core::interp::max_move_length`]).
-    max_move: f64,
 }
 
 impl core::fmt::Debug for Pipeline {
@@ -371,7 +368,6 @@ impl core::fmt::Debug for Pipeline {
             .field("cutter", &self.cutter)
             .field("stage", &self.stage)
             .field("next_out", &self.next_out)
-            .field("max_move", &self.max_move)
             .finish()
     }
 }
@@ -389,7 +385,6 @@ impl Pipeline {
             cutter: Cutter::new(start, first_id, max_ctrl),
             stage: Box::new(Smoother::new(cfg, first_id)?),
             next_out: first_id,
-            max_move: max_move_length(cfg),
         })
     }
 
@@ -457,49 +452,14 @@ impl Pipeline {
 
     fn release(&mut self, out: &mut Vec<Block>) {
         while let Some(b) = self.stage.pop() {
-            for mut part in cut_long_move(b, self.max_move) {
-                part.id = self.next_out;
-                self.next_out = self.next_out.wrapping_add(1);
-                out.push(part);
-            }
+            // Long moves need no cutting: the look-ahead plans them in parts.
+            out.push(Block {
+                id: self.next_out,
+                ..b
+            });
+            self.next_out = self.next_out.wrapping_add(1);
         }
     }
-}
-
-/// `b` cut into equal parts of at most `max_len` mm (the same geometry; only
-/// the last part keeps an exact stop), or `b` itself when it is short enough
-/// or cannot be cut.
-fn cut_long_move(b: Block, max_len: f64) -> Vec<Block> {
-    let len = b.path.length();
-    if !(len > max_len && max_len > 0.0) {
-        return vec![b];
-    }
-    let n = (len / max_len).ceil();
-    let mut parts = Vec::with_capacity(n as usize);
-    let mut rest = b.path;
-    for k in 1..n as usize {
-        // Each cut a fraction of what is left, so the parts come out equal.
-        let left = n - (k - 1) as f64;
-        let u = rest.param_at_arc_length(rest.u_start(), rest.length() / left);
-        match rest.split_at(u) {
-            Ok((a, r)) => {
-                let blending = if b.blending == Blending::ExactStop {
-                    Blending::ExactPath
-                } else {
-                    b.blending
-                };
-                parts.push(Block {
-                    path: a,
-                    blending,
-                    ..b
-                });
-                rest = r;
-            }
-            Err(_) => break,
-        }
-    }
-    parts.push(Block { path: rest, ..b });
-    parts
 }
 
 fn expand_block(

@@ -372,9 +372,18 @@ fn follow_schedule(
                                             format!("no recorded program has segment {id}"),
                                         ));
                                     }
-                                    let tail = ip.planner().tail();
+                                    // After an abort the program starts
+                                    // where the machine stopped (the planner
+                                    // moves there at its first push).
+                                    let st = ip.executor().status();
+                                    let tail = if st.idle_empty {
+                                        st.point
+                                    } else {
+                                        let t = ip.planner().tail();
+                                        [t.x, t.y, t.z]
+                                    };
                                     let p = Pipeline::new(
-                                        [tail.x, tail.y, tail.z],
+                                        tail,
                                         id,
                                         config.max_ctrl_per_block,
                                         &config.interp,

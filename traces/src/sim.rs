@@ -15,9 +15,9 @@
 //! the program's own blocks, so a replay re-runs the stage and gets the same
 //! segments.
 
-use interp_core::interp::{DEFAULT_QUEUE, PushError};
+use interp_core::interp::DEFAULT_QUEUE;
 use interp_core::smooth::SmoothStats;
-use interp_core::{Block, InterpConfig, Interpolator, PlannedBlock, RunState, Setpoint};
+use interp_core::{Block, InterpConfig, Interpolator, RunState, Setpoint};
 use serde::{Deserialize, Serialize};
 
 use crate::blocks::{BlockError, Expanded, Pipeline, Program};
@@ -210,29 +210,19 @@ pub fn run<E>(
     let mut released = Vec::new();
     let mut segments = 0usize;
     let mut faulted = false;
-    let mut plan = Box::new(PlannedBlock::new());
     // Pushes one released block into the interpolator, ticking while its
-    // queue is full. Plan once, then retry only the commit: `push` is
-    // exactly plan then commit, and while only ticks happen the plan stays
-    // valid. Planning again on every tick the queue is full measured the
-    // block's length each time (most of a long program's run time).
-    let mut push = |ip: &mut Interpolator,
-                    last: &mut Setpoint,
-                    sink: &mut dyn FnMut(SimItem<'_>) -> Result<(), E>,
-                    seg: &Block,
-                    eb: &crate::blocks::ExpandedBlock|
+    // queue is full (the room is checked before any planning) or the parts
+    // of a long block before it are still being planned.
+    let push = |ip: &mut Interpolator,
+                last: &mut Setpoint,
+                sink: &mut dyn FnMut(SimItem<'_>) -> Result<(), E>,
+                seg: &Block,
+                eb: &crate::blocks::ExpandedBlock|
      -> Result<bool, SimError<E>> {
-        let planned = ip.planner().plan(seg, &mut plan);
         loop {
-            let pushed = match planned {
-                Ok(()) => ip.commit(&plan),
-                Err(e) => Err(e),
-            };
-            match pushed {
+            match ip.push(seg) {
                 Ok(()) => return Ok(true),
-                Err(PushError::Full { .. } | PushError::ProfileFull)
-                    if ip.queued_segments() > 0 =>
-                {
+                Err(e) if e.is_wait() && ip.queued_segments() > 0 => {
                     if !tick(ip, last, sink)? {
                         return Ok(false);
                     }

@@ -1,8 +1,9 @@
 //! The control plane (tokio, non-RT): listeners on loopback TCP and a Unix
 //! socket, one task per connection speaking the line protocol of
 //! [`crate::protocol`]. Blocks are parsed, checked and split here and handed
-//! to the RT thread through its SPSC queue; a full queue is back-pressure (the
-//! reply waits, so the client's writes stall), never a drop.
+//! to the planning thread ([`crate::service::sequencer`]) through its SPSC
+//! queue; a full queue is back-pressure (the reply waits, so the client's
+//! writes stall), never a drop.
 //!
 //! A program belongs to the connection that sent its first block (or
 //! `begin`) until it ends: `done`, an abort, or a fault. Another connection
@@ -17,13 +18,13 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use heapless::spsc::{Consumer, Producer};
-use interp_core::{BlockPlanner, PlannedBlock, RunState, Vec3};
+use interp_core::{Curve, RunState};
 use serde::{Deserialize, Serialize};
 use tokio::io::{AsyncBufRead, AsyncBufReadExt, AsyncRead, AsyncWrite, AsyncWriteExt, BufReader};
 
 use crate::protocol::{MAX_LINE_BYTES, Reply, Request, parse};
 use crate::service::publish::state_name;
-use crate::service::rt::{Command, Plan, PushFailure, RtStatus};
+use crate::service::rt::{Command, PushFailure, RtStatus, Segment};
 
 /// How long `abort` waits for the machine to come to rest before replying.
 pub const ABORT_WAIT: Duration = Duration::from_secs(30);
@@ -38,7 +39,7 @@ pub struct Control {
     pub programs: Mutex<Programs>,
     /// Command producer (short critical sections only).
     pub commands: Mutex<Producer<'static, Command>>,
-    /// Refused blocks reported by the RT thread.
+    /// Refused blocks reported by the planning thread.
     pub failures: Mutex<Consumer<'static, PushFailure>>,
     /// The RT thread's counters.
     pub status: Arc<RtStatus>,
@@ -131,15 +132,14 @@ impl Default for Programs {
     }
 }
 
-/// The streaming side: the RT thread's plan queue and where the next block starts.
+/// The streaming side: the planning thread's segment queue and where the
+/// next block starts.
 pub struct Stream {
-    /// Producer of the RT thread's queue of planned blocks.
-    pub blocks: Producer<'static, Plan>,
-    /// Plan buffers the RT thread handed back.
-    pub spent: Consumer<'static, Box<PlannedBlock>>,
-    /// Plans blocks against the end of what was accepted (the costly half of
-    /// `Interpolator::push`, kept off the RT thread).
-    pub planner: BlockPlanner,
+    /// Producer of the planning thread's queue of segments.
+    pub segments: Producer<'static, Segment>,
+    /// End of the last segment queued (after an abort: where the machine
+    /// stopped).
+    pub queued_to: [f64; 3],
     /// End of the last accepted block (`None`: where the machine is).
     pub tail: Option<[f64; 3]>,
     /// Id of the next interpolator segment (from 1 in each program).
@@ -150,8 +150,7 @@ pub struct Stream {
     pub program: u32,
     /// The program's pipeline (input blocks through the `G64 P` stage to
     /// interpolator segments), made at its first block from the end of the
-    /// planner's queue with ids from `next_id`; made again from there after
-    /// a refusal.
+    /// queue with ids from `next_id`.
     pub pipeline: Option<traces::Pipeline>,
     /// The interpolator's configuration (the pipeline's stage runs under it).
     pub interp: interp_core::InterpConfig,
@@ -223,6 +222,9 @@ pub struct StatusReply {
     pub line_errors: u64,
     /// Missed periods.
     pub overruns: u64,
+    /// Periods the RT thread waited for the planning thread (0 while the
+    /// planner keeps its lead; see `--plan-lead-ms`).
+    pub planner_late: u64,
     /// Ticks the recorder had no room for.
     pub recorder_drops: u64,
     /// Failed publishes.
@@ -339,9 +341,7 @@ impl Control {
         if s.tail.is_none() && self.status.published.load(Ordering::Acquire) > 0 {
             // Where the machine is (at rest: start, or after an abort), bit
             // for bit as the interpolator's queue end.
-            let p = self.status.position();
-            let at = f64::from_bits(self.status.s.load(Ordering::Acquire));
-            s.planner.resync(Vec3::new(p[0], p[1], p[2]), at);
+            s.queued_to = self.status.position();
         }
         s.program = program;
         s.next_id = 1;
@@ -350,15 +350,12 @@ impl Control {
     }
 
     /// Where the next block of the current program starts: the end of the
-    /// last one it accepted, or (a new pipeline) the end of the planner's
-    /// queue, which `follow` moved to where the machine is after an abort.
+    /// last one it accepted, or (a new pipeline) the end of the queue, which
+    /// `follow` moved to where the machine is after an abort.
     fn next_start(&self, s: &Stream) -> [f64; 3] {
         match &s.pipeline {
             Some(p) => p.tail(),
-            None => {
-                let t = s.planner.tail();
-                [t.x, t.y, t.z]
-            }
+            None => s.queued_to,
         }
     }
 
@@ -404,6 +401,7 @@ impl Control {
             last_refusal: self.last_refusal.lock().ok().and_then(|l| l.clone()),
             line_errors: self.errors.load(Ordering::Acquire),
             overruns: s.overruns.load(Ordering::Acquire),
+            planner_late: s.planner_late.load(Ordering::Acquire),
             recorder_drops: s.recorder_drops.load(Ordering::Acquire),
             publish_failures: s.publish_failures.load(Ordering::Acquire),
         }
@@ -614,10 +612,11 @@ impl Control {
         })
     }
 
-    /// Plans and queues `pieces` (released by the program's pipeline, ids
-    /// from `s.next_id`); waits while the RT queue is full. A piece the
-    /// planner refuses ends the pipeline: the program goes on from the end
-    /// of what was queued.
+    /// Queues `pieces` (released by the program's pipeline, ids from
+    /// `s.next_id`) for the planning thread; waits while its queue is full.
+    /// A piece the look-ahead refuses is reported in the status
+    /// (`last_refusal`); the pieces after it are refused too (they do not
+    /// start where the queue ends).
     async fn queue(
         &self,
         s: &mut Stream,
@@ -628,35 +627,10 @@ impl Control {
         let n = pieces.len();
         for (i, piece) in pieces.into_iter().enumerate() {
             let id = piece.id;
-            let buf = s
-                .spent
-                .dequeue()
-                .unwrap_or_else(|| Box::new(PlannedBlock::new()));
-            let planner = s.planner;
-            // Law sampling takes milliseconds for a long NURBS: off the
-            // runtime's thread, so status and hold are answered meanwhile.
-            let (planner, buf, planned) = tokio::task::spawn_blocking(move || {
-                let (mut planner, mut buf) = (planner, buf);
-                let r = planner.plan(&piece, &mut buf);
-                (planner, buf, r)
-            })
-            .await
-            .map_err(|e| format!("planning segment {id}: {e}"))?;
-            if let Err(e) = planned {
-                // What the stage still holds is dropped with its pipeline;
-                // the next block starts from the end of the queue.
-                let t = s.planner.tail();
-                s.tail = Some([t.x, t.y, t.z]);
-                s.next_id = id;
-                s.pipeline = None;
-                return Err(format!(
-                    "segment {id}: {e} ({i} of {n} segments released with this block queued)"
-                ));
-            }
-            s.planner = planner;
-            let mut item = Plan {
+            let end = piece.path.end_point();
+            let mut item = Segment {
                 program,
-                block: buf,
+                block: piece,
             };
             loop {
                 if self.abort_epoch.load(Ordering::Acquire) != epoch {
@@ -664,7 +638,7 @@ impl Control {
                         "aborted while queueing segment {id} ({i} of {n} segments queued, flushed)"
                     ));
                 }
-                match s.blocks.enqueue(item) {
+                match s.segments.enqueue(item) {
                     Ok(()) => break,
                     Err(back) => {
                         item = back;
@@ -672,6 +646,7 @@ impl Control {
                     }
                 }
             }
+            s.queued_to = [end.x, end.y, end.z];
             s.next_id = id.wrapping_add(1);
         }
         Ok(())

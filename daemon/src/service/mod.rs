@@ -10,4 +10,5 @@ pub mod histogram;
 pub mod publish;
 pub mod rt;
 pub mod rt_alloc;
+pub mod sequencer;
 pub mod serve;

@@ -291,15 +291,8 @@ pub fn start(
     let rt_status = Arc::clone(&rt.status);
     let control = Arc::new(Control {
         stream: tokio::sync::Mutex::new(Stream {
-            blocks: rt.blocks,
-            spent: rt.spent,
-            planner: interp_core::BlockPlanner::new(
-                cfg,
-                interp_core::Vec3::new(position[0], position[1], position[2]),
-                0.0,
-            )
-            .map_err(|e| anyhow!("{e:?}"))
-            .context("configuring the block planner")?,
+            segments: rt.segments,
+            queued_to: [position[0], position[1], position[2]],
             tail: None,
             next_id: 1,
             index: 0,
@@ -354,6 +347,7 @@ pub fn start(
     let stop = Arc::clone(&rt.stop);
     let status = Arc::clone(&rt.status);
     let rt_thread = rt.thread;
+    let planner_thread = rt.planner;
     let sock = socket.clone();
     let json = args.json;
     let record_path = args.record.clone();
@@ -403,6 +397,9 @@ pub fn start(
             let report: RtReport = rt_thread
                 .join()
                 .map_err(|_| anyhow!("the RT thread panicked"))?;
+            planner_thread
+                .join()
+                .map_err(|_| anyhow!("the planning thread panicked"))?;
             rt_done.store(true, Ordering::Release);
             let recorded = recorder
                 .join()

@@ -27,9 +27,12 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Error, Result, anyhow, bail};
 use heapless::spsc::{Producer, Queue};
+use interp_core::interp::Stats;
 use interp_core::metrics::chord_error_between;
 use interp_core::samples::butterfly;
-use interp_core::{Block, Curve, InterpConfig, Interpolator, RunState, Setpoint, Vec3};
+use interp_core::{
+    Block, Curve, Driver, Executor, InterpConfig, PlannedBlock, RunState, Setpoint, Vec3,
+};
 use serde::Serialize;
 
 use crate::check::{Checker, Limits, Measured, Violations};
@@ -188,9 +191,85 @@ impl Drop for SetOnDrop<'_> {
     }
 }
 
+/// A program as the service's RT thread runs it: every plan a [`Driver`]
+/// makes for it (blocks pushed as `simulate` pushes them), with the tick it
+/// precedes, is offered to an [`Executor`] at that tick. Planning happens
+/// before the loop; the loop's ticks cost what the RT thread's cost.
+#[derive(Debug)]
+pub(crate) struct Planned {
+    exec: Box<Executor>,
+    plans: Vec<(u64, Box<PlannedBlock>)>,
+    next: usize,
+}
+
+impl Planned {
+    /// Plans `blocks` from `start` to the end of the program.
+    fn new(cfg: InterpConfig, start: [f64; 6], blocks: &[Block]) -> Result<Self> {
+        let config = |e: interp_core::config::ConfigError| anyhow!("{e:?}");
+        let mut exec: Box<Executor> = Box::new(Executor::new(cfg, start).map_err(config)?);
+        let p = Vec3::new(start[0], start[1], start[2]);
+        let mut driver = Box::new(Driver::new(cfg, p, 0.0).map_err(config)?);
+        let mut plans = Vec::new();
+        let mut next = 0;
+        loop {
+            let at = exec.stats().ticks;
+            let mut sink = |p: &PlannedBlock| plans.push((at, Box::new(p.clone())));
+            while let Some(b) = blocks.get(next) {
+                match driver.push_into(&mut exec, b, &mut sink) {
+                    Ok(()) => next += 1,
+                    Err(e) if e.is_wait() => break,
+                    Err(e) => {
+                        return Err(Error::msg(e)).with_context(|| {
+                            format!(
+                                "planning butterfly block {} ({} of {}, {:.3} mm)",
+                                b.id,
+                                next + 1,
+                                blocks.len(),
+                                b.path.length()
+                            )
+                        });
+                    }
+                }
+                if next == blocks.len() {
+                    driver.finish_into(&mut exec, &mut sink);
+                }
+            }
+            driver.drive(&mut exec, &mut sink);
+            let sp = exec.tick();
+            if matches!(sp.state, RunState::Done | RunState::Fault) {
+                break;
+            }
+            if at > 100_000_000 {
+                bail!("planning the butterfly: the run does not end");
+            }
+        }
+        Ok(Planned {
+            exec: Box::new(Executor::new(cfg, start).map_err(config)?),
+            plans,
+            next: 0,
+        })
+    }
+
+    /// One period: the plans for it, then the executor's tick (no allocation).
+    fn tick(&mut self) -> Setpoint {
+        let t = self.exec.stats().ticks;
+        while let Some((at, plan)) = self.plans.get(self.next)
+            && *at == t
+        {
+            let _ = self.exec.commit(plan);
+            self.next += 1;
+        }
+        self.exec.tick()
+    }
+
+    fn stats(&self) -> Stats {
+        self.exec.stats()
+    }
+}
+
 /// The fixed-period loop. Everything it touches is allocated by the caller.
-fn run_loop<const Q: usize>(
-    ip: &mut Interpolator<Q>,
+fn run_loop(
+    ip: &mut Planned,
     mut sub: Checker,
     mut lateness: Histogram,
     mut compute: Histogram,
@@ -420,7 +499,7 @@ pub struct Timing {
     pub wall_s: f64,
     /// Wake time minus deadline, µs (`None` with `--fast`).
     pub wake_lateness_us: Option<Percentiles>,
-    /// Time spent in `Interpolator::tick`, µs.
+    /// Time spent in `Executor::tick` (with the commits of its tick), µs.
     pub tick_compute_us: Option<Percentiles>,
     /// Ticks whose work ended after the next deadline.
     pub overruns: u64,
@@ -435,8 +514,9 @@ pub struct InterpStats {
     pub ticks: u64,
     /// Segments completed.
     pub segments_done: u64,
-    /// Ticks where the schedule wanted more deceleration than allowed (0 in a correct plan).
-    pub brake_overruns: u64,
+    /// Plans refused because the machine had passed where they start (0
+    /// when planning and execution are in step).
+    pub stale_plans: u64,
     /// Most Newton iterations in one tick.
     pub max_newton_iters: u32,
 }
@@ -505,7 +585,7 @@ fn config(args: &DemoArgs) -> InterpConfig {
 struct Prepared {
     cfg: InterpConfig,
     blocks: Vec<Block>,
-    ip: Box<Interpolator>,
+    ip: Box<Planned>,
     start: Vec3,
     end: Vec3,
     length: f64,
@@ -532,23 +612,11 @@ impl Prepared {
         let end = last.path.end_point();
         let length: f64 = blocks.iter().map(|b| b.path.length()).sum();
 
-        let mut ip: Box<Interpolator> = Box::new(
-            Interpolator::new(cfg, [start.x, start.y, start.z, 0.0, 0.0, 0.0])
-                .map_err(Error::msg)
-                .context("configuring the interpolator")?,
-        );
-        for (i, b) in blocks.iter().enumerate() {
-            ip.push(b).map_err(Error::msg).with_context(|| {
-                format!(
-                    "queueing butterfly block {} ({} of {}, {:.3} mm) before the loop",
-                    b.id,
-                    i + 1,
-                    blocks.len(),
-                    b.path.length()
-                )
-            })?;
-        }
-        ip.finish();
+        let ip = Box::new(Planned::new(
+            cfg,
+            [start.x, start.y, start.z, 0.0, 0.0, 0.0],
+            &blocks,
+        )?);
         let feed_limit = feed.min(cfg.max_path_speed);
         let max_time = MAX_MACHINE_TIME_S.max(10.0 * length / feed_limit);
         let prm = LoopParams {
@@ -705,7 +773,7 @@ pub fn run(args: &DemoArgs, on_setpoint: impl FnMut(&Setpoint)) -> Result<Summar
         interpolator: InterpStats {
             ticks: stats.ticks,
             segments_done: stats.segments_done,
-            brake_overruns: stats.brake_overruns,
+            stale_plans: stats.stale_plans,
             max_newton_iters: stats.max_newton_iters,
         },
         csv: args.csv.clone(),
@@ -817,8 +885,8 @@ impl fmt::Display for Summary {
         let i = &self.interpolator;
         writeln!(
             f,
-            "  interp      {} ticks, {} segments done, {} brake overruns, max {} Newton iterations",
-            i.ticks, i.segments_done, i.brake_overruns, i.max_newton_iters
+            "  interp      {} ticks, {} segments done, {} stale plans, max {} Newton iterations",
+            i.ticks, i.segments_done, i.stale_plans, i.max_newton_iters
         )?;
         writeln!(f, "  digest      {}", self.setpoint_digest)?;
         if let Some(path) = &self.csv {

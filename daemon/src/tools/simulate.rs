@@ -34,7 +34,7 @@ pub struct SimulateArgs {
     /// Print the summary as one JSON object.
     #[arg(long)]
     pub json: bool,
-    /// Override any `[interp]` key, e.g. `--set brake-reserve=0.1` (repeatable).
+    /// Override any `[interp]` key, e.g. `--set planning-margin=0.05` (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,
     /// Interpolation period, µs (`interp.period`; default 1000).

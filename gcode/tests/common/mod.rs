@@ -3,7 +3,6 @@
 #![allow(dead_code)]
 
 use gcode::{CoreOptions, parse};
-use interp_core::interp::PushError;
 use interp_core::path::Block;
 use interp_core::{Curve, InterpConfig, Interpolator, RunState, Setpoint, Vec3};
 
@@ -35,7 +34,7 @@ pub fn run(blocks: &[Block]) -> Vec<Setpoint> {
         while next < blocks.len() {
             match ip.push(&blocks[next]) {
                 Ok(()) => next += 1,
-                Err(PushError::Full { .. } | PushError::ProfileFull | PushError::Stale) => break,
+                Err(e) if e.is_wait() => break,
                 Err(e) => panic!("block {next}: {e:?}"),
             }
         }

@@ -8,7 +8,7 @@ pub mod geomdl;
 use interp_core::geom::Vec3;
 use interp_core::nurbs::{Nurbs, split_program_curve};
 use interp_core::path::Block;
-use interp_core::{InterpConfig, Setpoint};
+use interp_core::{InterpConfig, Interpolator, Setpoint};
 
 /// Relative slack on every limit (issue 9: +1e-6).
 pub const LIMIT_REL_TOL: f64 = 1e-6;
@@ -140,6 +140,19 @@ pub fn check_kinematics(cfg: &InterpConfig, start: Vec3, sps: &[Setpoint]) -> Me
         );
     }
     m
+}
+
+/// Pushes blocks until one does not fit yet (the look-ahead reaches far
+/// enough for now); returns how many were queued. Panics on any other error.
+pub fn push_what_fits<const Q: usize>(ip: &mut Interpolator<Q>, blocks: &[Block]) -> usize {
+    for (i, b) in blocks.iter().enumerate() {
+        match ip.push(b) {
+            Ok(()) => {}
+            Err(e) if e.is_wait() => return i,
+            Err(e) => panic!("block {}: {e}", b.id),
+        }
+    }
+    blocks.len()
 }
 
 /// Small deterministic generator (the test must not depend on rand's versions).

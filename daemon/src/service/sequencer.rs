@@ -1,0 +1,319 @@
+//! The planning thread: decides, tick by tick, everything the RT thread's
+//! interpolator is given, a lead of ticks before the RT thread runs them.
+//!
+//! The look-ahead's plans depend on where the machine is when they are
+//! made (each re-solve starts a braking distance ahead of it) and take
+//! milliseconds, so they cannot be made on the RT thread, and a plan made
+//! from a status that lags the machine would differ from the one
+//! `simulate` makes. This thread therefore runs its own copy of the
+//! executor (`interp_core::Executor`, deterministic) with the
+//! `interp_core::Driver` that plans for it, exactly as
+//! `interp_core::Interpolator` does in `simulate`: segments pushed while
+//! they fit, the program's end, operator commands, the driver's own plans,
+//! then a tick. Every plan and command it gives its copy goes to the RT
+//! thread as a [`Step`] tagged with the tick it precedes; the RT thread
+//! applies each at that tick and ticks only once this thread has decided
+//! the tick. Both executors then get the same plans and commands at the
+//! same ticks and give the same setpoints bit for bit, and the recorded
+//! steps replay as `simulate` runs.
+//!
+//! The copy runs at most [`RtOptions::lead_ticks`](crate::service::rt::RtOptions)
+//! ahead of the RT thread: a command (hold, override, abort) takes effect
+//! that many periods after it is given; the RT thread never waits for a
+//! plan while this thread keeps within its lead (a wait is counted as
+//! `planner_late`).
+
+use core::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use heapless::spsc::{Consumer, Producer};
+use interp_core::interp::PushError;
+use interp_core::{Driver, Executor, PlannedBlock, RunState};
+
+use crate::service::rt::{Applied, Command, PushFailure, RtStatus, Segment};
+
+/// What the RT thread does to its executor before a tick.
+#[derive(Debug)]
+pub enum Op {
+    /// `Executor::commit` (the buffer goes back through the spent queue).
+    Commit(Box<PlannedBlock>),
+    /// `Executor::feed_hold`.
+    Hold,
+    /// `Executor::resume`.
+    Resume,
+    /// `Executor::abort`; `operator`: an operator's abort (counted in
+    /// `RtStatus::aborts`), not the one that leaves `done` for a new program.
+    Abort {
+        /// Whether an operator asked for it.
+        operator: bool,
+    },
+    /// Nothing to the executor: a record or a status change only.
+    Mark,
+}
+
+/// One thing for the RT thread to do before its tick number `at + 1`.
+#[derive(Debug)]
+pub struct Step {
+    /// Ticks the executor has done when it applies this.
+    pub at: u64,
+    /// The program it belongs to.
+    pub program: u32,
+    /// `start` was given for that program.
+    pub started: bool,
+    /// The program's end was applied.
+    pub finished: bool,
+    /// What to do.
+    pub op: Op,
+    /// What a recording notes (replayed at the same tick).
+    pub record: Option<Applied>,
+}
+
+/// The planning thread's state (see the module docs).
+pub(crate) struct Sequencer {
+    pub exec: Box<Executor>,
+    pub driver: Box<Driver>,
+    pub segments: Consumer<'static, Segment>,
+    pub commands: Consumer<'static, Command>,
+    pub failures: Producer<'static, PushFailure>,
+    pub steps: Producer<'static, Step>,
+    pub spent: Consumer<'static, Box<PlannedBlock>>,
+    pub status: Arc<RtStatus>,
+    /// Ticks this thread has decided (the RT thread may tick up to it).
+    pub decided: Arc<AtomicU64>,
+    pub stop: Arc<AtomicBool>,
+    pub lead_ticks: u64,
+    pub period: Duration,
+    pub autostart: bool,
+    pub started: bool,
+    /// The program of the last segment pushed (0: none yet).
+    pub program: u32,
+    /// The last program `start` was given for (it may not be pushed yet).
+    pub start_for: u32,
+    /// An abort is bringing the machine to rest (ticks go on without `start`).
+    pub aborting: bool,
+    pub finished: bool,
+    /// `end` of this program was given.
+    pub end_requested: Option<u32>,
+    /// A segment that did not fit yet.
+    pub pending: Option<Segment>,
+    /// Plans made by the current call, to send in order.
+    pub outbox: Vec<Box<PlannedBlock>>,
+}
+
+impl Sequencer {
+    /// Runs until `stop`.
+    pub fn run(mut self) {
+        while !self.stop.load(Ordering::Acquire) {
+            self.feed();
+            self.end_if_due();
+            self.apply_commands();
+            let moving = self.started || self.aborting;
+            let rt_ticks = self.status.ticks.load(Ordering::Acquire);
+            if moving && self.ticks() < rt_ticks + self.lead_ticks {
+                self.tick();
+            } else {
+                std::thread::sleep(self.period / 4);
+            }
+        }
+    }
+
+    fn ticks(&self) -> u64 {
+        self.exec.stats().ticks
+    }
+
+    /// Sends a step for the current tick (waits while the RT thread's queue
+    /// is full: it drains it as it reaches the steps' ticks).
+    fn send(&mut self, op: Op, record: Option<Applied>) {
+        let mut step = Step {
+            at: self.ticks(),
+            program: self.program,
+            started: self.started,
+            finished: self.finished,
+            op,
+            record,
+        };
+        loop {
+            match self.steps.enqueue(step) {
+                Ok(()) => return,
+                Err(back) => {
+                    if self.stop.load(Ordering::Acquire) {
+                        return;
+                    }
+                    step = back;
+                    std::thread::sleep(self.period / 4);
+                }
+            }
+        }
+    }
+
+    /// Sends the plans the last call made.
+    fn flush(&mut self) {
+        let plans: Vec<_> = self.outbox.drain(..).collect();
+        for p in plans {
+            self.send(Op::Commit(p), None);
+        }
+    }
+
+    /// Runs `f` with a sink that copies every plan offered to the executor
+    /// into the outbox (buffers reused from the spent queue), then sends them.
+    fn with_sink<R>(
+        &mut self,
+        f: impl FnOnce(&mut Driver, &mut Executor, &mut dyn FnMut(&PlannedBlock)) -> R,
+    ) -> R {
+        let spent = &mut self.spent;
+        let outbox = &mut self.outbox;
+        let mut sink = |p: &PlannedBlock| {
+            let mut b = spent
+                .dequeue()
+                .unwrap_or_else(|| Box::new(PlannedBlock::new()));
+            (*b).clone_from(p);
+            outbox.push(b);
+        };
+        let r = f(&mut self.driver, &mut self.exec, &mut sink);
+        self.flush();
+        r
+    }
+
+    /// Pushes the segments that fit, in order.
+    fn feed(&mut self) {
+        loop {
+            if self.pending.is_none() {
+                self.pending = self.segments.dequeue();
+            }
+            let Some(seg) = self.pending.take() else {
+                return;
+            };
+            if !self.ready_for(&seg) {
+                self.pending = Some(seg);
+                return;
+            }
+            let r = self.with_sink(|d, e, sink| d.push_into(e, &seg.block, sink));
+            match r {
+                Ok(()) => {
+                    self.send(Op::Mark, Some(Applied::Commit(seg.block.id)));
+                    self.status.blocks_pushed.fetch_add(1, Ordering::AcqRel);
+                }
+                Err(e) if e.is_wait() => {
+                    // After the next tick.
+                    self.pending = Some(seg);
+                    return;
+                }
+                // Cannot happen for a segment of the running program (`end`
+                // waits for its segments); kept rather than lost.
+                Err(PushError::Aborting | PushError::Finished) => {
+                    self.pending = Some(seg);
+                    return;
+                }
+                Err(error) => {
+                    self.status.blocks_refused.fetch_add(1, Ordering::AcqRel);
+                    let _ = self.failures.enqueue(PushFailure {
+                        id: seg.block.id,
+                        error,
+                    });
+                }
+            }
+        }
+    }
+
+    /// Whether `seg` may be pushed now: a segment of the running program
+    /// always; the first one of the next program once the last one is over
+    /// (`done`, or at rest after an abort), leaving `done` for it.
+    fn ready_for(&mut self, seg: &Segment) -> bool {
+        if seg.program == self.program {
+            return true;
+        }
+        match self.exec.state() {
+            RunState::Done => {
+                // A new program after a finished one: leave Done.
+                self.exec.abort();
+                self.finished = false;
+                self.send(Op::Abort { operator: false }, Some(Applied::Abort));
+            }
+            RunState::Idle if !self.aborting => {}
+            _ => return false,
+        }
+        self.program = seg.program;
+        self.finished = false;
+        self.started = self.autostart || self.start_for == seg.program;
+        self.send(Op::Mark, None);
+        true
+    }
+
+    /// `end`: once every segment of the program is pushed.
+    fn end_if_due(&mut self) {
+        let ours = |s: Option<&Segment>, p: u32| s.is_some_and(|s| s.program == p);
+        if let Some(p) = self.end_requested
+            && p == self.program
+            && !ours(self.pending.as_ref(), p)
+            && !ours(self.segments.peek(), p)
+        {
+            self.end_requested = None;
+            self.finished = true;
+            self.with_sink(|d, e, sink| d.finish_into(e, sink));
+            self.send(Op::Mark, Some(Applied::Finish));
+        }
+    }
+
+    fn apply_commands(&mut self) {
+        while let Some(c) = self.commands.dequeue() {
+            match c {
+                Command::Start(p) => {
+                    self.start_for = p;
+                    if p == self.program {
+                        self.started = true;
+                        self.send(Op::Mark, None);
+                    }
+                }
+                // Only motion is held: a hold while nothing moves is not
+                // remembered for the next program.
+                Command::Hold => {
+                    if self.started && self.exec.state() == RunState::Running {
+                        self.exec.feed_hold();
+                        self.send(Op::Hold, Some(Applied::Hold));
+                    }
+                }
+                Command::Resume => {
+                    if self.exec.state() == RunState::Holding {
+                        self.exec.resume();
+                        self.send(Op::Resume, Some(Applied::Resume));
+                        self.with_sink(|d, e, sink| d.drive(e, sink));
+                    }
+                }
+                Command::Override(x) => {
+                    // The control plane checked the range; a refusal leaves the old value.
+                    let ok = self
+                        .with_sink(|d, e, sink| d.set_feed_override_into(e, x, sink))
+                        .is_ok();
+                    if ok {
+                        self.status
+                            .feed_override
+                            .store(x.to_bits(), Ordering::Release);
+                        self.send(Op::Mark, Some(Applied::Override(x)));
+                    }
+                }
+                Command::End(p) => self.end_requested = Some(p),
+                Command::Abort => {
+                    self.exec.abort();
+                    self.send(Op::Abort { operator: true }, Some(Applied::Abort));
+                    self.pending = None;
+                    while self.segments.dequeue().is_some() {}
+                    self.end_requested = None;
+                    // Tick until at rest; `start` is needed again after that.
+                    self.aborting = true;
+                }
+            }
+        }
+    }
+
+    /// Plans what is due, ticks the copy, and lets the RT thread tick too.
+    fn tick(&mut self) {
+        self.with_sink(|d, e, sink| d.drive(e, sink));
+        let sp = self.exec.tick();
+        self.decided.store(self.ticks(), Ordering::Release);
+        if self.aborting && sp.state != RunState::Stopping {
+            self.aborting = false;
+            self.started = self.autostart;
+        }
+    }
+}
