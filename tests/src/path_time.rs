@@ -25,8 +25,10 @@ pub const REFERENCE_STEP: f64 = 0.005;
 /// The configuration with jerk limits switched off (acceleration only).
 pub fn without_jerk(cfg: &InterpConfig) -> InterpConfig {
     InterpConfig {
-        max_path_jerk: 1e18,
-        axis_max_jerk: [1e18; 3],
+        // Far above any jerk these programs need, yet small enough to keep
+        // the look-ahead's linear program well scaled (1e18 made it crawl).
+        max_path_jerk: 1e9,
+        axis_max_jerk: [1e9; 3],
         ..*cfg
     }
 }
