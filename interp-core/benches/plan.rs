@@ -206,16 +206,9 @@ impl Timing {
 }
 
 criterion_group!(benches, bench);
-// The interpolator is built on the stack before it is boxed (about 2 MiB,
-// more in an unoptimised build): run on a thread with room for it.
 fn main() {
-    std::thread::Builder::new()
-        .stack_size(64 << 20)
-        .spawn(|| {
-            benches();
-            Criterion::default().configure_from_args().final_summary();
-        })
-        .expect("bench thread")
-        .join()
-        .expect("bench thread panicked");
+    common::on_big_stack(|| {
+        benches();
+        Criterion::default().configure_from_args().final_summary();
+    });
 }

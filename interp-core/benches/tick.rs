@@ -68,16 +68,9 @@ criterion_group! {
         .sample_size(50);
     targets = ticks
 }
-// The interpolator is built on the stack before it is boxed (about 2 MiB,
-// more in an unoptimised build): run on a thread with room for it.
 fn main() {
-    std::thread::Builder::new()
-        .stack_size(64 << 20)
-        .spawn(|| {
-            benches();
-            Criterion::default().configure_from_args().final_summary();
-        })
-        .expect("bench thread")
-        .join()
-        .expect("bench thread panicked");
+    common::on_big_stack(|| {
+        benches();
+        Criterion::default().configure_from_args().final_summary();
+    });
 }

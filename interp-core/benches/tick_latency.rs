@@ -91,14 +91,7 @@ fn measure(
 }
 
 fn main() {
-    // The interpolator is built on the stack before it is boxed: run on a
-    // thread with room for it.
-    std::thread::Builder::new()
-        .stack_size(64 << 20)
-        .spawn(run)
-        .expect("bench thread")
-        .join()
-        .expect("bench thread panicked");
+    common::on_big_stack(run);
 }
 
 fn run() {
