@@ -567,19 +567,11 @@ impl BlockPlanner {
     /// A junction of speed limit `v` at arc length `s`: a rest point, or a
     /// lower limit there. Returns whether it is a rest point.
     fn apply_junction(&mut self, v: f64, s: f64) -> bool {
-        let h = self.h;
         if v < self.cfg.junction_min_speed {
             let _ = self.window.add_stop(s);
             true
         } else {
-            let g = index_of(s, h);
-            for gi in [g - 1, g] {
-                if let Some(it) = self.window.interval_mut(gi)
-                    && (gi == g || g as f64 * h == s)
-                {
-                    it.machine = it.machine.min(v);
-                }
-            }
+            self.window.lower_range(s, s, 0, v);
             false
         }
     }
@@ -616,14 +608,8 @@ fn sample_laws(
             feed_limit(d, block.feed, block.mrr.as_ref(), cfg)
         }
     };
-    let lower = |w: &mut Window, g: i64, which: usize, v: f64| {
-        if let Some(it) = w.interval_mut(g) {
-            if which == 0 {
-                it.machine = it.machine.min(v);
-            } else {
-                it.feed = it.feed.min(v);
-            }
-        }
+    let lower = |w: &mut Window, s0: f64, s1: f64, which: usize, v: f64| {
+        w.lower_range(s0, s1, which, v);
     };
     // A per-axis sample is kept where the axis jerk could bind at the
     // speed the laws allow there (elsewhere no row is needed); returns
@@ -650,9 +636,7 @@ fn sample_laws(
     let curve = !matches!(path, Path::Line(_));
     let (g_first, g_last) = (index_of(seg.s0, h), index_of(seg.s1(), h));
     let feed_top = block.feed.min(cfg.max_path_speed);
-    for g in g_first..=g_last {
-        lower(w, g, 1, feed_top);
-    }
+    lower(w, seg.s0, seg.s1(), 1, feed_top);
     if let Path::Line(_) = path {
         // Constant tangent: the axes' jerk limits bound the tangential jerk.
         let t = path.eval(path.u_start(), 1).d1;
@@ -680,9 +664,7 @@ fn sample_laws(
             let at = |uu: f64| law(&path.eval(uu.clamp(u_lo, u_hi), 3), which);
             let (u_min, v_min) = golden_section_argmin(at, u_lo, u_hi, GOLDEN_ITERS, 0.0);
             let v = v_min.min(at(u_lo)).min(at(u_hi));
-            for g in g_first..=g_last {
-                lower(w, g, which, v);
-            }
+            lower(w, seg.s0, seg.s1(), which, v);
             if which == 0 && v_min.is_finite() {
                 let u_min = u_min.clamp(u_lo, u_hi);
                 sample(
@@ -699,6 +681,16 @@ fn sample_laws(
     let refine = matches!(path, Path::Nurbs(_));
     let k0 = libm::ceil(seg.s0 / hs) as i64;
     let k1 = libm::floor(seg.s1() / hs) as i64;
+    if k0 > k1 {
+        // No sample falls on the block: its laws at its middle and ends.
+        for which in 0..2 {
+            let v = [u_lo, 0.5 * (u_lo + u_hi), u_hi]
+                .iter()
+                .map(|&uu| law(&path.eval(uu, 3), which))
+                .fold(f64::INFINITY, f64::min);
+            lower(w, seg.s0, seg.s1(), which, v);
+        }
+    }
     let (mut u_prev, mut x_prev) = (path.u_start(), seg.s0);
     // Per law, the last two samples: (k, u, value).
     let mut w1: [Option<(i64, f64, f64)>; 2] = [None; 2];
@@ -706,7 +698,6 @@ fn sample_laws(
     for k in k0..=k1 {
         let x = k as f64 * hs;
         let u = path.param_at_arc_length(u_prev, x - x_prev);
-        let g = k.div_euclid(m);
         // One evaluation for both laws at the sample.
         let d = path.eval(u.clamp(u_lo, u_hi), 3);
         if curve {
@@ -720,9 +711,18 @@ fn sample_laws(
         let both = [law(&d, 0), law(&d, 1)];
         for which in 0..2 {
             let v = both[which];
-            lower(w, g, which, v);
-            if k.rem_euclid(m) == 0 {
-                lower(w, g - 1, which, v);
+            // Between two samples the law is taken as the lower of the two
+            // (a minimum between them is refined below); from the block's
+            // ends to the nearest sample, as that sample (its junctions
+            // price the ends).
+            let (xa, va) = match w1[which] {
+                Some((ka, _, va)) => (ka as f64 * hs, va.min(v)),
+                None => (seg.s0, v),
+            };
+            lower(w, xa, x, which, va);
+            lower(w, x, x, which, v);
+            if k == k1 {
+                lower(w, x, seg.s1(), which, v);
             }
             // w2, w1, this: a local minimum at w1 is refined between w2 and this sample.
             if let (true, Some((ka, ua, va)), Some((_, _, vb))) = (refine, w2[which], w1[which])
@@ -737,9 +737,7 @@ fn sample_laws(
                     0.0,
                 );
                 let vmin = v_min.min(vb);
-                for gi in ka.div_euclid(m)..=k.div_euclid(m) {
-                    lower(w, gi, which, vmin);
-                }
+                lower(w, ka as f64 * hs, x, which, vmin);
                 if which == 0 && v_min.is_finite() {
                     // Where a curvature peak lies: a per-axis sample there too.
                     let u_min = u_min.clamp(u_lo, u_hi);
@@ -777,10 +775,10 @@ fn sample_laws(
                 let v = junction_speed(&left, &right, cfg);
                 at_s += path.arc_length(at_u, u);
                 at_u = u;
-                let g = index_of(at_s, h);
-                for gi in [g - 1, g, g + 1] {
-                    lower(w, gi, 0, v);
-                }
+                // (Arc length carried from knot to knot: a sub-range's
+                // slack each way.)
+                let hsub = h / crate::plan::SUB as f64;
+                lower(w, at_s - hsub, at_s + hsub, 0, v);
             }
             if u > ua {
                 prev = u;
