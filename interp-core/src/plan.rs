@@ -935,7 +935,7 @@ fn assemble_and_solve(
             let j = i - first;
             sc.lo[j] = 0.0;
             sc.hi[j] = if p.rest_start || rest_end {
-                l2.min(a_rest * h)
+                l2.min(rest_accel(a_rest, &it, &cfg) * h)
             } else {
                 l2
             };
@@ -1041,6 +1041,19 @@ fn assemble_and_solve(
     })
 }
 
+/// The acceleration step allowed next to a rest point on a piece of
+/// interval `it`: half a tick of the path's jerk (`a_rest`), or of the
+/// interval's own tangential jerk where a joint has lowered it below the
+/// path's (a rotary joint that turns several degrees per mm; see
+/// `crate::fiveaxis`).
+fn rest_accel(a_rest: f64, it: &Interval, cfg: &InterpConfig) -> f64 {
+    if it.jerk < cfg.max_path_jerk * (1.0 - cfg.planning_margin) {
+        a_rest.min(0.5 * it.jerk * cfg.period)
+    } else {
+        a_rest
+    }
+}
+
 /// The fallback plan of pieces `from..`: each rests at both ends
 /// (`S = 2d·u(1−u)`), with the largest `d` that keeps every limit of the
 /// linear program's rows, in closed form (each piece depends on its own `d`
@@ -1059,7 +1072,9 @@ fn crawl(d: &mut Data, from: usize, ovr: f64, lift: &Option<(f64, Stop)>) {
         let l2 = d.limit2(i, ovr, lift);
         let vmax = libm::sqrt(l2).max(1e-9);
         // Hull, rests (|S'/2| = d/h at the ends), jerk (|S''|/2 = 2d/h²).
-        let mut best = l2.min(a_rest * h).min(it.jerk * h * h / (2.0 * vmax));
+        let mut best = l2
+            .min(rest_accel(a_rest, &it, &cfg) * h)
+            .min(it.jerk * h * h / (2.0 * vmax));
         for smp in d.piece_samples(&p) {
             let u = ((smp.s - p.x0) / h).clamp(0.0, 1.0);
             for ax in 0..3 {
