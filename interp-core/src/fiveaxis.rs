@@ -285,6 +285,10 @@ pub enum JointError {
     NoMachine,
     /// The inverse transform failed (out of the rotary ranges, …).
     Inverse(InverseError),
+    /// The block's rotary axes or tool axis do not start where the queue's
+    /// end has them: by this much (degrees of a rotary joint, or of the
+    /// tool axis).
+    Jump(f64),
 }
 
 impl core::fmt::Display for JointError {
@@ -295,6 +299,10 @@ impl core::fmt::Display for JointError {
                 "tool-centre-point control needs a machine in the configuration"
             ),
             JointError::Inverse(e) => write!(f, "{e}"),
+            JointError::Jump(d) => write!(
+                f,
+                "the rotary axes or the tool axis do not start where the previous move left them ({d} degrees off)"
+            ),
         }
     }
 }
@@ -304,7 +312,8 @@ impl core::fmt::Display for JointError {
 /// interpolation leaves the programmed path between two setpoints.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct JointSample {
-    /// The joints.
+    /// The joints at the sampled parameter (the derivatives are taken
+    /// [`JOINT_STEP`]s inside the block where it is nearer an end).
     pub q: Joints,
     /// `dq/ds` (per mm of path).
     pub q_s: [f64; 6],
@@ -374,8 +383,14 @@ impl JointSample {
             (f_s, f_ss, f_sss)
         };
         let (h, h2, h3) = (du, du * du, du * du * du);
+        // The joints at `u` itself (the stencil may sit inside the block).
+        let q_u = if uc == u {
+            q0
+        } else {
+            orientation.joints(machine, path.eval(u, 0).p, u, &q0)?
+        };
         let mut out = JointSample {
-            q: q0,
+            q: q_u,
             q_s: [0.0; 6],
             q_ss: [0.0; 6],
             q_sss: [0.0; 6],
@@ -472,6 +487,25 @@ impl JointSample {
         }
     }
 
+    /// The tangential acceleration and jerk (mm/s², mm/s³) a feed hold may
+    /// brake with here: each joint's tangential share of its acceleration
+    /// and jerk (as [`InterpConfig::planned_accel`] and
+    /// [`InterpConfig::planned_jerk`] for the axes).
+    pub fn stop_limits(&self, cfg: &InterpConfig) -> (f64, f64) {
+        let share = cfg.axis_tangential_share * (1.0 - cfg.planning_margin);
+        let mut a = f64::INFINITY;
+        let mut jerk = f64::INFINITY;
+        for j in 0..6 {
+            let qs = libm::fabs(self.q_s[j]);
+            if qs > 0.0 {
+                let (_, amax, jmax) = cfg.joint_limits(j);
+                a = a.min(share * amax / qs);
+                jerk = jerk.min(share * jmax / qs);
+            }
+        }
+        (a, jerk)
+    }
+
     /// The path's tangential acceleration and jerk limits (mm/s², mm/s³)
     /// that keep every joint's tangential share: `|q_s|·a` within
     /// `axis_tangential_share` of its acceleration, `|q_s|·j` within its jerk.
@@ -555,6 +589,38 @@ impl QueueEnd {
     }
 }
 
+/// Largest jump accepted between where the queue's end leaves the rotary
+/// joints (or the tool axis) and where a block starts them, degrees.
+pub const JOIN_ANGLE_TOLERANCE: f64 = 1e-7;
+
+impl QueueEnd {
+    /// Does `o` start where the queue ends (rotary joints, or tool axis)?
+    pub fn check_join(
+        &self,
+        machine: Option<&Machine>,
+        o: &Orientation,
+        u: f64,
+    ) -> Result<(), JointError> {
+        let off = match o.at(u) {
+            OrientationAt::Axes(abc) => (0..3)
+                .map(|k| libm::fabs(abc[k] - self.joints[3 + k]))
+                .fold(0.0, f64::max),
+            OrientationAt::ToolAxis(a) => {
+                let have = machine
+                    .ok_or(JointError::NoMachine)?
+                    .forward(&self.joints)
+                    .axis;
+                libm::atan2(have.cross(&a).norm(), have.dot(&a)).to_degrees()
+            }
+        };
+        if off <= JOIN_ANGLE_TOLERANCE {
+            Ok(())
+        } else {
+            Err(JointError::Jump(off))
+        }
+    }
+}
+
 /// Calls `f(s, u)` at the law sample positions of a segment (arc length `s`
 /// of the run a multiple of `hs`, from `s0` over `length`), with `u` its
 /// parameter in `path`.
@@ -606,8 +672,9 @@ pub fn walk_joints(
 /// samples go to the linear program's jerk rows (two per point, the linear
 /// and the rotary joints, each scaled by `axis_max_jerk / joint jerk limit`
 /// so that the rows' axis limits stand for the joint's). Returns the joint
-/// rates at the segment's end (`None` if it ends at rest) and moves
-/// `joints` there.
+/// rates at the segment's end (`None` if it ends at rest) and the
+/// segment's braking limits ([`JointSample::stop_limits`], their minimum),
+/// and moves `joints` there.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn sample_joints(
     machine: Option<&Machine>,
@@ -620,14 +687,17 @@ pub(crate) fn sample_joints(
     h: f64,
     hs: f64,
     joints: &mut Joints,
-) -> Option<[f64; 6]> {
+) -> (Option<[f64; 6]>, (f64, f64)) {
     let mut last = None;
+    let mut stop = (f64::INFINITY, f64::INFINITY);
     for_each_sample(path, s0, length, hs, |s, u| {
         let Ok(Some(smp)) = JointSample::new(machine, orientation, path, u, joints) else {
             return;
         };
         *joints = smp.q;
         last = Some(smp.q_s);
+        let (sa, sj) = smp.stop_limits(cfg);
+        stop = (stop.0.min(sa), stop.1.min(sj));
         let v = smp.speed_limit(cfg);
         let (a, j) = smp.tangential_limits(cfg);
         let g = index_of(s, h);
@@ -661,7 +731,7 @@ pub(crate) fn sample_joints(
             }
         }
     });
-    last
+    (last, stop)
 }
 
 #[cfg(test)]

@@ -468,8 +468,20 @@ impl<const Q: usize> Executor<Q> {
             // No plan: at rest where the machine stands (not where the queue ends).
             None => (0.0, 0.0, self.s),
         };
-        let (am, jm) = (self.cfg.planned_accel(), self.cfg.planned_jerk());
+        let (am, jm) = self.stop_rates();
         self.stop = Some((Stop::new(v, a, am, jm), 0.0, s));
+    }
+
+    /// The acceleration and jerk a feed hold or abort brakes with: the
+    /// planned ones, lowered where a queued five-axis segment's joints need
+    /// it (`Segment::stop_limits`; at most the queue's length to look at).
+    fn stop_rates(&self) -> (f64, f64) {
+        let (mut am, mut jm) = (self.cfg.planned_accel(), self.cfg.planned_jerk());
+        for seg in self.queue.iter() {
+            am = am.min(seg.stop_limits.0);
+            jm = jm.min(seg.stop_limits.1);
+        }
+        (am, jm)
     }
 
     /// Arc length at which the machine would come to rest if a feed hold
@@ -480,7 +492,7 @@ impl<const Q: usize> Executor<Q> {
         }
         match self.current() {
             Some(p) => {
-                let (am, jm) = (self.cfg.planned_accel(), self.cfg.planned_jerk());
+                let (am, jm) = self.stop_rates();
                 p.x0 + self.x + Stop::new(self.v, p.accel(self.x), am, jm).distance()
             }
             None => self.s,

@@ -44,6 +44,10 @@ pub struct Segment {
     pub stop_at_end: bool,
     /// The block's rotary axes or tool axis (`crate::fiveaxis`).
     pub orientation: Option<Orientation>,
+    /// Tangential acceleration and jerk (mm/s², mm/s³) a feed hold or
+    /// abort may brake with on this segment: where a joint turns several
+    /// units per mm, less than the path's (infinite for three-axis blocks).
+    pub stop_limits: (f64, f64),
 }
 
 impl Segment {
@@ -339,6 +343,11 @@ impl BlockPlanner {
             .five
             .start_for(self.machine_kin.as_ref(), block.is_tcp(), self.tail)
             .map_err(PushError::Kinematics)?;
+        if let Some(o) = &block.orientation {
+            self.five
+                .check_join(self.machine_kin.as_ref(), o, block.path.u_start())
+                .map_err(PushError::Kinematics)?;
+        }
         let gap = (block.path.start_point() - tail).norm();
         if !(gap <= JOIN_TOLERANCE) {
             return Err(PushError::Discontinuous { gap });
@@ -576,10 +585,12 @@ impl BlockPlanner {
                 length: lengths[k],
                 stop_at_end: false,
                 orientation: block.orientation,
+                stop_limits: (f64::INFINITY, f64::INFINITY),
             };
             sample_laws(&seg, windows[k], block, &cfg, &mut self.window, h);
+            let mut seg = seg;
             if let Some(o) = &block.orientation {
-                q_s_end = sample_joints(
+                (q_s_end, seg.stop_limits) = sample_joints(
                     self.machine_kin.as_ref(),
                     o,
                     piece,

@@ -534,3 +534,115 @@ fn the_between_setpoint_tolerances_bind_and_hold() {
         }
     }
 }
+
+/// A feed hold in the middle of a five-axis block rests on the path with
+/// the tool axis on its program, within every joint limit, and resume
+/// finishes; an abort rests likewise, and the machine is idle in its own
+/// X Y Z (tool-centre-point control off) where a new program starts.
+#[test]
+fn hold_and_abort_stay_on_the_path_with_the_axis_on_its_program() {
+    let spec = machine("W/caxyBz/T", 80.0, (0, [0.0, 0.0, -40.0]));
+    let cfg = config(spec);
+    let m = Machine::new(spec).expect("machine");
+    let h = helix();
+    let start = joints_at(&m, h.point(0.0), h.a0);
+    let block = h.block(50.0);
+    for abort in [false, true] {
+        let mut ip: Box<Interpolator> = Box::new(Interpolator::new(cfg, start).expect("cfg"));
+        ip.push(&block).expect("push");
+        if !abort {
+            ip.finish();
+        }
+        let mut sps = Vec::new();
+        for k in 0..200_000 {
+            if k == 700 {
+                if abort {
+                    ip.abort();
+                } else {
+                    ip.feed_hold();
+                }
+            }
+            if k == 1500 && !abort {
+                ip.resume();
+            }
+            let sp = ip.tick();
+            sps.push(sp);
+            if matches!(sp.state, RunState::Done)
+                || (abort && k > 700 && sp.state == RunState::Idle)
+            {
+                break;
+            }
+        }
+        let rep = check(&cfg, start, &sps, &h);
+        assert_within(&cfg, &rep, if abort { "abort" } else { "hold" });
+        let held = if abort {
+            sps.last().expect("end")
+        } else {
+            &sps[1400]
+        };
+        assert!(abort || held.feed == 0.0, "at rest while held");
+        let pose = m.forward(&held.axes);
+        assert!(h.at(pose.tip).0 <= ON_PATH_TOL);
+        if abort {
+            // Idle in the machine's X Y Z: a three-axis move starts there.
+            let q = sps.last().expect("end").axes;
+            let from = Vec3::new(q[0], q[1], q[2]);
+            let next = Block::new(
+                9,
+                Path::Line(Line::new(from, from + Vec3::new(0.0, 0.0, 5.0)).expect("line")),
+                20.0,
+            );
+            ip.push(&next)
+                .expect("a new program from where the machine stands");
+            ip.finish();
+            let mut last = ip.tick();
+            while last.state != RunState::Done {
+                last = ip.tick();
+            }
+            assert_eq!(&last.axes[3..], &q[3..], "rotary axes stay");
+            assert!((last.axes[2] - q[2] - 5.0).abs() < 1e-12);
+        } else {
+            assert_eq!(sps.last().expect("end").state, RunState::Done);
+        }
+    }
+}
+
+/// A block whose rotary axes do not start where the previous one left
+/// them is refused (the joints would jump); the G64 smoothing stage passes
+/// five-axis blocks through unchanged.
+#[test]
+fn rotary_jumps_are_refused_and_smoothing_passes_five_axis_blocks() {
+    let cfg = InterpConfig::default();
+    let l1 = Path::Line(Line::new(Vec3::zeros(), Vec3::new(1.0, 0.0, 0.0)).expect("line"));
+    let l2 =
+        Path::Line(Line::new(Vec3::new(1.0, 0.0, 0.0), Vec3::new(2.0, 0.1, 0.0)).expect("line"));
+    let b1 = Block::new(1, l1, 20.0)
+        .with_orientation(Orientation::axes(&l1, [0.0; 3], [10.0, 0.0, 0.0]).expect("axes"));
+    let jump = Block::new(2, l2, 20.0).with_orientation(
+        Orientation::axes(&l2, [11.0, 0.0, 0.0], [12.0, 0.0, 0.0]).expect("axes"),
+    );
+    let mut ip = Box::new(Interpolator::<64>::new(cfg, [0.0; 6]).expect("cfg"));
+    ip.push(&b1).expect("first");
+    match ip.push(&jump) {
+        Err(PushError::Kinematics(JointError::Jump(d))) => assert!((d - 1.0).abs() < 1e-12, "{d}"),
+        other => panic!("expected a jump, got {other:?}"),
+    }
+    // Under G64 two short collinear-ish oriented lines are neither merged
+    // nor compressed.
+    let within = interp_core::path::Blending::Within {
+        tolerance: Some(0.05),
+    };
+    let mut sm: Box<interp_core::Smoother> =
+        Box::new(interp_core::Smoother::new(&cfg, 1).expect("smoother"));
+    let b2 = Block::new(2, l2, 20.0).with_orientation(
+        Orientation::axes(&l2, [10.0, 0.0, 0.0], [12.0, 0.0, 0.0]).expect("axes"),
+    );
+    for b in [b1, b2] {
+        sm.push(&b.with_blending(within)).expect("push");
+    }
+    sm.finish();
+    let out: Vec<Block> = core::iter::from_fn(|| sm.pop()).collect();
+    assert_eq!(out.len(), 2);
+    assert_eq!((out[0].path, out[0].orientation), (b1.path, b1.orientation));
+    assert_eq!((out[1].path, out[1].orientation), (b2.path, b2.orientation));
+}
