@@ -247,6 +247,7 @@ impl Orientation {
 
     /// The joints at tip (or X Y Z) `p` and parameter `u`, nearest `prev`.
     /// Under tool-centre-point control `machine` is required.
+    #[inline]
     pub fn joints(
         &self,
         machine: Option<&Machine>,
@@ -254,12 +255,24 @@ impl Orientation {
         u: f64,
         prev: &Joints,
     ) -> Result<Joints, JointError> {
+        self.solve(machine, p, u, prev).map(|(q, _)| q)
+    }
+
+    /// [`Self::joints`], and whether the tool axis is at the pole (the
+    /// first rotary joint kept its value).
+    pub fn solve(
+        &self,
+        machine: Option<&Machine>,
+        p: Vec3,
+        u: f64,
+        prev: &Joints,
+    ) -> Result<(Joints, bool), JointError> {
         match self.at(u) {
-            OrientationAt::Axes(abc) => Ok([p.x, p.y, p.z, abc[0], abc[1], abc[2]]),
+            OrientationAt::Axes(abc) => Ok(([p.x, p.y, p.z, abc[0], abc[1], abc[2]], false)),
             OrientationAt::ToolAxis(axis) => {
                 let m = machine.ok_or(JointError::NoMachine)?;
                 m.inverse(&ToolPose { tip: p, axis }, prev)
-                    .map(|s| s.joints)
+                    .map(|s| (s.joints, s.at_pole))
                     .map_err(JointError::Inverse)
             }
         }
@@ -289,6 +302,11 @@ pub enum JointError {
     /// end has them: by this much (degrees of a rotary joint, or of the
     /// tool axis).
     Jump(f64),
+    /// The tool axis leaves the pole (where the first rotary joint is kept)
+    /// in a direction that needs that joint elsewhere: it would jump by
+    /// this much, degrees. Program the move so that the axis leaves the
+    /// pole towards where that joint stands, or turn it first.
+    PoleDeparture(f64),
 }
 
 impl core::fmt::Display for JointError {
@@ -299,6 +317,10 @@ impl core::fmt::Display for JointError {
                 "tool-centre-point control needs a machine in the configuration"
             ),
             JointError::Inverse(e) => write!(f, "{e}"),
+            JointError::PoleDeparture(d) => write!(
+                f,
+                "the tool axis leaves the pole where the first rotary axis would have to jump by {d} degrees: turn it first, or leave the pole towards where it stands"
+            ),
             JointError::Jump(d) => write!(
                 f,
                 "the rotary axes or the tool axis do not start where the previous move left them ({d} degrees off)"
@@ -589,6 +611,10 @@ impl QueueEnd {
     }
 }
 
+/// Largest jump of a rotary joint accepted where the tool axis leaves the
+/// pole (measured a ten-thousandth of a law sample's step off it), degrees.
+pub const POLE_DEPARTURE_TOLERANCE: f64 = 1e-3;
+
 /// Largest jump accepted between where the queue's end leaves the rotary
 /// joints (or the tool axis) and where a block starts them, degrees.
 pub const JOIN_ANGLE_TOLERANCE: f64 = 1e-7;
@@ -653,13 +679,43 @@ pub fn walk_joints(
     joints: &mut Joints,
 ) -> Result<(), JointError> {
     let mut r = Ok(());
+    // The last sample at the pole (its parameter), if the last was.
+    let mut pole: Option<f64> = None;
     for_each_sample(path, s0, length, hs, |_, u| {
-        if r.is_ok() {
-            match orientation.joints(machine, path.eval(u, 0).p, u, joints) {
-                Ok(q) => *joints = q,
-                Err(e) => r = Err(e),
+        if r.is_err() {
+            return;
+        }
+        let solved = orientation.solve(machine, path.eval(u, 0).p, u, joints);
+        let (q, at_pole) = match solved {
+            Ok(v) => v,
+            Err(e) => {
+                r = Err(e);
+                return;
+            }
+        };
+        if let (Some(u_pole), false) = (pole, at_pole) {
+            // Leaving the pole: just off it, the joints must be where they
+            // stand (a continuous departure), not elsewhere (a jump).
+            let near = u_pole + (u - u_pole) * 1e-4;
+            match orientation.solve(machine, path.eval(near, 0).p, near, joints) {
+                Ok((qn, false)) => {
+                    let jump = (3..6)
+                        .map(|k| libm::fabs(qn[k] - joints[k]))
+                        .fold(0.0, f64::max);
+                    if jump > POLE_DEPARTURE_TOLERANCE {
+                        r = Err(JointError::PoleDeparture(jump));
+                        return;
+                    }
+                }
+                Ok((_, true)) => {}
+                Err(e) => {
+                    r = Err(e);
+                    return;
+                }
             }
         }
+        pole = at_pole.then_some(u);
+        *joints = q;
     });
     r
 }

@@ -646,3 +646,45 @@ fn rotary_jumps_are_refused_and_smoothing_passes_five_axis_blocks() {
     assert_eq!((out[0].path, out[0].orientation), (b1.path, b1.orientation));
     assert_eq!((out[1].path, out[1].orientation), (b2.path, b2.orientation));
 }
+
+/// Leaving the pole of a C,A table towards an azimuth C does not stand at
+/// would make C jump: refused, naming the jump; leaving it towards where C
+/// stands runs with C continuous.
+#[test]
+fn leaving_the_pole_needs_c_where_the_axis_goes() {
+    let spec = machine("W/caxyBz/T", 50.0, (0, [0.0, 0.0, -20.0]));
+    let cfg = config(spec);
+    let m = Machine::new(spec).expect("machine");
+    let (p0, p1) = (Vec3::new(10.0, 0.0, 0.0), Vec3::new(20.0, 0.0, 0.0));
+    let path = Path::Line(Line::new(p0, p1).expect("line"));
+    // Tilting towards +x from the pole needs C = ±90 (the axis is
+    // (sin C sin A, −cos C sin A, cos A)).
+    let o = Orientation::tool_axis(&path, Vec3::z(), tilted(20.0, Vec3::x())).expect("o");
+    let block = Block::new(1, path, 20.0).with_orientation(o);
+    for (c, ok) in [(0.0, false), (90.0, true), (-90.0, true)] {
+        let mut start = m
+            .inverse(
+                &ToolPose {
+                    tip: p0,
+                    axis: Vec3::z(),
+                },
+                &[0.0, 0.0, 0.0, 0.0, 0.0, c],
+            )
+            .expect("ik")
+            .joints;
+        start[5] = c;
+        let mut ip = Box::new(Interpolator::<64>::new(cfg, start).expect("cfg"));
+        match (ip.push(&block), ok) {
+            (Err(PushError::Kinematics(JointError::PoleDeparture(d))), false) => {
+                assert!((d - 90.0).abs() < 1e-6, "{d}")
+            }
+            (Ok(()), true) => {
+                let sps = run(&cfg, start, &[block]);
+                for w in sps.windows(2) {
+                    assert!((w[1].axes[5] - w[0].axes[5]).abs() < 1e-9, "C moved");
+                }
+            }
+            (r, _) => panic!("C at {c}: {r:?}"),
+        }
+    }
+}
