@@ -8,7 +8,7 @@ use interp_core::fiveaxis::Orientation as CoreOrientation;
 use interp_core::kinematics::{Joints, Machine, MachineSpec, ToolPose};
 
 use crate::error::{ConvertError, FiveAxisReason};
-use crate::program::{BlockKind, Feed, NurbsMove, Orientation, PathControl, Program, Rotary};
+use crate::program::{BlockKind, Feed, Orientation, PathControl, Program, Rotary};
 
 /// The interp-core blending mode of a path control mode: G61.1 exact stop,
 /// G61 exact path, G64 `P` (G64's `Q` merges nothing here: runs of short
@@ -82,8 +82,7 @@ impl Program {
     ///   G61, G64 P; G61 until the program sets one) becomes each block's
     ///   `blending`;
     /// - A B C of a move without tool-centre-point control become an
-    ///   [`CoreOrientation::Axes`] (a G6.2 with rotary coordinates an
-    ///   [`CoreOrientation::AxesCurve`] of the same knots and weights); under
+    ///   [`CoreOrientation::Axes`]; under
     ///   G43.4 the rotary positions become tool axes through
     ///   `opts.machine`'s forward transform, under G43.5 the I J K are the
     ///   tool axis, and the axis turns on the great circle between them
@@ -220,18 +219,14 @@ impl Program {
                         Feed::PerMinute(_) => 0.0,
                     };
                     let feed = feed_mm_s(m.feed, length, line)?;
-                    let rotary = pose.rotary_curve(m, orientation).map_err(five_err)?;
+                    if !m.rotary.is_empty() {
+                        return Err(five_err(FiveAxisReason::RotaryNurbs));
+                    }
                     for seg in pieces {
                         let path = Path::Nurbs(seg);
-                        let block = match &rotary {
-                            Some(curve) => Block::new(line, path, feed).with_orientation(
-                                CoreOrientation::axes_curve(&path, *curve)
-                                    .map_err(|e| five_err(FiveAxisReason::Orientation(e)))?,
-                            ),
-                            None => pose
-                                .orient(Block::new(line, path, feed), orientation)
-                                .map_err(five_err)?,
-                        };
+                        let block = pose
+                            .orient(Block::new(line, path, feed), orientation)
+                            .map_err(five_err)?;
                         sink(block, blending).map_err(ConvertOrSinkError::Sink)?;
                     }
                     pose.after(programmed_end, orientation, tcp)
@@ -387,35 +382,6 @@ impl Pose {
         }
         .map_err(FiveAxisReason::Orientation)?;
         Ok(block.with_orientation(core))
-    }
-
-    /// The rotary coordinates of a NURBS as a curve of its knots and
-    /// weights (`None`: it has none).
-    fn rotary_curve(
-        &self,
-        m: &NurbsMove,
-        o: &Orientation,
-    ) -> Result<Option<interp_core::Nurbs>, FiveAxisReason> {
-        if m.rotary.is_empty() {
-            return Ok(None);
-        }
-        if matches!(o, Orientation::TcpRotary { .. }) {
-            return Err(FiveAxisReason::TcpRotaryCurve);
-        }
-        if m.rotary.len() > MAX_CTRL {
-            return Err(FiveAxisReason::RotaryCurveTooLong(MAX_CTRL));
-        }
-        let pts: Vec<[f64; 3]> = m
-            .rotary
-            .iter()
-            .map(|r| {
-                let q = self.with_rotary(r);
-                [q[3], q[4], q[5]]
-            })
-            .collect();
-        interp_core::Nurbs::new(m.degree, &pts, &m.weights, &m.knots)
-            .map(Some)
-            .map_err(FiveAxisReason::RotaryCurve)
     }
 
     /// After a move to `end` (programmed): the joints there.

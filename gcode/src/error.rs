@@ -150,16 +150,11 @@ pub enum FiveAxisReason {
         "a move that only turns the rotary axes or the tool (the tool tip or X Y Z stand still) is not interpolated yet"
     )]
     RotaryOnly,
-    /// G43.4 with rotary coordinates on a NURBS.
+    /// Rotary coordinates on a NURBS (G6.2 A B C).
     #[error(
-        "rotary coordinates on a NURBS under G43.4 are not interpolated yet (give the tool axis with G43.5, or G1 moves)"
+        "rotary coordinates on a NURBS are not interpolated yet (give the moves as G1, or the tool axis with G43.5)"
     )]
-    TcpRotaryCurve,
-    /// Rotary coordinates on a NURBS of more control points than one piece holds.
-    #[error(
-        "rotary coordinates on a NURBS of more than {0} control points are not interpolated yet"
-    )]
-    RotaryCurveTooLong(usize),
+    RotaryNurbs,
     /// The first move after G43.4/G43.5/G49 is not a straight move.
     #[error(
         "the first move after tool-centre-point control goes on or off must be G0 or G1 (it starts where the machine stands: the tool tip, or X Y Z, of its joints)"
@@ -174,7 +169,4 @@ pub enum FiveAxisReason {
     /// The end pose is out of the machine's reach.
     #[error("{0}")]
     Inverse(interp_core::kinematics::InverseError),
-    /// The rotary curve is not a valid NURBS.
-    #[error("rotary coordinates: {0}")]
-    RotaryCurve(NurbsError),
 }

@@ -204,7 +204,7 @@ fn five_axis_moves_that_cannot_be_converted_are_refused_naming_the_line() {
             "G0 X0 Y0 Z0\nG43.4\nG1 X0 Y0 Z0 F100\nG6.2 P3 X0 Y0 R1 K0\nX1 Y1 C10 R1 K0\nX2 Y0 R1 K0\nG6.2 K1\nG6.2 K1\nG6.2 K1\n",
             ca,
             9,
-            FiveAxisReason::TcpRotaryCurve,
+            FiveAxisReason::RotaryNurbs,
         ),
         // Under TCP the first move after G43.4 starts where the machine's
         // tool tip is: an arc cannot.
@@ -275,16 +275,23 @@ fn five_axis_moves_convert_to_core_orientations() {
     assert!(!o.is_tcp());
     assert_eq!(o.at(0.0), OrientationAt::Axes([0.0, 0.0, 0.0]));
     assert_eq!(o.at(5.0), OrientationAt::Axes([15.0, 0.0, -45.0]));
-    // G6.2 with B coordinates: a curve of the same knots and weights.
-    let b = core(
+    // G6.2 with B coordinates (TCP off) is refused too, naming the line.
+    let e = parse(
         "G0 X0 Y0\nF600 G6.2 P3 X0 Y0 R1 K0\nX1 Y1 B10 R1 K0\nX2 Y0 B20 R1 K0\nG6.2 K1\nG6.2 K1\nG6.2 K1\n",
+    )
+    .unwrap()
+    .to_core_blocks(&CoreOptions::default())
+    .unwrap_err();
+    assert!(
+        matches!(
+            e,
+            ConvertError::FiveAxisMove {
+                line: 7,
+                reason: FiveAxisReason::RotaryNurbs,
+            }
+        ),
+        "{e}"
     );
-    let n = b.last().unwrap();
-    let Some(O::AxesCurve(c)) = n.orientation else {
-        panic!("{:?}", n.orientation)
-    };
-    assert_eq!(arr(c.eval(0.5, 0).p), [0.0, 10.0, 0.0]);
-    assert_eq!(arr(c.eval(1.0, 0).p), [0.0, 20.0, 0.0]);
 
     let opts = ca_options();
     let m = Machine::new(opts.machine.unwrap()).unwrap();

@@ -174,8 +174,10 @@ impl Driver {
             let p = Vec3::new(st.point[0], st.point[1], st.point[2]);
             if self.planner.tail_s() != st.s || self.planner.tail() != p {
                 self.planner.resync(p, st.s);
-                self.planner.set_rotary(st.rotary);
             }
+            // The rotary axes stand where the machine has them (at the
+            // start, after an abort): the next block's joints start there.
+            self.planner.set_rotary(st.rotary);
         }
         if self.planner.has_pending() {
             return Err(PushError::Pending);

@@ -22,7 +22,6 @@
 use crate::config::InterpConfig;
 use crate::geom::{Curve, Vec3};
 use crate::kinematics::{InverseError, Joints, Machine, ToolPose};
-use crate::nurbs::Nurbs;
 use crate::path::Path;
 use crate::plan::{AxisSample, Window, index_of};
 use crate::prepare::axis_jerk_may_bind;
@@ -37,8 +36,11 @@ pub const MAX_TURN: f64 = core::f64::consts::PI - 1e-6;
 pub const JOINT_STEP: f64 = 0.01;
 
 /// What a block does beside the path.
+///
+/// Small on purpose: every block and queued segment carries one, and the
+/// interpolator is built on the stack. (A second NURBS for the tool axis or
+/// the rotary coordinates would double a block's size; it is not here yet.)
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[allow(clippy::large_enum_variant)] // fixed-capacity by design, as `Path`
 pub enum Orientation {
     /// Tool-centre-point control off: the path is X Y Z of the machine, and
     /// the rotary joints A B C (degrees) go from `start` to `end` in
@@ -69,14 +71,6 @@ pub enum Orientation {
         /// See `u0`.
         u1: f64,
     },
-    /// Tool-centre-point control off, along a NURBS path: A B C (degrees)
-    /// are the coordinates of a curve of the same parameter (G6.2 with
-    /// rotary coordinates: the same knots and weights).
-    AxesCurve(Nurbs),
-    /// Tool-centre-point control on: the tool axis is the point of this
-    /// curve at the path's parameter, normalised (a second curve for the
-    /// tool axis; a circle of unit vectors gives a cone exactly).
-    ToolAxisCurve(Nurbs),
 }
 
 /// Why an [`Orientation`] was refused.
@@ -87,27 +81,12 @@ pub enum OrientationError {
     /// The tool axis would turn by nearly 180° (its great circle is not
     /// unique); the angle in degrees.
     HalfTurn(f64),
-    /// An orientation curve's parameter range does not cover the path's.
-    Range,
-    /// A tool-axis curve's control points do not lie in one open half-space
-    /// through the origin, so the curve may pass through zero.
-    AxisCurveThroughZero,
 }
 
 impl core::fmt::Display for OrientationError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
             OrientationError::BadValue => write!(f, "non-finite rotary position or tool axis"),
-            OrientationError::Range => {
-                write!(
-                    f,
-                    "the orientation curve's parameter range is not the path's"
-                )
-            }
-            OrientationError::AxisCurveThroughZero => write!(
-                f,
-                "the tool-axis curve's control points are not on one side of a plane through the origin"
-            ),
             OrientationError::HalfTurn(d) => write!(
                 f,
                 "the tool axis turns by {d} degrees in one move: split it (the way round is not unique)"
@@ -166,41 +145,9 @@ impl Orientation {
         })
     }
 
-    /// Rotary axes as plain axes, the coordinates of `curve` (A B C as x y
-    /// z), whose parameter range must cover `path`'s.
-    pub fn axes_curve(path: &Path, curve: Nurbs) -> Result<Self, OrientationError> {
-        same_range(path, &curve)?;
-        Ok(Orientation::AxesCurve(curve))
-    }
-
-    /// The tool axis as `curve`'s point normalised, at `path`'s parameter
-    /// (its range covering `path`'s). Refused if the curve could pass through zero (its
-    /// control points are not all on one side of a plane through the origin).
-    pub fn tool_axis_curve(path: &Path, curve: Nurbs) -> Result<Self, OrientationError> {
-        same_range(path, &curve)?;
-        let pt = |i: usize| Vec3::from(curve.control_point(i));
-        let mut mean = Vec3::zeros();
-        for i in 0..curve.control_count() {
-            let n = pt(i).norm();
-            if !(n > 0.0 && n.is_finite()) {
-                return Err(OrientationError::AxisCurveThroughZero);
-            }
-            mean += pt(i) / n;
-        }
-        // The convex hull of the control points holds the curve (positive
-        // weights): if all lie on the far side of a plane through 0, so does it.
-        if !(0..curve.control_count()).all(|i| pt(i).dot(&mean) > 0.0) {
-            return Err(OrientationError::AxisCurveThroughZero);
-        }
-        Ok(Orientation::ToolAxisCurve(curve))
-    }
-
     /// Under tool-centre-point control (the path is the tool tip)?
     pub fn is_tcp(&self) -> bool {
-        matches!(
-            self,
-            Orientation::ToolAxis { .. } | Orientation::ToolAxisCurve(_)
-        )
+        matches!(self, Orientation::ToolAxis { .. })
     }
 
     fn fraction(u: f64, u0: f64, u1: f64) -> f64 {
@@ -233,14 +180,6 @@ impl Orientation {
             } => {
                 let phi = theta * Self::fraction(u, u0, u1);
                 OrientationAt::ToolAxis(start * libm::cos(phi) + w * libm::sin(phi))
-            }
-            Orientation::AxesCurve(n) => {
-                let p = n.eval(u, 0).p;
-                OrientationAt::Axes([p.x, p.y, p.z])
-            }
-            Orientation::ToolAxisCurve(n) => {
-                let p = n.eval(u, 0).p;
-                OrientationAt::ToolAxis(p / p.norm())
             }
         }
     }
@@ -276,18 +215,6 @@ impl Orientation {
                     .map_err(JointError::Inverse)
             }
         }
-    }
-}
-
-/// The curve covers the path's parameter range (a piece of a split path
-/// keeps its parameter, so the whole curve serves every piece).
-fn same_range(path: &Path, curve: &Nurbs) -> Result<(), OrientationError> {
-    let (a, b) = (path.u_start(), path.u_end());
-    let tol = 1e-12 * (libm::fabs(a) + libm::fabs(b)).max(1.0);
-    if curve.u_start() <= a + tol && curve.u_end() >= b - tol {
-        Ok(())
-    } else {
-        Err(OrientationError::Range)
     }
 }
 
@@ -765,6 +692,7 @@ pub(crate) fn sample_joints(
                 it.machine = it.machine.min(v);
                 it.accel = it.accel.min(a);
                 it.jerk = it.jerk.min(j);
+                it.joint_jerk = it.joint_jerk.min(j);
             }
         }
         let l2 = v.min(cfg.max_path_speed) * v.min(cfg.max_path_speed);

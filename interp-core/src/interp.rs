@@ -286,6 +286,7 @@ impl<const Q: usize> Executor<Q> {
         if !p.iter().all(|c| c.is_finite()) {
             return Err(ConfigError::OutOfRange("position"));
         }
+        let machine = cfg.machine.and_then(|m| Machine::new(m).ok());
         Ok(Executor {
             cfg,
             queue: Deque::new(),
@@ -302,7 +303,7 @@ impl<const Q: usize> Executor<Q> {
             s_comp: 0.0,
             point: p,
             abc: [position[3], position[4], position[5]],
-            machine: cfg.machine.and_then(|m| Machine::new(m).ok()),
+            machine,
             tcp: false,
             joints: position,
             tail: p,
@@ -981,9 +982,10 @@ impl<const Q: usize> Interpolator<Q> {
     pub fn new(cfg: InterpConfig, position: [f64; 6]) -> Result<Self, ConfigError> {
         let exec = Executor::new(cfg, position)?;
         let p = Vec3::new(position[0], position[1], position[2]);
-        let mut driver = Driver::new(cfg, p, 0.0)?;
-        driver.set_rotary([position[3], position[4], position[5]]);
-        Ok(Interpolator { exec, driver })
+        Ok(Interpolator {
+            exec,
+            driver: Driver::new(cfg, p, 0.0)?,
+        })
     }
 
     /// Profile grid spacing (see [`grid_step`]).

@@ -83,6 +83,10 @@ pub struct Interval {
     /// A sample could not be kept (the interval had more than the capacity):
     /// its piece is planned with the worst case of the ones kept.
     pub overflow: bool,
+    /// The tangential jerk a five-axis block's joints allow here, mm/s³
+    /// (infinite for three-axis blocks): next to a rest point the
+    /// acceleration steps by half a tick of it at most (`rest_accel`).
+    pub joint_jerk: f64,
 }
 
 impl Interval {
@@ -95,6 +99,7 @@ impl Interval {
             samples: [AxisSample::default(); SAMPLES_PER_INTERVAL],
             n_samples: 0,
             overflow: false,
+            joint_jerk: f64::INFINITY,
         }
     }
     /// Keep a per-axis sample (the first ones; then the worst by curvature).
@@ -1043,12 +1048,11 @@ fn assemble_and_solve(
 
 /// The acceleration step allowed next to a rest point on a piece of
 /// interval `it`: half a tick of the path's jerk (`a_rest`), or of the
-/// interval's own tangential jerk where a joint has lowered it below the
-/// path's (a rotary joint that turns several degrees per mm; see
-/// `crate::fiveaxis`).
+/// jerk a five-axis block's joints allow there, if lower (a rotary joint
+/// that turns several degrees per mm; see `crate::fiveaxis`).
 fn rest_accel(a_rest: f64, it: &Interval, cfg: &InterpConfig) -> f64 {
-    if it.jerk < cfg.max_path_jerk * (1.0 - cfg.planning_margin) {
-        a_rest.min(0.5 * it.jerk * cfg.period)
+    if it.joint_jerk.is_finite() {
+        a_rest.min(0.5 * it.joint_jerk * cfg.period)
     } else {
         a_rest
     }

@@ -191,6 +191,10 @@ impl BlockPlanner {
             return Err(ConfigError::OutOfRange("position"));
         }
         let h = crate::interp::grid_step(&cfg);
+        // (Computed before the literal, which then builds in place: the
+        // planner is over a MiB.)
+        let machine_kin = cfg.machine.and_then(|m| Machine::new(m).ok());
+        let five = QueueEnd::new([tail.x, tail.y, tail.z, 0.0, 0.0, 0.0]);
         Ok(BlockPlanner {
             cfg,
             h,
@@ -206,8 +210,8 @@ impl BlockPlanner {
             planned_to: tail_s,
             finished: false,
             length_memo: None,
-            machine_kin: cfg.machine.and_then(|m| Machine::new(m).ok()),
-            five: QueueEnd::new([tail.x, tail.y, tail.z, 0.0, 0.0, 0.0]),
+            machine_kin,
+            five,
         })
     }
     /// The configuration it plans for.

@@ -14,7 +14,6 @@ use interp_core::fiveaxis::{JointError, Orientation};
 use interp_core::geom::Vec3;
 use interp_core::interp::PushError;
 use interp_core::kinematics::{Joints, Machine, MachineSpec, RotaryRange, ToolPose};
-use interp_core::nurbs::Nurbs;
 use interp_core::path::{Arc, Block, Line, Path};
 use interp_core::{InterpConfig, Interpolator, RunState, Setpoint};
 
@@ -245,57 +244,62 @@ fn helix_with_a_turning_tool_on_a_ca_table() {
 }
 
 /// The flank of a cone frustum in the manner of NAS 979: the tip runs
-/// round the bottom circle (radius `r`, a rational quadratic NURBS), the
-/// tool axis along the cone's generatrix, leaning `alpha` inwards — an
-/// affine image of the same NURBS, so it is exact and of unit length.
+/// round the bottom circle (radius `r`) in eight exact arcs, and the tool
+/// axis, along the cone's generatrix (leaning `alpha` inwards) at the arcs'
+/// ends, turns on the great circle between them: known in closed form at
+/// every angle.
 struct Frustum {
     r: f64,
     alpha: f64,
 }
 
+/// Arcs the frustum's circle is cut into.
+const FRUSTUM_ARCS: usize = 8;
+
 impl Frustum {
-    fn axis(&self, t: f64) -> Vec3 {
+    fn generatrix(&self, t: f64) -> Vec3 {
         Vec3::new(
             -libm::sin(self.alpha) * libm::cos(t),
             -libm::sin(self.alpha) * libm::sin(t),
             libm::cos(self.alpha),
         )
     }
-    fn block(&self, feed: f64) -> Block {
-        let s = core::f64::consts::FRAC_1_SQRT_2;
-        let unit = [
-            [1.0, 0.0],
-            [1.0, 1.0],
-            [0.0, 1.0],
-            [-1.0, 1.0],
-            [-1.0, 0.0],
-            [-1.0, -1.0],
-            [0.0, -1.0],
-            [1.0, -1.0],
-            [1.0, 0.0],
-        ];
-        let weights = [1.0, s, 1.0, s, 1.0, s, 1.0, s, 1.0];
-        let knots = [
-            0.0, 0.0, 0.0, 0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1.0, 1.0, 1.0,
-        ];
-        let tip: Vec<[f64; 3]> = unit
-            .iter()
-            .map(|p| [self.r * p[0], self.r * p[1], 0.0])
-            .collect();
-        let (sa, ca) = (libm::sin(self.alpha), libm::cos(self.alpha));
-        let axis: Vec<[f64; 3]> = unit.iter().map(|p| [-sa * p[0], -sa * p[1], ca]).collect();
-        let path = Path::Nurbs(Nurbs::new(2, &tip, &weights, &knots).expect("circle"));
-        let curve = Nurbs::new(2, &axis, &weights, &knots).expect("cone");
-        let o = Orientation::tool_axis_curve(&path, curve).expect("orientation");
-        Block::new(1, path, feed).with_orientation(o)
+    fn step(&self) -> f64 {
+        2.0 * PI / FRUSTUM_ARCS as f64
+    }
+    /// The programmed axis at angle `t` (on arc `⌊t/step⌋`).
+    fn axis(&self, t: f64) -> Vec3 {
+        let k = ((t / self.step()) as usize).min(FRUSTUM_ARCS - 1);
+        let (t0, t1) = (k as f64 * self.step(), (k + 1) as f64 * self.step());
+        let (a, b) = (self.generatrix(t0), self.generatrix(t1));
+        let theta = libm::atan2(a.cross(&b).norm(), a.dot(&b));
+        let w = (b - a * a.dot(&b)).normalize();
+        let phi = theta * (t - t0) / (t1 - t0);
+        a * libm::cos(phi) + w * libm::sin(phi)
+    }
+    fn blocks(&self, feed: f64) -> Vec<Block> {
+        let p = |t: f64| Vec3::new(self.r * libm::cos(t), self.r * libm::sin(t), 0.0);
+        (0..FRUSTUM_ARCS)
+            .map(|k| {
+                let (t0, t1) = (k as f64 * self.step(), (k + 1) as f64 * self.step());
+                let arc = Arc::from_centre(p(t0), p(t1), Vec3::zeros(), Vec3::z(), 0).expect("arc");
+                let path = Path::Arc(arc);
+                let o = Orientation::tool_axis(&path, self.generatrix(t0), self.generatrix(t1))
+                    .expect("orientation");
+                Block::new(k as u32 + 1, path, feed).with_orientation(o)
+            })
+            .collect()
     }
 }
 
 impl Reference for Frustum {
     fn at(&self, tip: Vec3) -> (f64, Vec3) {
-        let t = libm::atan2(tip.y, tip.x);
+        let mut t = libm::atan2(tip.y, tip.x);
+        if t < -1e-9 {
+            t += 2.0 * PI;
+        }
         let d = libm::hypot(libm::hypot(tip.x, tip.y) - self.r, tip.z);
-        (d, self.axis(t))
+        (d, self.axis(t.min(2.0 * PI)))
     }
 }
 
@@ -316,8 +320,8 @@ fn cone_frustum_flank_on_ca_and_ab_machines_gives_the_same_tip_path() {
         let spec = machine(chain, 60.0, centre);
         let cfg = config(spec);
         let m = Machine::new(spec).expect("machine");
-        let start = joints_at(&m, Vec3::new(f.r, 0.0, 0.0), f.axis(0.0));
-        let sps = run(&cfg, start, &[f.block(40.0)]);
+        let start = joints_at(&m, Vec3::new(f.r, 0.0, 0.0), f.generatrix(0.0));
+        let sps = run(&cfg, start, &f.blocks(40.0));
         let rep = check(&cfg, start, &sps, &f);
         assert_within(&cfg, &rep, chain);
         tips.push(sps.iter().map(|s| m.forward(&s.axes)).collect::<Vec<_>>());

@@ -112,14 +112,25 @@ impl Loaded {
     pub fn stats(&self) -> Stats {
         self.exec.stats()
     }
+    /// Back to the start of the program (as [`reload`]).
+    pub fn restart(&mut self) {
+        *self.exec = Executor::new(self.cfg, self.start).expect("valid config");
+        self.next = 0;
+    }
 }
 
 /// `blocks` planned to the end (see [`Loaded`]), ready to tick from the start.
 pub fn loaded(cfg: InterpConfig, blocks: &[Block]) -> Box<Loaded> {
-    let start = start_of(blocks);
+    loaded_at(cfg, start_of(blocks), blocks)
+}
+
+/// [`loaded`] with the machine starting at joints `start` (a five-axis
+/// program starts where its first tool tip and axis put them).
+pub fn loaded_at(cfg: InterpConfig, start: [f64; 6], blocks: &[Block]) -> Box<Loaded> {
     let mut exec: Box<Executor> = Box::new(Executor::new(cfg, start).expect("valid config"));
     let p = Vec3::new(start[0], start[1], start[2]);
     let mut driver = Box::new(Driver::new(cfg, p, 0.0).expect("valid config"));
+    driver.set_rotary([start[3], start[4], start[5]]);
     let mut plans = Vec::new();
     let mut next = 0;
     loop {
@@ -157,8 +168,7 @@ pub fn reload(ip: &mut Loaded, cfg: InterpConfig, blocks: &[Block]) {
         cfg == ip.cfg && start_of(blocks) == ip.start,
         "reload of another program"
     );
-    *ip.exec = Executor::new(cfg, ip.start).expect("valid config");
-    ip.next = 0;
+    ip.restart();
 }
 
 /// Runs `f` on a thread with room for the interpolator (it is built on the
