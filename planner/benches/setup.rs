@@ -144,6 +144,11 @@ fn run(name: &str, part: &TriMesh, cells: usize, repeats: usize) {
         }
         let p = last.expect("at least one run");
         let o = p.setup.as_ref().unwrap_or(&p.mar);
+        // The answer in full, to check that two builds agree.
+        println!(
+            "  {label} answer: cell {}, area {:e} rad², required {:?} rad, lower bound {:?}",
+            o.cell, o.placement.area, o.placement.required, o.lower_bound
+        );
         println!(
             "  {label}     : {:9.3} s  cpu {:9.3} s  ({} PVC classes, {} of {} cells evaluated, feasible {}, MAR {:.1?}°, gap to bound {:.2e} rad², {:?} equivalent)",
             best(&times),
