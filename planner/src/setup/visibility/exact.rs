@@ -13,7 +13,12 @@
 //!    seen from the patch (a silhouette). A blocked cell that no such edge
 //!    crosses lies wholly inside `U_p`, so wholly blocked: only the cells
 //!    those edges cross, and the cells the horizon crosses, are candidates.
-//! 2. A candidate is tested against every occluder whose cone meets it
+//! 2. Most candidates are settled without the hierarchy
+//!    ([`Exact::certify`]): closed when the occluders flooded over the
+//!    mesh from one covering a point of the cell have no outline edge
+//!    crossing it, open when a ray at one of its test points reaches the
+//!    patch.
+//! 3. A candidate left is tested against every occluder whose cone meets it
 //!    (found through the hierarchy, whatever the rasteriser skipped): first
 //!    at nine points (corners, edge midpoints, half-way to the corners); if
 //!    all are blocked, the occluders' outline edges and the horizon inside
