@@ -1206,6 +1206,43 @@ mod raster_tests {
         );
     }
 
+    /// Maps `mesh` on `sphere` with and without the flood certificate
+    /// (every `every`-th patch) and asserts they are the same, bit for bit;
+    /// returns how many candidates the fast path certified and opened.
+    fn assert_flood_keeps_map(
+        name: &str,
+        mesh: &TriMesh,
+        sphere: &GeodesicSphere,
+        every: usize,
+    ) -> (usize, usize) {
+        let caster = RayCaster::new(mesh);
+        let grid = CellGrid::new(sphere);
+        let shapes = exact::CellShapes::new(sphere);
+        let options = VisibilityOptions::default();
+        let fast = Rasteriser::new(&caster, &grid, &shapes, sphere, options);
+        let mut slow = Rasteriser::new(&caster, &grid, &shapes, sphere, options);
+        slow.exact.flood = false;
+        let (mut certified, mut opened) = (0, 0);
+        let mut scratch = PatchScratch::default();
+        let (mut row, mut reference) = (Vec::new(), Vec::new());
+        for t in (0..mesh.triangles.len()).step_by(every) {
+            let [a, b, c] = mesh.corners(t);
+            let origin = Point3::from((a.coords + b.coords + c.coords) / 3.0);
+            let normal = &mesh.normals[t];
+            for (ctx, out) in [(&fast, &mut row), (&slow, &mut reference)] {
+                out.clear();
+                out.resize(sphere.len().div_ceil(64), 0u64);
+                ctx.patch(&mut scratch, t, &origin, normal, out);
+                if std::ptr::eq(ctx, &fast) {
+                    certified += scratch.exact.certified;
+                    opened += scratch.exact.witnesses.len();
+                }
+            }
+            assert_eq!(row, reference, "{name}: patch {t}");
+        }
+        (certified, opened)
+    }
+
     /// The flood certificate and the rays before the gather (the fast
     /// path) give the map that the gather and the exact test give for
     /// every candidate, bit for bit, on tilted parts whose triangles are
@@ -1225,38 +1262,48 @@ mod raster_tests {
             let mesh = TriMesh::from_triangles(&rotated(&soup, &tilt), WeldOptions::default())
                 .expect("valid sample");
             let sphere = GeodesicSphere::with_at_least(cells).unwrap();
-            let caster = RayCaster::new(&mesh);
-            let grid = CellGrid::new(&sphere);
-            let shapes = exact::CellShapes::new(&sphere);
-            let options = VisibilityOptions::default();
-            let fast = Rasteriser::new(&caster, &grid, &shapes, &sphere, options);
-            let mut slow = Rasteriser::new(&caster, &grid, &shapes, &sphere, options);
-            slow.exact.flood = false;
-            let map = |ctx: &Rasteriser, counts: &mut (usize, usize)| {
-                let mut scratch = PatchScratch::default();
-                let mut rows = Vec::new();
-                for t in 0..mesh.triangles.len() {
-                    let [a, b, c] = mesh.corners(t);
-                    let origin = Point3::from((a.coords + b.coords + c.coords) / 3.0);
-                    let mut row = vec![0u64; sphere.len().div_ceil(64)];
-                    ctx.patch(&mut scratch, t, &origin, &mesh.normals[t], &mut row);
-                    counts.0 += scratch.exact.certified;
-                    counts.1 += scratch.exact.witnesses.len();
-                    rows.push(row);
-                }
-                rows
-            };
-            let mut counts = (0, 0);
-            let quick = map(&fast, &mut counts);
-            let reference = map(&slow, &mut (0, 0));
-            for (t, (q, r)) in quick.iter().zip(&reference).enumerate() {
-                assert_eq!(q, r, "{name}: patch {t}");
-            }
-            certified += counts.0;
-            opened += counts.1;
+            let (c, o) = assert_flood_keeps_map(name, &mesh, &sphere, 1);
+            certified += c;
+            opened += o;
         }
         // The fast path did decide cells both ways.
         assert!(certified > 1000 && opened > 1000, "{certified} {opened}");
+    }
+
+    /// The same on corpus meshes turned a random way, at the 5,000
+    /// cells (every tenth patch). Needs the corpus (`INTERPD_CORPUS`, or
+    /// `../shared/corpus` next to the checkout); skipped without it.
+    #[test]
+    fn flood_certificate_gives_the_map_of_the_exact_test_on_corpus_meshes() {
+        let corpus = std::env::var_os("INTERPD_CORPUS")
+            .map(std::path::PathBuf::from)
+            .unwrap_or_else(|| {
+                std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/corpus")
+            });
+        let sphere = GeodesicSphere::with_at_least(5000).unwrap();
+        for (k, file) in [
+            "ocl_demo.stl",
+            "ocl_ktoolcav.stl",
+            "ocl_sphere_on_plate.stl",
+        ]
+        .iter()
+        .enumerate()
+        {
+            let path = corpus.join("meshes").join(file);
+            if !path.exists() {
+                eprintln!("skipped: {} not found (set INTERPD_CORPUS)", path.display());
+                return;
+            }
+            let mesh = TriMesh::from_stl_path(&path, WeldOptions::default()).expect("corpus mesh");
+            let soup: Vec<_> = (0..mesh.triangles.len()).map(|t| mesh.corners(t)).collect();
+            let turned = rotated(&soup, &crate::setup::samples::random_rotation(k as u64 + 7));
+            let mesh = TriMesh::from_triangles(&turned, WeldOptions::default()).expect("turned");
+            let (certified, opened) = assert_flood_keeps_map(file, &mesh, &sphere, 10);
+            assert!(
+                certified + opened > 0,
+                "{file}: nothing decided by the fast path"
+            );
+        }
     }
 
     #[test]
