@@ -32,12 +32,13 @@ use std::thread::JoinHandle;
 use anyhow::{Context, Result, anyhow, bail};
 use heapless::spsc::{Consumer, Producer, Queue};
 use interp_core::interp::PushError;
-use interp_core::{Block, Driver, Executor, InterpConfig, PlannedBlock, RunState, Setpoint, Vec3};
+use interp_core::{Block, Executor, InterpConfig, PlannedBlock, RunState, Setpoint};
+use interp_run::{Op, Run};
 
 use crate::service::clock::{minimise_timer_slack, now_ns, wait_until_ns};
 use crate::service::histogram::Histogram;
 use crate::service::publish::SetpointPublisher;
-use crate::service::sequencer::{Op, Sequencer, Step};
+use crate::service::sequencer::{Sequencer, Step};
 
 /// Segments queued between the control plane and the planning thread (one slot is kept free).
 pub const SEGMENT_SLOTS: usize = 16;
@@ -464,17 +465,14 @@ pub fn spawn(cfg: InterpConfig, position: [f64; 6], opts: RtOptions) -> Result<R
         .name("interpd-plan".into())
         .stack_size(RT_STACK_BYTES)
         .spawn(move || {
-            let start = Vec3::new(position[0], position[1], position[2]);
-            let (exec, driver) = match (Executor::new(cfg, position), Driver::new(cfg, start, 0.0))
-            {
-                (Ok(e), Ok(d)) => (Box::new(e), Box::new(d)),
+            let run = match Run::new(cfg, position) {
+                Ok(r) => Box::new(r.recording()),
                 // The RT thread built the same executor from the same
                 // config: this cannot fail once it started.
-                _ => return,
+                Err(_) => return,
             };
             Sequencer {
-                exec,
-                driver,
+                run,
                 segments: seg_rx,
                 commands: cmd_rx,
                 failures: fail_tx,
@@ -493,7 +491,6 @@ pub fn spawn(cfg: InterpConfig, position: [f64; 6], opts: RtOptions) -> Result<R
                 finished: false,
                 end_requested: None,
                 pending: None,
-                outbox: Vec::new(),
             }
             .run();
         })
@@ -628,24 +625,21 @@ impl Loop {
             let Some(step) = self.steps.dequeue() else {
                 break;
             };
-            match step.op {
-                Op::Commit(plan) => {
-                    let t0 = now_ns();
-                    // A refusal is the planning thread's too: its copy was
-                    // offered the same plan in the same state.
-                    let _ = self.exec.commit(&plan);
-                    commit_ns += (now_ns() - t0).max(0) as u64;
-                    self.recycle(plan);
-                }
-                Op::Hold => self.exec.feed_hold(),
-                Op::Resume => self.exec.resume(),
-                Op::Abort { operator } => {
-                    self.exec.abort();
-                    if operator {
+            if let Some(op) = step.op {
+                let t0 = now_ns();
+                // A refusal is the planning thread's too: its copy was
+                // offered the same plan in the same state.
+                let _ = op.apply(&mut self.exec);
+                match op {
+                    Op::Commit(plan) => {
+                        commit_ns += (now_ns() - t0).max(0) as u64;
+                        self.recycle(plan);
+                    }
+                    Op::Abort if step.operator => {
                         self.status.aborts.fetch_add(1, Ordering::AcqRel);
                     }
+                    _ => {}
                 }
-                Op::Mark => {}
             }
             if let Some(what) = step.record {
                 self.record(RtRecord::Applied { tick: ticks, what });
@@ -764,7 +758,7 @@ impl Loop {
             }
         }
         while let Some(step) = self.steps.dequeue() {
-            if let Op::Commit(plan) = step.op {
+            if let Some(Op::Commit(plan)) = step.op {
                 self.recycle(plan);
             }
         }

@@ -27,12 +27,10 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Error, Result, anyhow, bail};
 use heapless::spsc::{Producer, Queue};
-use interp_core::interp::Stats;
 use interp_core::metrics::chord_error_between;
 use interp_core::samples::butterfly;
-use interp_core::{
-    Block, Curve, Driver, Executor, InterpConfig, PlannedBlock, RunState, Setpoint, Vec3,
-};
+use interp_core::{Block, Curve, InterpConfig, RunState, Setpoint, Vec3};
+use interp_run::{PlanError, Replay};
 use serde::Serialize;
 
 use crate::check::{Checker, Limits, Measured, Violations};
@@ -51,6 +49,8 @@ const CHORD_SAMPLES: usize = 16;
 const MAX_MACHINE_TIME_S: f64 = 3600.0;
 /// ... or after the path has not moved for this long while running, s.
 const STALL_TIME_S: f64 = 1.0;
+/// Planning gives up after this many ticks: the run does not end.
+const MAX_PLAN_TICKS: u64 = 100_000_000;
 
 /// Options of `interpd demo`.
 #[derive(Clone, Debug, clap::Args)]
@@ -191,85 +191,32 @@ impl Drop for SetOnDrop<'_> {
     }
 }
 
-/// A program as the service's RT thread runs it: every plan a [`Driver`]
-/// makes for it (blocks pushed as `simulate` pushes them), with the tick it
-/// precedes, is offered to an [`Executor`] at that tick. Planning happens
-/// before the loop; the loop's ticks cost what the RT thread's cost.
-#[derive(Debug)]
-pub(crate) struct Planned {
-    exec: Box<Executor>,
-    plans: Vec<(u64, Box<PlannedBlock>)>,
-    next: usize,
-}
-
-impl Planned {
-    /// Plans `blocks` from `start` to the end of the program.
-    fn new(cfg: InterpConfig, start: [f64; 6], blocks: &[Block]) -> Result<Self> {
-        let config = |e: interp_core::config::ConfigError| anyhow!("{e:?}");
-        let mut exec: Box<Executor> = Box::new(Executor::new(cfg, start).map_err(config)?);
-        let p = Vec3::new(start[0], start[1], start[2]);
-        let mut driver = Box::new(Driver::new(cfg, p, 0.0).map_err(config)?);
-        let mut plans = Vec::new();
-        let mut next = 0;
-        loop {
-            let at = exec.stats().ticks;
-            let mut sink = |p: &PlannedBlock| plans.push((at, Box::new(p.clone())));
-            while let Some(b) = blocks.get(next) {
-                match driver.push_into(&mut exec, b, &mut sink) {
-                    Ok(()) => next += 1,
-                    Err(e) if e.is_wait() => break,
-                    Err(e) => {
-                        return Err(Error::msg(e)).with_context(|| {
-                            format!(
-                                "planning butterfly block {} ({} of {}, {:.3} mm)",
-                                b.id,
-                                next + 1,
-                                blocks.len(),
-                                b.path.length()
-                            )
-                        });
-                    }
-                }
-                if next == blocks.len() {
-                    driver.finish_into(&mut exec, &mut sink);
-                }
-            }
-            driver.drive(&mut exec, &mut sink);
-            let sp = exec.tick();
-            if matches!(sp.state, RunState::Done | RunState::Fault) {
-                break;
-            }
-            if at > 100_000_000 {
-                bail!("planning the butterfly: the run does not end");
-            }
+/// Plans `blocks` from `start` to the end of the program before the loop
+/// (`interp_run::plan`, blocks pushed as `simulate` pushes them): the loop
+/// then gives each plan to an executor at the tick it was made for, as the
+/// service's RT thread does, and its ticks cost what the RT thread's cost.
+fn planned(cfg: InterpConfig, start: [f64; 6], blocks: &[Block]) -> Result<Replay> {
+    interp_run::plan(cfg, start, blocks, MAX_PLAN_TICKS).map_err(|e| match e {
+        PlanError::Run {
+            index: Some(k),
+            error,
+        } => {
+            let b = &blocks[k];
+            anyhow!(
+                "planning butterfly block {} ({} of {}, {:.3} mm): {error}",
+                b.id,
+                k + 1,
+                blocks.len(),
+                b.path.length()
+            )
         }
-        Ok(Planned {
-            exec: Box::new(Executor::new(cfg, start).map_err(config)?),
-            plans,
-            next: 0,
-        })
-    }
-
-    /// One period: the plans for it, then the executor's tick (no allocation).
-    fn tick(&mut self) -> Setpoint {
-        let t = self.exec.stats().ticks;
-        while let Some((at, plan)) = self.plans.get(self.next)
-            && *at == t
-        {
-            let _ = self.exec.commit(plan);
-            self.next += 1;
-        }
-        self.exec.tick()
-    }
-
-    fn stats(&self) -> Stats {
-        self.exec.stats()
-    }
+        e => anyhow!("planning the butterfly: {e}"),
+    })
 }
 
 /// The fixed-period loop. Everything it touches is allocated by the caller.
 fn run_loop(
-    ip: &mut Planned,
+    ip: &mut Replay,
     mut sub: Checker,
     mut lateness: Histogram,
     mut compute: Histogram,
@@ -585,7 +532,7 @@ fn config(args: &DemoArgs) -> InterpConfig {
 struct Prepared {
     cfg: InterpConfig,
     blocks: Vec<Block>,
-    ip: Box<Planned>,
+    ip: Box<Replay>,
     start: Vec3,
     end: Vec3,
     length: f64,
@@ -612,7 +559,7 @@ impl Prepared {
         let end = last.path.end_point();
         let length: f64 = blocks.iter().map(|b| b.path.length()).sum();
 
-        let ip = Box::new(Planned::new(
+        let ip = Box::new(planned(
             cfg,
             [start.x, start.y, start.z, 0.0, 0.0, 0.0],
             &blocks,
