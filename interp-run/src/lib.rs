@@ -19,9 +19,14 @@
 //! `traces::sim` (`interpd simulate` and `replay`) drives a [`Run`]; the
 //! service's planning thread sends the same [`Op`]s to its RT thread.
 //!
+//! [`check`] is the setpoint checker every run is held to (demo, jitter's
+//! subscriber, the tests).
+//!
 //! `interp-core` stays `#![no_std]` without an allocator; this crate keeps
 //! the steps in `Vec`s and boxes, so it is the std side of the loop.
 #![forbid(unsafe_code)]
+
+pub mod check;
 
 use core::convert::Infallible;
 

@@ -636,7 +636,7 @@ pub fn run(args: &DemoArgs, on_setpoint: impl FnMut(&Setpoint)) -> Result<Summar
         error: None,
     };
 
-    let out = std::thread::scope(|s| -> Result<LoopOutcome> {
+    let mut out = std::thread::scope(|s| -> Result<LoopOutcome> {
         let (ip, stop, done) = (&mut *ip, &stop, &done);
         let handle = std::thread::Builder::new()
             .name("interp-loop".into())
@@ -668,16 +668,7 @@ pub fn run(args: &DemoArgs, on_setpoint: impl FnMut(&Setpoint)) -> Result<Summar
     let stats = ip.stats();
     let last_sp = out.last;
     let final_point = [last_sp.axes[0], last_sp.axes[1], last_sp.axes[2]];
-    let mut violations = out.sub.violations;
-    if last_sp.state != RunState::Done {
-        violations.not_done = 1;
-    }
-    if final_point != point3(end) {
-        violations.end_mismatch = 1;
-    }
-    if violations.total() > 0 && violations.first_seq.is_none() {
-        violations.first_seq = Some(last_sp.seq);
-    }
+    let violations = out.sub.finish(Some(point3(end)));
     Ok(Summary {
         program: Program {
             name: "butterfly (LinuxCNC curva_farfalla, degree-4 rational NURBS, 51 control points)",

@@ -16,6 +16,7 @@ use interp_core::InterpConfig;
 use interp_core::samples::butterfly;
 use serde::Serialize;
 
+use crate::check::Violations;
 use crate::service::clock::{now_ns, wait_until_ns};
 use crate::service::histogram::Histogram;
 use crate::service::histogram::Percentiles;
@@ -76,6 +77,10 @@ pub struct JitterReport {
     pub subscriber_received: u64,
     /// Samples it missed.
     pub subscriber_gaps: u64,
+    /// Ticks it checked against the machine's limits (`interp_run::check`).
+    pub subscriber_checked_ticks: u64,
+    /// Checks that failed there (`None`: the subscriber checked nothing).
+    pub subscriber_violations: Option<Violations>,
     /// Ticks the recorder had no room for.
     pub recorder_drops: u64,
     /// Full-pipeline p99 lateness / bare-loop p99 lateness.
@@ -184,6 +189,11 @@ pub fn main(args: &JitterArgs) -> Result<()> {
     let child = Command::new(exe)
         .args(["watch", "--service", &service, "--json", "--seconds"])
         .arg(format!("{}", args.seconds + SUBSCRIBER_GRACE_S))
+        // Every published tick through the setpoint checker.
+        .arg("--check-feed")
+        .arg(format!("{FEED_MM_MIN}"))
+        .arg("--check-period-us")
+        .arg(format!("{}", args.rt.period_us))
         .stdout(Stdio::piped())
         .stderr(Stdio::inherit())
         .spawn()
@@ -265,6 +275,10 @@ pub fn main(args: &JitterArgs) -> Result<()> {
         },
         subscriber_received: sub["received"].as_u64().unwrap_or(0),
         subscriber_gaps: sub["gaps"].as_u64().unwrap_or(u64::MAX),
+        subscriber_checked_ticks: sub["checked_ticks"].as_u64().unwrap_or(0),
+        subscriber_violations: serde_json::from_value(sub["violations"].clone())
+            .ok()
+            .flatten(),
         recorder_drops: summary.recorder_drops,
         p99_lateness_ratio,
         bare_alongside,
@@ -277,7 +291,16 @@ pub fn main(args: &JitterArgs) -> Result<()> {
     } else {
         print_report(&report);
     }
-    Ok(())
+    match report.subscriber_violations {
+        None => bail!("the subscriber checked no setpoint"),
+        Some(v) if v.total() > 0 => bail!(
+            "{} check(s) failed on the published setpoints ({}), first at tick {:?}",
+            v.total(),
+            v.breakdown(),
+            v.first_seq
+        ),
+        Some(_) => Ok(()),
+    }
 }
 
 fn print_report(r: &JitterReport) {
@@ -311,6 +334,14 @@ fn print_report(r: &JitterReport) {
         r.recorder_drops,
         r.subscriber_received,
         r.subscriber_gaps
+    );
+    println!(
+        "  setpoint checks: {} ticks checked, {}",
+        r.subscriber_checked_ticks,
+        r.subscriber_violations.map_or_else(
+            || "none (no sample at rest before tick 1)".to_owned(),
+            |v| format!("{} failed", v.total())
+        )
     );
     if let Some(x) = r.p99_lateness_ratio {
         println!("  p99 lateness full / bare: {x:.2}");
