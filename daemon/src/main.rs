@@ -20,10 +20,10 @@ static ALLOCATOR: rt_alloc::RtPool<std::alloc::System> = rt_alloc::RtPool(std::a
 fn main() -> Result<()> {
     match Cli::parse().command {
         Command::Demo(args) => command::demo::run(&args),
-        Command::Serve(args) => command::serve::run(&args),
-        Command::Send(args) => command::send::run(&args),
-        Command::Watch(args) => command::watch::run(&args),
-        Command::Jitter(args) => command::jitter::run(&args),
+        Command::Serve(args) => command::serve::run(&args.into()),
+        Command::Send(args) => command::send::run(&args.into()),
+        Command::Watch(args) => command::watch::run(&args.into()),
+        Command::Jitter(args) => command::jitter::run(&args.into()),
         Command::Simulate(args) => command::simulate::run(&args),
         Command::Replay(args) => command::replay::run(&args),
         Command::Trace(args) => command::trace::run(&args),

@@ -16,9 +16,7 @@ use serde::Serialize;
 
 use crate::check::{Checker, Limits, Measured, Violations};
 
-use crate::service::publish::{
-    DEFAULT_SERVICE, SETPOINT_TYPE_NAME, SetpointSubscriber, run_state, state_name,
-};
+use crate::service::publish::{SETPOINT_TYPE_NAME, SetpointSubscriber, run_state, state_name};
 
 /// How long one wait for samples lasts.
 const POLL: Duration = Duration::from_millis(2);
@@ -26,41 +24,31 @@ const POLL: Duration = Duration::from_millis(2);
 pub const DEFAULT_LIVENESS_S: f64 = 5.0;
 
 /// Options of `interpd watch`.
-#[derive(Clone, Debug, clap::Args)]
-pub struct WatchArgs {
+#[derive(Clone, Debug, PartialEq)]
+pub struct WatchOptions {
     /// iceoryx2 service name.
-    #[arg(long, default_value = DEFAULT_SERVICE)]
     pub service: String,
     /// Stop after this many samples.
-    #[arg(long)]
     pub count: Option<u64>,
     /// Stop after this many seconds.
-    #[arg(long)]
     pub seconds: Option<f64>,
     /// Stop at the first sample in state `done` after one that was moving.
-    #[arg(long)]
     pub until_done: bool,
     /// Give up when no sample arrives for this many seconds: the publisher
     /// is dead (or was never there).
-    #[arg(long, value_name = "SECONDS", default_value_t = DEFAULT_LIVENESS_S)]
     pub liveness: f64,
     /// Write every sample (seq,tick,time,x,y,z,feed,u,s,block_id,state) to this CSV.
-    #[arg(long, value_name = "PATH")]
     pub csv: Option<PathBuf>,
     /// Print a line per this many samples (0: none).
-    #[arg(long, default_value_t = 0)]
     pub every: u64,
     /// Print the summary as JSON.
-    #[arg(long)]
     pub json: bool,
     /// Check every tick against the default machine limits for a program
     /// at this feed, mm/min (the setpoint checker, `interp_run::check`),
     /// from the first sample at rest before tick 1; a failed check makes
     /// it exit non-zero.
-    #[arg(long, value_name = "MM_PER_MIN")]
     pub check_feed: Option<f64>,
     /// The service's interpolation period, µs (for `--check-feed`).
-    #[arg(long, value_name = "US", default_value_t = 1000)]
     pub check_period_us: u32,
 }
 
@@ -75,7 +63,7 @@ struct TickCheck {
 }
 
 impl TickCheck {
-    fn new(args: &WatchArgs) -> Option<Self> {
+    fn new(args: &WatchOptions) -> Option<Self> {
         let feed = args.check_feed?;
         let cfg = InterpConfig {
             period: f64::from(args.check_period_us) * 1e-6,
@@ -140,7 +128,7 @@ pub struct WatchSummary {
 }
 
 /// Runs `watch`; fails when samples were missed.
-pub fn main(args: &WatchArgs) -> Result<()> {
+pub fn main(args: &WatchOptions) -> Result<()> {
     if !(args.liveness.is_finite() && args.liveness > 0.0) {
         bail!("--liveness must be a positive number of seconds");
     }

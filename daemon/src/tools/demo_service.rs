@@ -13,7 +13,7 @@ use serde::Serialize;
 use crate::check::{Checker, Violations};
 use crate::service::histogram::Percentiles;
 use crate::service::publish::SetpointSubscriber;
-use crate::service::serve::ServeArgs;
+use crate::service::serve::ServeOptions;
 use crate::tools::demo::{DemoArgs, Summary, butterfly_request};
 
 /// The subscriber gives up when no sample arrives for this long.
@@ -151,7 +151,7 @@ pub fn run(args: &DemoArgs, direct: &Summary) -> Result<ServiceRun> {
         max_path_accel: args.accel,
         ..InterpConfig::default()
     };
-    let mut sargs = ServeArgs::in_process(&service);
+    let mut sargs = ServeOptions::in_process(&service);
     sargs.rt.period_us = args.period_us.clamp(250, 10_000);
     sargs.rt.no_rt = args.no_rt;
     sargs.position = Some(butterfly::START.to_vec());
@@ -203,7 +203,7 @@ pub fn run(args: &DemoArgs, direct: &Summary) -> Result<ServiceRun> {
     let svc = crate::service::serve::start(&sargs, cfg, false, None)?;
     let addr = svc.addr;
     let line = butterfly_request(args.feed);
-    let send_args = crate::client::send::SendArgs {
+    let send_args = crate::client::send::SendOptions {
         program: "butterfly".into(),
         addr,
         socket: None,

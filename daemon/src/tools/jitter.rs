@@ -20,8 +20,8 @@ use crate::check::Violations;
 use crate::service::clock::{now_ns, wait_until_ns};
 use crate::service::histogram::Histogram;
 use crate::service::histogram::Percentiles;
-use crate::service::rt::{RtArgs, RtOptions};
-use crate::service::serve::ServeArgs;
+use crate::service::rt::{RtOptions, RtSettings};
+use crate::service::serve::ServeOptions;
 
 /// Programmed feed of the jitter program, mm/min.
 const FEED_MM_MIN: f64 = 6000.0;
@@ -31,16 +31,13 @@ const LOOPS_PER_SECOND: f64 = 5.0;
 const SUBSCRIBER_GRACE_S: f64 = 3.0;
 
 /// Options of `interpd jitter`.
-#[derive(Clone, Debug, clap::Args)]
-pub struct JitterArgs {
+#[derive(Clone, Debug, PartialEq)]
+pub struct JitterOptions {
     /// Seconds for each of the two loops.
-    #[arg(long, default_value_t = 10.0)]
     pub seconds: f64,
     /// Period and scheduling of both loops, as `interpd serve` takes them.
-    #[command(flatten)]
-    pub rt: RtArgs,
+    pub rt: RtSettings,
     /// Print the result as JSON.
-    #[arg(long)]
     pub json: bool,
 }
 
@@ -170,7 +167,7 @@ fn program(loops: usize) -> Vec<String> {
 }
 
 /// Runs `jitter`.
-pub fn main(args: &JitterArgs) -> Result<()> {
+pub fn main(args: &JitterOptions) -> Result<()> {
     if !(args.seconds.is_finite() && args.seconds > 0.0) {
         bail!("--seconds must be positive");
     }
@@ -201,13 +198,13 @@ pub fn main(args: &JitterArgs) -> Result<()> {
     // Let the subscriber open the service before the first sample.
     std::thread::sleep(Duration::from_millis(500));
 
-    let mut sargs = ServeArgs::in_process(&service);
+    let mut sargs = ServeOptions::in_process(&service);
     sargs.rt = args.rt.clone();
     sargs.position = Some(butterfly::START.to_vec());
     let svc = crate::service::serve::start(&sargs, InterpConfig::default(), false, None)?;
     let addr = svc.addr;
     let lines = program((args.seconds * LOOPS_PER_SECOND).ceil() as usize + 1);
-    let send_args = crate::client::send::SendArgs {
+    let send_args = crate::client::send::SendOptions {
         program: "jitter".into(),
         addr,
         socket: None,
