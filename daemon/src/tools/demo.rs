@@ -52,47 +52,50 @@ const STALL_TIME_S: f64 = 1.0;
 /// Planning gives up after this many ticks: the run does not end.
 const MAX_PLAN_TICKS: u64 = 100_000_000;
 
-/// Options of `interpd demo`.
-#[derive(Clone, Debug, clap::Args)]
-pub struct DemoArgs {
-    /// Programmed feed, mm/min.
-    #[arg(long, value_name = "MM_PER_MIN", default_value_t = 6000.0)]
+/// Options of `interpd demo`; [`Default`] holds the documented defaults.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DemoOptions {
+    /// Programmed feed, mm/min (default 6000).
     pub feed: f64,
-    /// Interpolation period, µs.
-    #[arg(
-        long,
-        value_name = "US",
-        default_value_t = 1000,
-        value_parser = clap::value_parser!(u32).range(1..=1_000_000)
-    )]
+    /// Interpolation period, µs (default 1000).
     pub period_us: u32,
-    /// Chord tolerance of the chord-error feed law, mm.
-    #[arg(long, value_name = "MM", default_value_t = InterpConfig::default().chord_tolerance)]
+    /// Chord tolerance of the chord-error feed law, mm (default: `InterpConfig`'s).
     pub chord_tolerance_mm: f64,
-    /// Tangential acceleration limit, mm/s².
-    #[arg(long, value_name = "MM_PER_S2", default_value_t = InterpConfig::default().max_path_accel)]
+    /// Tangential acceleration limit, mm/s² (default: `InterpConfig`'s).
     pub accel: f64,
     /// Do not sleep: tick as fast as possible. Same setpoints; timing is then not meaningful.
-    #[arg(long)]
     pub fast: bool,
     /// Print the summary as one JSON object.
-    #[arg(long)]
     pub json: bool,
     /// Write every setpoint to this CSV file (seq,time,x,y,z,feed,u,s,block_id,state).
-    #[arg(long, value_name = "PATH")]
     pub csv: Option<PathBuf>,
     /// Skip the second run through the service (RT thread, iceoryx2, TCP control plane).
-    #[arg(long)]
     pub no_service: bool,
     /// Normal scheduling for the service run (no SCHED_FIFO, mlockall or pinning).
-    #[arg(long)]
     pub no_rt: bool,
-    /// Directory for the plots (PNG) and the service run's recording (`run.mcap`); made if missing.
-    #[arg(long, value_name = "DIR", default_value = DEFAULT_OUT_DIR)]
+    /// Directory for the plots (PNG) and the service run's recording
+    /// (`run.mcap`); made if missing (default [`DEFAULT_OUT_DIR`]).
     pub out: PathBuf,
     /// Do not write the plots.
-    #[arg(long)]
     pub no_plots: bool,
+}
+
+impl Default for DemoOptions {
+    fn default() -> Self {
+        DemoOptions {
+            feed: 6000.0,
+            period_us: 1000,
+            chord_tolerance_mm: InterpConfig::default().chord_tolerance,
+            accel: InterpConfig::default().max_path_accel,
+            fast: false,
+            json: false,
+            csv: None,
+            no_service: false,
+            no_rt: false,
+            out: PathBuf::from(DEFAULT_OUT_DIR),
+            no_plots: false,
+        }
+    }
 }
 
 /// Where `interpd demo` writes its plots and recording unless `--out` says otherwise.
@@ -101,7 +104,7 @@ pub const DEFAULT_OUT_DIR: &str = "out/demo";
 pub const RECORDING_FILE: &str = "run.mcap";
 
 /// Runs the demo, prints the summary, and fails if any check failed.
-pub fn main(args: &DemoArgs) -> Result<()> {
+pub fn main(args: &DemoOptions) -> Result<()> {
     let mut setpoints = Vec::new();
     let mut summary = run(args, |sp| {
         if !args.no_plots {
@@ -518,7 +521,7 @@ pub struct Summary {
 }
 
 /// The interpolator configuration of the direct run.
-fn config(args: &DemoArgs) -> InterpConfig {
+fn config(args: &DemoOptions) -> InterpConfig {
     InterpConfig {
         period: f64::from(args.period_us) * 1e-6,
         chord_tolerance: args.chord_tolerance_mm,
@@ -541,7 +544,7 @@ struct Prepared {
 }
 
 impl Prepared {
-    fn new(args: &DemoArgs) -> Result<Self> {
+    fn new(args: &DemoOptions) -> Result<Self> {
         if !(args.feed.is_finite() && args.feed > 0.0) {
             bail!(
                 "--feed must be a positive number of mm/min, got {}",
@@ -596,7 +599,7 @@ impl Prepared {
 
 /// Runs the demo and returns its summary; `on_setpoint` sees every setpoint the
 /// recorder receives (all of them unless `timing.recorder_drops > 0`).
-pub fn run(args: &DemoArgs, on_setpoint: impl FnMut(&Setpoint)) -> Result<Summary> {
+pub fn run(args: &DemoOptions, on_setpoint: impl FnMut(&Setpoint)) -> Result<Summary> {
     let prepared = Prepared::new(args)?;
     // Everything the loop touches, allocated before it starts.
     let sub = prepared.subscriber();
@@ -851,19 +854,22 @@ pub(crate) mod tests_support {
     use super::*;
 
     /// `interpd demo --fast --no-service --no-plots`.
-    pub(crate) fn fast_args() -> DemoArgs {
-        let mut a = tests::args(&["--fast", "--no-service", "--no-plots"]);
-        a.out = std::env::temp_dir();
-        a
+    pub(crate) fn fast_args() -> DemoOptions {
+        DemoOptions {
+            no_service: true,
+            no_plots: true,
+            out: std::env::temp_dir(),
+            ..tests::fast()
+        }
     }
 
     /// The direct run's configuration.
-    pub(crate) fn config(args: &DemoArgs) -> InterpConfig {
+    pub(crate) fn config(args: &DemoOptions) -> InterpConfig {
         super::config(args)
     }
 
     /// The butterfly's interpolator blocks.
-    pub(crate) fn blocks(args: &DemoArgs) -> Vec<Block> {
+    pub(crate) fn blocks(args: &DemoOptions) -> Vec<Block> {
         butterfly_blocks(args.feed, &config(args)).expect("the butterfly splits")
     }
 }
@@ -872,22 +878,17 @@ pub(crate) mod tests_support {
 mod tests {
     use super::*;
     use crate::check::{ACCEL_REL_TOL, FNV_OFFSET, SPEED_TOL, digest_setpoint};
-    use clap::Parser;
-
-    #[derive(Debug, Parser)]
-    struct Wrap {
-        #[command(flatten)]
-        args: DemoArgs,
-    }
-
-    pub(super) fn args(extra: &[&str]) -> DemoArgs {
-        let argv = ["demo"].iter().chain(extra).copied();
-        Wrap::try_parse_from(argv).expect("demo args parse").args
+    /// `interpd demo --fast`.
+    pub(super) fn fast() -> DemoOptions {
+        DemoOptions {
+            fast: true,
+            ..DemoOptions::default()
+        }
     }
 
     fn fast_run() -> (Summary, Vec<Setpoint>) {
         let mut sps = Vec::new();
-        let summary = run(&args(&["--fast"]), |sp| sps.push(*sp)).expect("demo runs");
+        let summary = run(&fast(), |sp| sps.push(*sp)).expect("demo runs");
         (summary, sps)
     }
 
@@ -908,13 +909,13 @@ mod tests {
 
     #[test]
     fn defaults_are_the_documented_ones() {
-        let a = args(&[]);
+        let a = DemoOptions::default();
         assert_eq!(a.feed, 6000.0);
         assert_eq!(a.period_us, 1000);
         assert_eq!(a.chord_tolerance_mm, 0.001);
         assert_eq!(a.accel, InterpConfig::default().max_path_accel);
         assert!(!a.fast && !a.json && a.csv.is_none());
-        assert!(Wrap::try_parse_from(["demo", "--period-us", "0"]).is_err());
+        assert_eq!(a.out, PathBuf::from(DEFAULT_OUT_DIR));
     }
 
     #[test]
@@ -951,7 +952,10 @@ mod tests {
     #[test]
     fn csv_has_a_header_and_one_row_per_setpoint() {
         let path = std::env::temp_dir().join(format!("interpd-demo-{}.csv", std::process::id()));
-        let a = args(&["--fast", "--csv", path.to_str().expect("utf-8 temp path")]);
+        let a = DemoOptions {
+            csv: Some(path.clone()),
+            ..fast()
+        };
         let s = run(&a, |_| {}).expect("demo runs");
         let text = std::fs::read_to_string(&path).expect("csv written");
         let _ = std::fs::remove_file(&path);
@@ -976,7 +980,7 @@ mod tests {
 
     #[test]
     fn the_loop_does_not_allocate() {
-        let mut p = Prepared::new(&args(&["--fast"])).expect("program queues");
+        let mut p = Prepared::new(&fast()).expect("program queues");
         let sub = p.subscriber();
         let (lateness, compute) = (Histogram::new(), Histogram::new());
         let mut queue: Box<Queue<Setpoint, QUEUE_SLOTS>> = Box::new(Queue::new());
@@ -1008,8 +1012,12 @@ mod tests {
     #[test]
     fn main_writes_the_plots_into_out_unless_told_not_to() {
         let dir = std::env::temp_dir().join(format!("interpd-demo-out-{}", std::process::id()));
-        let out = dir.to_str().expect("utf-8 temp path");
-        main(&args(&["--fast", "--no-service", "--out", out])).expect("demo passes");
+        let a = DemoOptions {
+            no_service: true,
+            out: dir.clone(),
+            ..fast()
+        };
+        main(&a).expect("demo passes");
         let mut names: Vec<String> = std::fs::read_dir(&dir)
             .expect("out dir made")
             .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
@@ -1019,21 +1027,24 @@ mod tests {
             ["acceleration", "chord_error", "feed", "jerk", "path_xy"].map(|n| format!("{n}.png"));
         assert_eq!(names, want);
         std::fs::remove_dir_all(&dir).expect("cleanup");
-        main(&args(&[
-            "--fast",
-            "--no-service",
-            "--no-plots",
-            "--out",
-            out,
-        ]))
+        main(&DemoOptions {
+            no_plots: true,
+            ..a
+        })
         .expect("demo passes");
-        assert!(!dir.exists(), "--no-plots wrote into {out}");
-        assert_eq!(args(&[]).out, PathBuf::from(DEFAULT_OUT_DIR));
+        assert!(!dir.exists(), "--no-plots wrote into {}", dir.display());
     }
 
     #[test]
     fn a_bad_feed_is_refused_with_context() {
-        let e = run(&args(&["--feed", "0"]), |_| {}).unwrap_err();
+        let e = run(
+            &DemoOptions {
+                feed: 0.0,
+                ..DemoOptions::default()
+            },
+            |_| {},
+        )
+        .unwrap_err();
         assert!(e.to_string().contains("--feed"), "{e:#}");
     }
 }

@@ -14,7 +14,7 @@ use crate::check::{Checker, Violations};
 use crate::service::histogram::Percentiles;
 use crate::service::publish::SetpointSubscriber;
 use crate::service::serve::ServeOptions;
-use crate::tools::demo::{DemoArgs, Summary, butterfly_request};
+use crate::tools::demo::{DemoOptions, Summary, butterfly_request};
 
 /// The subscriber gives up when no sample arrives for this long.
 const SAMPLE_TIMEOUT: Duration = Duration::from_secs(10);
@@ -143,7 +143,7 @@ impl ServiceRun {
 }
 
 /// Runs the butterfly through an in-process service and checks every published setpoint.
-pub fn run(args: &DemoArgs, direct: &Summary) -> Result<ServiceRun> {
+pub fn run(args: &DemoOptions, direct: &Summary) -> Result<ServiceRun> {
     let t0 = Instant::now();
     let service = format!("interpd/demo/{}", std::process::id());
     let cfg = InterpConfig {
