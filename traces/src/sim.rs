@@ -196,6 +196,8 @@ pub fn run<E>(
             seconds: max_machine_time,
         },
         RunError::Hook(e) => SimError::Sink(e),
+        // Only a push refuses a block, and `push` below names it
+        // (`SimError::Push`); the end of the run pushes nothing.
         RunError::Push(e) => SimError::Config(e.to_string()),
     };
 
