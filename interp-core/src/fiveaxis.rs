@@ -442,17 +442,7 @@ impl JointSample {
     /// [`InterpConfig::planned_jerk`] for the axes).
     pub fn stop_limits(&self, cfg: &InterpConfig) -> (f64, f64) {
         let share = cfg.axis_tangential_share * (1.0 - cfg.planning_margin);
-        let mut a = f64::INFINITY;
-        let mut jerk = f64::INFINITY;
-        for j in 0..6 {
-            let qs = libm::fabs(self.q_s[j]);
-            if qs > 0.0 {
-                let (_, amax, jmax) = cfg.joint_limits(j);
-                a = a.min(share * amax / qs);
-                jerk = jerk.min(share * jmax / qs);
-            }
-        }
-        (a, jerk)
+        self.joint_bounded(cfg, share, share)
     }
 
     /// The path's tangential acceleration and jerk limits (mm/s², mm/s³)
@@ -460,14 +450,21 @@ impl JointSample {
     /// `axis_tangential_share` of its acceleration, `|q_s|·j` within its jerk.
     pub fn tangential_limits(&self, cfg: &InterpConfig) -> (f64, f64) {
         let keep = 1.0 - cfg.planning_margin;
+        self.joint_bounded(cfg, cfg.axis_tangential_share * keep, keep)
+    }
+
+    /// The smallest `ka·a_max/|q_s|` and `kj·j_max/|q_s|` over the joints
+    /// that move: the path's acceleration and jerk that keep each joint
+    /// within those fractions of its limits.
+    fn joint_bounded(&self, cfg: &InterpConfig, ka: f64, kj: f64) -> (f64, f64) {
         let mut a = f64::INFINITY;
         let mut jerk = f64::INFINITY;
         for j in 0..6 {
             let qs = libm::fabs(self.q_s[j]);
             if qs > 0.0 {
                 let (_, amax, jmax) = cfg.joint_limits(j);
-                a = a.min(cfg.axis_tangential_share * keep * amax / qs);
-                jerk = jerk.min(keep * jmax / qs);
+                a = a.min(ka * amax / qs);
+                jerk = jerk.min(kj * jmax / qs);
             }
         }
         (a, jerk)
