@@ -6,7 +6,8 @@
 //! recorder thread. The `interpd` binary (`main.rs`) is a thin command line
 //! over it; the end-to-end tests drive it too.
 
-pub mod check;
+/// The setpoint checker (`interp_run::check`), shared with the workspace tests.
+pub use interp_run::check;
 pub mod client;
 pub mod plan;
 pub mod program;

@@ -19,15 +19,15 @@ static ALLOCATOR: rt_alloc::RtPool<std::alloc::System> = rt_alloc::RtPool(std::a
 
 fn main() -> Result<()> {
     match Cli::parse().command {
-        Command::Demo(args) => command::demo::run(&args),
-        Command::Serve(args) => command::serve::run(&args),
-        Command::Send(args) => command::send::run(&args),
-        Command::Watch(args) => command::watch::run(&args),
-        Command::Jitter(args) => command::jitter::run(&args),
-        Command::Simulate(args) => command::simulate::run(&args),
+        Command::Demo(args) => command::demo::run(&args.into()),
+        Command::Serve(args) => command::serve::run(&args.into()),
+        Command::Send(args) => command::send::run(&args.into()),
+        Command::Watch(args) => command::watch::run(&args.into()),
+        Command::Jitter(args) => command::jitter::run(&args.into()),
+        Command::Simulate(args) => command::simulate::run(&args.into()),
         Command::Replay(args) => command::replay::run(&args),
         Command::Trace(args) => command::trace::run(&args),
-        Command::Plan(cmd) => command::plan::run(&cmd),
+        Command::Plan(cmd) => command::plan::run(cmd),
     }
 }
 
@@ -52,6 +52,13 @@ mod tests {
         };
         assert!(args.fast && args.json);
         assert_eq!(args.feed, 3000.0);
+        // No flags: the library's documented defaults.
+        let Command::Demo(args) = Cli::try_parse_from(["interpd", "demo"]).unwrap().command else {
+            panic!("expected demo");
+        };
+        let opts: interpd::tools::demo::DemoOptions = args.into();
+        assert_eq!(opts, interpd::tools::demo::DemoOptions::default());
+        assert!(Cli::try_parse_from(["interpd", "demo", "--period-us", "0"]).is_err());
     }
 
     #[test]
@@ -74,7 +81,7 @@ mod tests {
             "--json",
         ])
         .expect("plan raster parses");
-        let Command::Plan(command::plan::PlanCommand::Raster(args)) = cli.command else {
+        let Command::Plan(cli::PlanCommand::Raster(args)) = cli.command else {
             panic!("plan raster parsed as another command");
         };
         assert_eq!(args.tool, planner::cutter::Cutter::Ball { diameter: 6.0 });
@@ -105,7 +112,7 @@ mod tests {
             "--json",
         ])
         .expect("plan setup parses");
-        let Command::Plan(command::plan::PlanCommand::Setup(args)) = cli.command else {
+        let Command::Plan(cli::PlanCommand::Setup(args)) = cli.command else {
             panic!("expected plan setup");
         };
         assert_eq!((args.cells, args.json), (5000, true));

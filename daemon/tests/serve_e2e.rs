@@ -73,7 +73,10 @@ fn streamed_program_is_published_gapless_on_the_path_and_ends_at_rest_at_its_end
         &["--no-socket", "--record", trace.to_str().unwrap()],
     );
     let csv = dir.join("setpoints.csv");
-    let watcher = watch(&service, &csv);
+    let watcher = watch(&service, &csv, 3000.0);
+    // A second subscriber holds the same ticks to half the feed: the
+    // setpoint checker must fail it.
+    let strict = watch(&service, &dir.join("strict.csv"), 1500.0);
     std::thread::sleep(Duration::from_millis(300)); // let the subscriber connect
     let program = dir.join("poly.jsonl");
     let mut text = String::from("# a polyline\n");
@@ -106,6 +109,19 @@ fn streamed_program_is_published_gapless_on_the_path_and_ends_at_rest_at_its_end
     );
     let summary: serde_json::Value = serde_json::from_slice(&w.stdout).unwrap();
     assert_eq!(summary["gaps"], 0);
+    // Every tick went through the setpoint checker, and passed.
+    assert!(
+        summary["checked_ticks"].as_u64().unwrap() > 100,
+        "{summary}"
+    );
+    assert_eq!(summary["violations"]["first_seq"], serde_json::Value::Null);
+    let s = wait_child(strict, "interpd watch --check-feed 1500");
+    assert!(!s.status.success(), "over speed passed");
+    let strict: serde_json::Value = serde_json::from_slice(&s.stdout).unwrap();
+    assert!(
+        strict["violations"]["over_speed"].as_u64().unwrap() > 100,
+        "{strict}"
+    );
     let rows = read_csv(&csv);
     assert!(rows.len() > 100, "{} rows", rows.len());
     // Gapless publisher sequence, and ticks that advance by one once moving.

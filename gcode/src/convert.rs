@@ -4,8 +4,11 @@ use interp_core::Vec3;
 use interp_core::nurbs::{MAX_CTRL, SplitError, split_program_curve};
 use interp_core::path::{Arc, Blending, Block, Line, Path, PathError};
 
-use crate::error::ConvertError;
-use crate::program::{BlockKind, Feed, Orientation, PathControl, Program};
+use interp_core::fiveaxis::Orientation as CoreOrientation;
+use interp_core::kinematics::{Joints, Machine, MachineSpec, ToolPose};
+
+use crate::error::{ConvertError, FiveAxisReason};
+use crate::program::{BlockKind, Feed, Orientation, PathControl, Program, Rotary};
 
 /// The interp-core blending mode of a path control mode: G61.1 exact stop,
 /// G61 exact path, G64 `P` (G64's `Q` merges nothing here: runs of short
@@ -31,12 +34,19 @@ pub struct CoreOptions {
     /// Feed given to rapid (G0) moves, mm/s: the machine's maximum path speed.
     /// Default 250, the default `InterpConfig::max_path_speed`.
     pub rapid_speed: f64,
+    /// The five-axis machine, for tool-centre-point control (G43.4,
+    /// G43.5): it turns rotary positions into tool axes and finds where
+    /// each move under TCP starts. Default none (then TCP moves are refused;
+    /// A B C as plain axes need no machine).
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
+    pub machine: Option<MachineSpec>,
 }
 
 impl Default for CoreOptions {
     fn default() -> Self {
         CoreOptions {
             rapid_speed: interp_core::InterpConfig::default().max_path_speed,
+            machine: None,
         }
     }
 }
@@ -71,9 +81,16 @@ impl Program {
     ///   carry no path and are skipped; the path control mode in force (G61.1,
     ///   G61, G64 P; G61 until the program sets one) becomes each block's
     ///   `blending`;
-    /// - a move that turns a rotary axis or runs under tool-centre-point
-    ///   control (G43.4, G43.5) is refused ([`ConvertError::FiveAxis`]):
-    ///   interp-core blocks carry X Y Z only.
+    /// - A B C of a move without tool-centre-point control become an
+    ///   [`CoreOrientation::Axes`]; under
+    ///   G43.4 the rotary positions become tool axes through
+    ///   `opts.machine`'s forward transform, under G43.5 the I J K are the
+    ///   tool axis, and the axis turns on the great circle between them
+    ///   ([`CoreOrientation::ToolAxis`]). The first move after TCP goes on
+    ///   or off starts where the machine stands, seen in its frame (the tool
+    ///   tip of its joints, or their X Y Z; the joints are followed through
+    ///   the inverse transform). What cannot be converted yet is refused
+    ///   naming the line ([`ConvertError::FiveAxisMove`]).
     ///
     /// Feeds become mm/s (G93 inverse time: the move's length × F / 60).
     pub fn for_each_core_block<E>(
@@ -83,6 +100,21 @@ impl Program {
     ) -> Result<(), ConvertOrSinkError<E>> {
         let mut blending = Blending::ExactPath;
         let mut sink = |b: Block, mode: Blending| sink(b.with_blending(mode));
+        let machine = match opts.machine {
+            Some(spec) => Some(Machine::new(spec).map_err(|e| {
+                // (Before any line: reported as line 0.)
+                ConvertOrSinkError::Convert(ConvertError::FiveAxisMove {
+                    line: 0,
+                    reason: FiveAxisReason::Machine(e),
+                })
+            })?),
+            None => None,
+        };
+        let mut pose = Pose {
+            machine,
+            joints: None,
+            tcp: false,
+        };
         for b in &self.blocks {
             let line = b.line;
             if let BlockKind::PathControl(mode) = &b.kind {
@@ -91,33 +123,57 @@ impl Program {
             }
             let path_err =
                 |error: PathError| ConvertOrSinkError::Convert(ConvertError::Path { line, error });
-            if !b.kind.orientation().is_none_or(Orientation::is_fixed) {
-                return Err(ConvertOrSinkError::Convert(ConvertError::FiveAxis { line }));
-            }
+            let five_err = |reason: FiveAxisReason| {
+                ConvertOrSinkError::Convert(ConvertError::FiveAxisMove { line, reason })
+            };
+            let Some(orientation) = b.kind.orientation() else {
+                continue;
+            };
+            let tcp = matches!(
+                orientation,
+                Orientation::TcpRotary { .. } | Orientation::TcpVector { .. }
+            );
+            // Where the move starts: as programmed, or, where TCP goes on or
+            // off, where the machine stands seen in the move's frame.
+            let (programmed_start, programmed_end) = match &b.kind {
+                BlockKind::Rapid(m) => (m.start, m.end),
+                BlockKind::Linear(m) => (m.start, m.end),
+                BlockKind::Arc(m) => (m.start, m.end),
+                BlockKind::Nurbs(m) => (m.points[0], *m.points.last().unwrap_or(&m.points[0])),
+                _ => continue,
+            };
+            let start = pose
+                .start(programmed_start, orientation, tcp, &b.kind)
+                .map_err(five_err)?;
             match &b.kind {
-                BlockKind::Rapid(m) => {
-                    let path = match Line::new(v3(m.start), v3(m.end)) {
-                        Ok(l) => Path::Line(l),
-                        Err(PathError::ZeroLength) => continue,
-                        Err(e) => return Err(path_err(e)),
-                    };
-                    let feed = feed_mm_s(
-                        Feed::PerMinute(opts.rapid_speed * SECONDS_PER_MINUTE),
-                        0.0,
-                        line,
-                    )?;
-                    sink(Block::new(line, path, feed), blending)
-                        .map_err(ConvertOrSinkError::Sink)?;
-                }
-                BlockKind::Linear(m) => {
-                    let l = match Line::new(v3(m.start), v3(m.end)) {
+                BlockKind::Rapid(_) | BlockKind::Linear(_) => {
+                    let l = match Line::new(v3(start), v3(programmed_end)) {
                         Ok(l) => l,
-                        Err(PathError::ZeroLength) => continue,
+                        Err(PathError::ZeroLength) => {
+                            if pose.turns(orientation) {
+                                return Err(five_err(FiveAxisReason::RotaryOnly));
+                            }
+                            pose.after(programmed_end, orientation, tcp)
+                                .map_err(five_err)?;
+                            continue;
+                        }
                         Err(e) => return Err(path_err(e)),
                     };
-                    let feed = feed_mm_s(m.feed, l.length(), line)?;
-                    sink(Block::new(line, Path::Line(l), feed), blending)
-                        .map_err(ConvertOrSinkError::Sink)?;
+                    let feed = match &b.kind {
+                        BlockKind::Linear(m) => feed_mm_s(m.feed, l.length(), line)?,
+                        _ => feed_mm_s(
+                            Feed::PerMinute(opts.rapid_speed * SECONDS_PER_MINUTE),
+                            0.0,
+                            line,
+                        )?,
+                    };
+                    let path = Path::Line(l);
+                    let block = pose
+                        .orient(Block::new(line, path, feed), orientation)
+                        .map_err(five_err)?;
+                    pose.after(programmed_end, orientation, tcp)
+                        .map_err(five_err)?;
+                    sink(block, blending).map_err(ConvertOrSinkError::Sink)?;
                 }
                 BlockKind::Arc(m) => {
                     let n = m.plane.normal();
@@ -127,8 +183,11 @@ impl Program {
                         Arc::from_centre(v3(m.start), v3(m.end), v3(m.centre), axis, m.extra_turns)
                             .map_err(path_err)?;
                     let feed = feed_mm_s(m.feed, a.length(), line)?;
-                    sink(Block::new(line, Path::Arc(a), feed), blending)
-                        .map_err(ConvertOrSinkError::Sink)?;
+                    let block = pose
+                        .orient(Block::new(line, Path::Arc(a), feed), orientation)
+                        .map_err(five_err)?;
+                    pose.after(m.end, orientation, tcp).map_err(five_err)?;
+                    sink(block, blending).map_err(ConvertOrSinkError::Sink)?;
                 }
                 BlockKind::Nurbs(m) => {
                     let mut pieces = Vec::new();
@@ -160,10 +219,18 @@ impl Program {
                         Feed::PerMinute(_) => 0.0,
                     };
                     let feed = feed_mm_s(m.feed, length, line)?;
-                    for seg in pieces {
-                        sink(Block::new(line, Path::Nurbs(seg), feed), blending)
-                            .map_err(ConvertOrSinkError::Sink)?;
+                    if !m.rotary.is_empty() {
+                        return Err(five_err(FiveAxisReason::RotaryNurbs));
                     }
+                    for seg in pieces {
+                        let path = Path::Nurbs(seg);
+                        let block = pose
+                            .orient(Block::new(line, path, feed), orientation)
+                            .map_err(five_err)?;
+                        sink(block, blending).map_err(ConvertOrSinkError::Sink)?;
+                    }
+                    pose.after(programmed_end, orientation, tcp)
+                        .map_err(five_err)?;
                 }
                 BlockKind::Dwell { .. }
                 | BlockKind::Spindle { .. }
@@ -200,4 +267,145 @@ pub enum ConvertOrSinkError<E> {
     /// The sink refused a block.
     #[error("sink refused a block")]
     Sink(E),
+}
+
+/// The machine's pose as the conversion goes: its joints (from the first
+/// move on) and whether the last move was under tool-centre-point control.
+struct Pose {
+    machine: Option<Machine>,
+    joints: Option<Joints>,
+    tcp: bool,
+}
+
+impl Pose {
+    fn machine(&self) -> Result<&Machine, FiveAxisReason> {
+        self.machine.as_ref().ok_or(FiveAxisReason::NoMachine)
+    }
+
+    /// The joints with `rotary` put in (unknown axes keep theirs).
+    fn with_rotary(&self, rotary: &Rotary) -> Joints {
+        let mut q = self.joints.unwrap_or([0.0; 6]);
+        for (k, r) in rotary.iter().enumerate() {
+            if let Some(v) = r {
+                q[3 + k] = *v;
+            }
+        }
+        q
+    }
+
+    /// Where a move programmed from `start` starts: there, unless TCP went
+    /// on or off since the last move (then where the machine stands, which
+    /// a straight move can start from and any other move is refused).
+    fn start(
+        &mut self,
+        start: [f64; 3],
+        o: &Orientation,
+        tcp: bool,
+        kind: &BlockKind,
+    ) -> Result<[f64; 3], FiveAxisReason> {
+        let Some(q) = self.joints else {
+            // The first move: the machine stands at its start (TCP off).
+            let rotary = match o {
+                Orientation::Axes { start, .. } | Orientation::TcpRotary { start, .. } => *start,
+                _ => [None; 3],
+            };
+            let mut q = self.with_rotary(&rotary);
+            q[..3].copy_from_slice(&start);
+            self.joints = Some(q);
+            if !tcp {
+                return Ok(start);
+            }
+            return self.start(start, o, tcp, kind);
+        };
+        if tcp == self.tcp {
+            return Ok(start);
+        }
+        let at = if tcp {
+            let p = self.machine()?.forward(&q).tip;
+            [p.x, p.y, p.z]
+        } else {
+            [q[0], q[1], q[2]]
+        };
+        self.tcp = tcp;
+        let same = (v3(at) - v3(start)).norm() <= interp_core::interp::JOIN_TOLERANCE;
+        match kind {
+            BlockKind::Rapid(_) | BlockKind::Linear(_) => Ok(at),
+            _ if same => Ok(start),
+            _ => Err(FiveAxisReason::FrameChange),
+        }
+    }
+
+    /// Does the move turn a rotary axis or the tool?
+    fn turns(&self, o: &Orientation) -> bool {
+        match o {
+            Orientation::Fixed => false,
+            Orientation::Axes { start, end } | Orientation::TcpRotary { start, end } => {
+                self.with_rotary(start) != self.with_rotary(end)
+            }
+            Orientation::TcpVector { start, end } => end.is_some() && start != end,
+        }
+    }
+
+    /// The tool axis of a move's orientation at its start and end.
+    fn tool_axes(&self, o: &Orientation) -> Result<(Vec3, Vec3), FiveAxisReason> {
+        let m = self.machine()?;
+        let current = m.forward(&self.joints.unwrap_or([0.0; 6])).axis;
+        Ok(match o {
+            Orientation::TcpRotary { start, end } => (
+                m.forward(&self.with_rotary(start)).axis,
+                m.forward(&self.with_rotary(end)).axis,
+            ),
+            Orientation::TcpVector { start, end } => {
+                let a = start.map(v3).unwrap_or(current);
+                (a, end.map(v3).unwrap_or(a))
+            }
+            _ => (current, current),
+        })
+    }
+
+    /// `block` with the core orientation of `o`.
+    fn orient(&self, block: Block, o: &Orientation) -> Result<Block, FiveAxisReason> {
+        let path = &block.path;
+        let core = match o {
+            Orientation::Fixed => return Ok(block),
+            Orientation::Axes { start, end } => {
+                let (a, b) = (self.with_rotary(start), self.with_rotary(end));
+                if a == b {
+                    return Ok(block);
+                }
+                CoreOrientation::axes(path, [a[3], a[4], a[5]], [b[3], b[4], b[5]])
+            }
+            Orientation::TcpRotary { .. } | Orientation::TcpVector { .. } => {
+                let (a, b) = self.tool_axes(o)?;
+                CoreOrientation::tool_axis(path, a, b)
+            }
+        }
+        .map_err(FiveAxisReason::Orientation)?;
+        Ok(block.with_orientation(core))
+    }
+
+    /// After a move to `end` (programmed): the joints there.
+    fn after(&mut self, end: [f64; 3], o: &Orientation, tcp: bool) -> Result<(), FiveAxisReason> {
+        let end_rotary = match o {
+            Orientation::Axes { end, .. } | Orientation::TcpRotary { end, .. } => *end,
+            _ => [None; 3],
+        };
+        let mut q = self.with_rotary(&end_rotary);
+        if tcp {
+            let (_, axis) = self.tool_axes(o)?;
+            let m = self.machine()?;
+            q = m
+                .inverse(
+                    &ToolPose { tip: v3(end), axis },
+                    &self.joints.unwrap_or([0.0; 6]),
+                )
+                .map_err(FiveAxisReason::Inverse)?
+                .joints;
+        } else {
+            q[..3].copy_from_slice(&end);
+        }
+        self.joints = Some(q);
+        self.tcp = tcp;
+        Ok(())
+    }
 }

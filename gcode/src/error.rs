@@ -119,6 +119,14 @@ pub enum ConvertError {
         /// Source line.
         line: u32,
     },
+    /// A five-axis move that cannot be converted, and why.
+    #[error("line {line}: {reason}")]
+    FiveAxisMove {
+        /// Source line.
+        line: u32,
+        /// Why.
+        reason: FiveAxisReason,
+    },
     /// A feed that is zero, negative or not finite.
     #[error("line {line}: feed {feed} is not positive")]
     Feed {
@@ -127,4 +135,38 @@ pub enum ConvertError {
         /// The feed, mm/s.
         feed: f64,
     },
+}
+
+/// Why a five-axis move was refused ([`ConvertError::FiveAxisMove`]).
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum FiveAxisReason {
+    /// Tool-centre-point control needs the machine's kinematics.
+    #[error(
+        "tool-centre-point control (G43.4/G43.5) needs the machine (its W/.../T chain) to find the tool axis and the joints"
+    )]
+    NoMachine,
+    /// The tool tip stands still while the rotary axes or the tool turn.
+    #[error(
+        "a move that only turns the rotary axes or the tool (the tool tip or X Y Z stand still) is not interpolated yet"
+    )]
+    RotaryOnly,
+    /// Rotary coordinates on a NURBS (G6.2 A B C).
+    #[error(
+        "rotary coordinates on a NURBS are not interpolated yet (give the moves as G1, or the tool axis with G43.5)"
+    )]
+    RotaryNurbs,
+    /// The first move after G43.4/G43.5/G49 is not a straight move.
+    #[error(
+        "the first move after tool-centre-point control goes on or off must be G0 or G1 (it starts where the machine stands: the tool tip, or X Y Z, of its joints)"
+    )]
+    FrameChange,
+    /// The tool axis or the rotary positions of the move are refused.
+    #[error("{0}")]
+    Orientation(interp_core::fiveaxis::OrientationError),
+    /// The machine given in the options is refused.
+    #[error("the machine: {0}")]
+    Machine(interp_core::kinematics::MachineError),
+    /// The end pose is out of the machine's reach.
+    #[error("{0}")]
+    Inverse(interp_core::kinematics::InverseError),
 }

@@ -19,7 +19,7 @@ mod program;
 
 pub use convert::{ConvertOrSinkError, CoreOptions, core_blending};
 pub use emit::{EMIT_HEADER, emit};
-pub use error::{ConvertError, ParseError, ParseErrorKind};
+pub use error::{ConvertError, FiveAxisReason, ParseError, ParseErrorKind};
 pub use expr::{MAX_EXPRESSION_DEPTH, NEAR_INT_TOL, PARAMETER_COUNT};
 pub use parser::{
     ARC_R_TINY, CENTER_ARC_RADIUS_TOLERANCE_INCH, CENTER_ARC_RADIUS_TOLERANCE_MM,

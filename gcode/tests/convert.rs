@@ -1,7 +1,8 @@
 //! Program blocks → interp-core blocks.
 
-use gcode::{ConvertError, CoreOptions, parse};
+use gcode::{ConvertError, CoreOptions, FiveAxisReason, parse};
 use interp_core::Curve;
+use interp_core::kinematics::{Machine, MachineSpec, RotaryRange};
 use interp_core::path::{Path, PathError};
 
 fn core(text: &str) -> Vec<interp_core::Block> {
@@ -17,7 +18,10 @@ fn arr(v: interp_core::Vec3) -> [f64; 3] {
 
 #[test]
 fn feeds_become_mm_per_second_and_rapids_use_the_rapid_speed() {
-    let opts = CoreOptions { rapid_speed: 123.0 };
+    let opts = CoreOptions {
+        rapid_speed: 123.0,
+        ..CoreOptions::default()
+    };
     let b = parse("G0 X10\nG1 Y10 F600\nG20 G1 X0 F60\n")
         .unwrap()
         .to_core_blocks(&opts)
@@ -109,7 +113,10 @@ fn conversion_errors_name_the_source_line() {
     // A zero rapid speed is refused with the line.
     let p = parse("\nG0 X1\n").unwrap();
     let e = p
-        .to_core_blocks(&CoreOptions { rapid_speed: 0.0 })
+        .to_core_blocks(&CoreOptions {
+            rapid_speed: 0.0,
+            ..CoreOptions::default()
+        })
         .unwrap_err();
     assert_eq!(e, ConvertError::Feed { line: 2, feed: 0.0 });
 }
@@ -169,33 +176,150 @@ fn the_path_control_mode_in_force_becomes_each_blocks_blending() {
     );
 }
 
-/// interp-core blocks carry X Y Z only: rotary motion and TCP moves are
-/// refused naming the line, never converted without their rotary part.
+/// What five-axis conversion refuses, naming the line and the reason.
 #[test]
-fn five_axis_motion_is_refused_until_it_is_interpolated() {
-    for (text, line) in [
-        ("G0 X1\nG1 X2 A30 F100\n", 2),
-        ("G1 X1 F100\nG1 C90\n", 2),
-        ("G43.4\nG0 X0 Y0 Z10\n", 2),
-        ("G43.5\nG1 X1 I0 J0 K1 F100\n", 2),
+fn five_axis_moves_that_cannot_be_converted_are_refused_naming_the_line() {
+    let ca = ca_options();
+    for (text, opts, line, reason) in [
+        // The tool tip (or X Y Z) stands still while a rotary axis turns.
         (
-            "F100\nG6.2 P3 X0 Y0 R1 K0\nX1 Y1 B10 R1 K0\nX2 Y0 R1 K0\nG6.2 K1\nG6.2 K1\nG6.2 K1\n",
-            7,
+            "G1 X1 F100\nG1 C90\n",
+            CoreOptions::default(),
+            2,
+            FiveAxisReason::RotaryOnly,
+        ),
+        (
+            "G43.4\nG0 X0 Y0 Z10\n",
+            CoreOptions::default(),
+            2,
+            FiveAxisReason::NoMachine,
+        ),
+        (
+            "G43.5\nG1 X1 I0 J0 K1 F100\n",
+            CoreOptions::default(),
+            2,
+            FiveAxisReason::NoMachine,
+        ),
+        (
+            "G0 X0 Y0 Z0\nG43.4\nG1 X0 Y0 Z0 F100\nG6.2 P3 X0 Y0 R1 K0\nX1 Y1 C10 R1 K0\nX2 Y0 R1 K0\nG6.2 K1\nG6.2 K1\nG6.2 K1\n",
+            ca,
+            9,
+            FiveAxisReason::RotaryNurbs,
+        ),
+        // Under TCP the first move after G43.4 starts where the machine's
+        // tool tip is: an arc cannot.
+        (
+            "G0 X10 Y0 Z0\nG43.4\nG2 X-10 Y0 I-10 J0 F100\n",
+            ca,
+            3,
+            FiveAxisReason::FrameChange,
+        ),
+        // A C,A table cannot tilt by 120 degrees within A's range.
+        (
+            "G43.5\nG1 X5 I0 J0.866 K-0.5 F100\n",
+            ca,
+            2,
+            FiveAxisReason::Inverse(interp_core::kinematics::InverseError::OutOfRange {
+                axis: interp_core::kinematics::RotaryAxis::A,
+                needed: -120.00000000000001,
+                range: interp_core::kinematics::RotaryRange {
+                    min: -100.0,
+                    max: 100.0,
+                },
+            }),
         ),
     ] {
-        let e = parse(text)
-            .unwrap()
-            .to_core_blocks(&CoreOptions::default())
-            .unwrap_err();
-        assert_eq!(e, ConvertError::FiveAxis { line }, "{text}");
-        assert!(
-            e.to_string().starts_with(&format!(
-                "line {line}: five-axis motion is not interpolated yet"
-            )),
-            "{e}"
-        );
+        let e = parse(text).unwrap().to_core_blocks(&opts).unwrap_err();
+        match &e {
+            ConvertError::FiveAxisMove { line: l, reason: r } => {
+                assert_eq!(*l, line, "{text}: {e}");
+                if let (FiveAxisReason::Inverse(_), FiveAxisReason::Inverse(_)) = (r, &reason) {
+                } else {
+                    assert_eq!(*r, reason, "{text}: {e}");
+                }
+            }
+            other => panic!("{text}: {other}"),
+        }
+        assert!(e.to_string().starts_with(&format!("line {line}: ")), "{e}");
     }
     // Rotary words that move nothing, and G49, convert as before.
     let b = core("G0 X0 Y0 Z1 A0 C0\nG49 G1 X1 A0 F600\n");
     assert_eq!(b.len(), 2);
+    assert!(b.iter().all(|b| b.orientation.is_none()));
+}
+
+fn ca_options() -> CoreOptions {
+    let mut spec = MachineSpec::new("W/caxyBz/T".parse().unwrap());
+    spec.tool_length = 50.0;
+    spec.rotary_ranges[0] = RotaryRange {
+        min: -100.0,
+        max: 100.0,
+    };
+    CoreOptions {
+        machine: Some(spec),
+        ..CoreOptions::default()
+    }
+}
+
+/// A B C without TCP are plain axes along the move (and along a G6.2 as
+/// coordinates of the curve); G43.4 turns rotary positions into tool axes
+/// through the machine, G43.5 takes I J K; where TCP goes on, the move
+/// starts at the tool tip of the machine's joints, and after G49 at their
+/// X Y Z.
+#[test]
+fn five_axis_moves_convert_to_core_orientations() {
+    use interp_core::fiveaxis::{Orientation as O, OrientationAt};
+    let b = core("G0 X0 Y0 Z1\nG1 X10 A30 C-90 F600\n");
+    assert_eq!(b.len(), 2);
+    let o = b[1].orientation.expect("axes");
+    assert!(!o.is_tcp());
+    assert_eq!(o.at(0.0), OrientationAt::Axes([0.0, 0.0, 0.0]));
+    assert_eq!(o.at(5.0), OrientationAt::Axes([15.0, 0.0, -45.0]));
+    // G6.2 with B coordinates (TCP off) is refused too, naming the line.
+    let e = parse(
+        "G0 X0 Y0\nF600 G6.2 P3 X0 Y0 R1 K0\nX1 Y1 B10 R1 K0\nX2 Y0 B20 R1 K0\nG6.2 K1\nG6.2 K1\nG6.2 K1\n",
+    )
+    .unwrap()
+    .to_core_blocks(&CoreOptions::default())
+    .unwrap_err();
+    assert!(
+        matches!(
+            e,
+            ConvertError::FiveAxisMove {
+                line: 7,
+                reason: FiveAxisReason::RotaryNurbs,
+            }
+        ),
+        "{e}"
+    );
+
+    let opts = ca_options();
+    let m = Machine::new(opts.machine.unwrap()).unwrap();
+    let text = "G0 X10 Y0 Z0 A0 C0\nG43.4\nG1 X10 Y0 Z5 A30 C90 F600\nG43.5\nG1 X20 I0 J0 K1\nG49\nG1 X0 Y0 Z0\n";
+    let b = parse(text).unwrap().to_core_blocks(&opts).unwrap();
+    assert_eq!(b.len(), 4);
+    // Under TCP from the tool tip of the joints (10, 0, 0, A0, C0): z = −50.
+    assert_eq!(arr(b[1].path.start_point()), [10.0, 0.0, -50.0]);
+    assert_eq!(arr(b[1].path.end_point()), [10.0, 0.0, 5.0]);
+    let o = b[1].orientation.unwrap();
+    assert!(o.is_tcp());
+    let axis = |o: &O, u: f64| match o.at(u) {
+        OrientationAt::ToolAxis(a) => a,
+        other => panic!("{other:?}"),
+    };
+    let want = m.forward(&[0.0, 0.0, 0.0, 30.0, 0.0, 90.0]).axis;
+    assert!((axis(&o, b[1].path.u_end()) - want).norm() < 1e-15);
+    assert!((axis(&o, b[1].path.u_start()) - interp_core::Vec3::z()).norm() < 1e-15);
+    // G43.5 I0 J0 K1: the axis turns back to +z.
+    let o = b[2].orientation.unwrap();
+    assert!((axis(&o, b[2].path.u_end()) - interp_core::Vec3::z()).norm() < 1e-15);
+    // After G49: from the joints' X Y Z at the tip (20, 0, 5) with the axis
+    // +z: the pole, where C keeps its 90 degrees (the table turned a
+    // quarter), so X Y Z = (0, −20, 55).
+    assert!(b[3].orientation.is_none());
+    let p = b[3].path.start_point();
+    assert!(
+        (p - interp_core::Vec3::new(0.0, -20.0, 55.0)).norm() < 1e-12,
+        "{p:?}"
+    );
 }

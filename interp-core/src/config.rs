@@ -1,6 +1,8 @@
 //! Interpolator configuration: every tolerance and limit is a named field
 //! with a documented default. Read once at start; the RT tick never changes it.
 
+use crate::kinematics::{Machine, MachineSpec};
+
 /// How the parameter `u` advances each tick (seed 004, §2.2).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -88,6 +90,23 @@ pub struct InterpConfig {
     /// NURBS pieces within the tolerance (`smooth::Smoother`); longer moves
     /// stay lines and their corners are blended. mm. Default 3.0.
     pub compress_max_move: f64,
+    /// The five-axis machine (`docs/five-axis.md`): needed by blocks under
+    /// tool-centre-point control, whose setpoints are its joints from the
+    /// inverse transform. Default none (three-axis blocks and plain rotary
+    /// axes need none).
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
+    pub machine: Option<MachineSpec>,
+    /// Largest angle between the programmed tool axis and the tool axis the
+    /// drives give between two setpoints (the joints are interpolated
+    /// linearly between them), rad. Default 0.001.
+    pub angular_tolerance: f64,
+    /// Velocity limits of the rotary joints A B C, deg/s. Default 180 each.
+    /// (The linear joints X Y Z take `axis-max-*`.)
+    pub rotary_max_velocity: [f64; 3],
+    /// Acceleration limits of the rotary joints A B C, deg/s². Default 1800 each.
+    pub rotary_max_accel: [f64; 3],
+    /// Jerk limits of the rotary joints A B C, deg/s³. Default 90 000 each.
+    pub rotary_max_jerk: [f64; 3],
 }
 
 impl Default for InterpConfig {
@@ -116,6 +135,11 @@ impl Default for InterpConfig {
             newton_max_iter: 10,
             default_blend_tolerance: 0.01,
             compress_max_move: 3.0,
+            machine: None,
+            angular_tolerance: 0.001,
+            rotary_max_velocity: [180.0; 3],
+            rotary_max_accel: [1800.0; 3],
+            rotary_max_jerk: [90_000.0; 3],
         }
     }
 }
@@ -154,6 +178,24 @@ impl InterpConfig {
             .iter()
             .fold(f64::INFINITY, |m, &a| m.min(a));
         self.max_path_jerk.min(self.axis_tangential_share * axis) * (1.0 - self.planning_margin)
+    }
+
+    /// The velocity, acceleration and jerk limits of joint `j` of
+    /// `[X, Y, Z, A, B, C]` (mm or degrees, per s, s², s³).
+    pub fn joint_limits(&self, j: usize) -> (f64, f64, f64) {
+        if j < 3 {
+            (
+                self.axis_max_velocity[j],
+                self.axis_max_accel[j],
+                self.axis_max_jerk[j],
+            )
+        } else {
+            (
+                self.rotary_max_velocity[j - 3],
+                self.rotary_max_accel[j - 3],
+                self.rotary_max_jerk[j - 3],
+            )
+        }
     }
 
     /// Checks every field; the error names the first one out of range.
@@ -219,6 +261,23 @@ impl InterpConfig {
         }
         if !(self.compress_max_move >= 0.0 && self.compress_max_move.is_finite()) {
             return Err(ConfigError::OutOfRange("compress-max-move"));
+        }
+        if let Some(spec) = self.machine
+            && Machine::new(spec).is_err()
+        {
+            return Err(ConfigError::OutOfRange("machine"));
+        }
+        if !(pos(self.angular_tolerance) && self.angular_tolerance < 0.5) {
+            return Err(ConfigError::OutOfRange("angular-tolerance"));
+        }
+        if !self.rotary_max_velocity.iter().all(|&v| pos(v)) {
+            return Err(ConfigError::OutOfRange("rotary-max-velocity"));
+        }
+        if !self.rotary_max_accel.iter().all(|&v| pos(v)) {
+            return Err(ConfigError::OutOfRange("rotary-max-accel"));
+        }
+        if !self.rotary_max_jerk.iter().all(|&v| pos(v)) {
+            return Err(ConfigError::OutOfRange("rotary-max-jerk"));
         }
         Ok(())
     }

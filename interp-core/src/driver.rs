@@ -68,6 +68,8 @@ pub struct ExecStatus {
     pub idle_empty: bool,
     /// Plans offered to [`Executor::commit`] so far (accepted or not).
     pub commits: u64,
+    /// Where the rotary joints A B C stand, degrees.
+    pub rotary: [f64; 3],
 }
 
 /// The planning side of the look-ahead: a [`BlockPlanner`] and the decisions
@@ -105,6 +107,12 @@ impl Driver {
             last_error: None,
             split_memo: None,
         })
+    }
+
+    /// Set where the rotary axes stand at the end of the queue (where the
+    /// machine starts), degrees.
+    pub fn set_rotary(&mut self, abc: [f64; 3]) {
+        self.planner.set_rotary(abc);
     }
 
     /// The planner.
@@ -167,6 +175,9 @@ impl Driver {
             if self.planner.tail_s() != st.s || self.planner.tail() != p {
                 self.planner.resync(p, st.s);
             }
+            // The rotary axes stand where the machine has them (at the
+            // start, after an abort): the next block's joints start there.
+            self.planner.set_rotary(st.rotary);
         }
         if self.planner.has_pending() {
             return Err(PushError::Pending);
@@ -404,6 +415,10 @@ impl<const Q: usize> Executor<Q> {
             aborting: self.is_aborting(),
             idle_empty: self.state() == RunState::Idle && self.queued_segments() == 0,
             commits: self.stats().commits,
+            rotary: {
+                let q = self.axes();
+                [q[3], q[4], q[5]]
+            },
         }
     }
 }

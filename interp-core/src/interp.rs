@@ -23,7 +23,9 @@ use heapless::Deque;
 
 use crate::config::{ConfigError, InterpConfig, ParamUpdate};
 use crate::driver::Driver;
+use crate::fiveaxis::JointError;
 use crate::geom::{Curve, Vec3};
+use crate::kinematics::{Joints, Machine};
 use crate::path::{Block, Path, SplitAtError};
 use crate::prepare::{BlockPlanner, PlannedBlock, Segment};
 use crate::spline::{self, Piece};
@@ -129,6 +131,9 @@ pub enum PushError {
     /// The speed's linear program failed even with a rest point at the old
     /// end of the queue (a bug: please report the program).
     Schedule,
+    /// A five-axis block's joints cannot be had along it (no machine for
+    /// tool-centre-point control, or a pose out of the rotary ranges).
+    Kinematics(JointError),
 }
 
 impl PushError {
@@ -164,6 +169,7 @@ impl core::fmt::Display for PushError {
             PushError::Stale => write!(f, "planned against another state of the queue"),
             PushError::Pending => write!(f, "the rest of a long block is still being planned"),
             PushError::Schedule => write!(f, "the feed schedule could not be solved"),
+            PushError::Kinematics(e) => write!(f, "five-axis block: {e}"),
         }
     }
 }
@@ -250,9 +256,16 @@ pub struct Executor<const Q: usize = DEFAULT_QUEUE> {
     s: f64,
     /// Kahan compensation of `s`.
     s_comp: f64,
-    /// Current position (X Y Z).
+    /// Current position (X Y Z), in the path's frame: the tool tip in the
+    /// workpiece frame under tool-centre-point control (`tcp`), else X Y Z
+    /// of the machine.
     point: Vec3,
     abc: [f64; 3],
+    /// The five-axis machine (`InterpConfig::machine`), the path's frame,
+    /// and the joints under tool-centre-point control.
+    machine: Option<Machine>,
+    tcp: bool,
+    joints: Joints,
     /// End of everything queued so far (where the next block must start).
     tail: Vec3,
     tail_s: f64,
@@ -273,6 +286,7 @@ impl<const Q: usize> Executor<Q> {
         if !p.iter().all(|c| c.is_finite()) {
             return Err(ConfigError::OutOfRange("position"));
         }
+        let machine = cfg.machine.and_then(|m| Machine::new(m).ok());
         Ok(Executor {
             cfg,
             queue: Deque::new(),
@@ -289,6 +303,9 @@ impl<const Q: usize> Executor<Q> {
             s_comp: 0.0,
             point: p,
             abc: [position[3], position[4], position[5]],
+            machine,
+            tcp: false,
+            joints: position,
             tail: p,
             tail_s: 0.0,
             seq: 0,
@@ -452,8 +469,20 @@ impl<const Q: usize> Executor<Q> {
             // No plan: at rest where the machine stands (not where the queue ends).
             None => (0.0, 0.0, self.s),
         };
-        let (am, jm) = (self.cfg.planned_accel(), self.cfg.planned_jerk());
+        let (am, jm) = self.stop_rates();
         self.stop = Some((Stop::new(v, a, am, jm), 0.0, s));
+    }
+
+    /// The acceleration and jerk a feed hold or abort brakes with: the
+    /// planned ones, lowered where a queued five-axis segment's joints need
+    /// it (`Segment::stop_limits`; at most the queue's length to look at).
+    fn stop_rates(&self) -> (f64, f64) {
+        let (mut am, mut jm) = (self.cfg.planned_accel(), self.cfg.planned_jerk());
+        for seg in self.queue.iter() {
+            am = am.min(seg.stop_limits.0);
+            jm = jm.min(seg.stop_limits.1);
+        }
+        (am, jm)
     }
 
     /// Arc length at which the machine would come to rest if a feed hold
@@ -464,7 +493,7 @@ impl<const Q: usize> Executor<Q> {
         }
         match self.current() {
             Some(p) => {
-                let (am, jm) = (self.cfg.planned_accel(), self.cfg.planned_jerk());
+                let (am, jm) = self.stop_rates();
                 p.x0 + self.x + Stop::new(self.v, p.accel(self.x), am, jm).distance()
             }
             None => self.s,
@@ -569,6 +598,7 @@ impl<const Q: usize> Executor<Q> {
         self.tail_s = plan.s1;
         if let (true, Some(front)) = (was_empty, self.queue.front()) {
             self.u = front.path.u_start();
+            self.enter_frame();
         }
     }
 
@@ -643,17 +673,13 @@ impl<const Q: usize> Executor<Q> {
         } else if active && self.abort {
             self.flush();
         }
+        if active {
+            self.update_joints();
+        }
         Setpoint {
             seq: self.seq,
             time: self.seq as f64 * ts,
-            axes: [
-                self.point.x,
-                self.point.y,
-                self.point.z,
-                self.abc[0],
-                self.abc[1],
-                self.abc[2],
-            ],
+            axes: self.axes(),
             feed: delta / ts,
             u: self.u,
             s: self.s,
@@ -719,8 +745,66 @@ impl<const Q: usize> Executor<Q> {
         }
     }
 
+    /// The machine's joints X Y Z A B C.
+    #[inline]
+    pub fn axes(&self) -> Joints {
+        if self.tcp {
+            self.joints
+        } else {
+            let p = self.point;
+            [p.x, p.y, p.z, self.abc[0], self.abc[1], self.abc[2]]
+        }
+    }
+
+    /// The five-axis part of a tick: the rotary axes (plain axes) or the
+    /// joints (tool-centre-point control) at the point and parameter reached.
+    #[inline]
+    fn update_joints(&mut self) {
+        let Some(seg) = self.queue.front() else {
+            return;
+        };
+        let Some(o) = &seg.orientation else {
+            return;
+        };
+        match o.joints(self.machine.as_ref(), self.point, self.u, &self.axes()) {
+            Ok(q) => {
+                self.joints = q;
+                self.abc = [q[3], q[4], q[5]];
+            }
+            // The planner walked the block's joints; a tick off its reach
+            // (a branch the planner did not take) stops the machine.
+            Err(_) => self.state = RunState::Fault,
+        }
+    }
+
+    /// The front segment was entered at rest: if it is in the other frame
+    /// (tool-centre-point control goes on or off), the point is the same
+    /// machine pose seen in it, its start.
+    #[inline]
+    fn enter_frame(&mut self) -> bool {
+        let Some(seg) = self.queue.front() else {
+            return false;
+        };
+        if seg.is_tcp() == self.tcp {
+            return false;
+        }
+        if !self.tcp {
+            self.joints = self.axes();
+        }
+        self.tcp = seg.is_tcp();
+        self.point = seg.path.start_point();
+        true
+    }
+
     /// Abort finished: drop everything queued; idle where the machine stands.
     fn flush(&mut self) {
+        if self.tcp {
+            // Idle in the machine's own X Y Z (where a new program starts).
+            let q = self.joints;
+            self.point = Vec3::new(q[0], q[1], q[2]);
+            self.abc = [q[3], q[4], q[5]];
+            self.tcp = false;
+        }
         self.queue.clear();
         self.abort = false;
         self.hold = false;
@@ -738,7 +822,7 @@ impl<const Q: usize> Executor<Q> {
     /// the displacement actually made: `delta`, or less when landing on a stop
     /// (the chord to a stop can be shorter than the arc the schedule counted).
     fn advance(&mut self, mut delta: f64) -> f64 {
-        let from = self.point;
+        let mut from = self.point;
         let commanded = delta;
         let update = self.cfg.param_update;
         let mut crossed = false;
@@ -788,6 +872,9 @@ impl<const Q: usize> Executor<Q> {
                 self.block_id = next.block_id;
                 if update != ParamUpdate::Corrected {
                     self.point = next.path.start_point();
+                }
+                if self.enter_frame() {
+                    from = self.point;
                 }
                 crossed = true;
                 continue;
@@ -865,6 +952,7 @@ impl<const Q: usize> Executor<Q> {
             if let Some(next) = self.queue.front() {
                 self.u = next.path.u_start();
                 self.block_id = next.block_id;
+                self.enter_frame();
             } else {
                 // At the end of the queue: done, or waiting on the path for more.
                 self.len = 0;

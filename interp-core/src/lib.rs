@@ -16,6 +16,7 @@ pub mod config;
 pub mod driver;
 pub mod feed;
 pub mod fit;
+pub mod fiveaxis;
 pub mod geom;
 pub mod interp;
 pub mod kinematics;

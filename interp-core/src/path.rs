@@ -2,6 +2,7 @@
 //!
 //! All are exact: the interpolator evaluates them analytically at every tick.
 
+use crate::fiveaxis::Orientation;
 use crate::geom::{Curve, Derivs, Vec3};
 use crate::nurbs::{Nurbs, NurbsError};
 
@@ -514,6 +515,9 @@ pub struct Block {
     pub mrr: Option<MrrParams>,
     /// How the path may pass this block's end (G61.1, G61, G64 P).
     pub blending: Blending,
+    /// Rotary axes or tool axis along the block (`crate::fiveaxis`);
+    /// `None` for a three-axis block (the rotary axes stay where they are).
+    pub orientation: Option<Orientation>,
 }
 
 impl Block {
@@ -525,7 +529,22 @@ impl Block {
             feed,
             mrr: None,
             blending: Blending::ExactPath,
+            orientation: None,
         }
+    }
+
+    /// The same block with rotary axes or a tool axis along it.
+    pub fn with_orientation(self, orientation: Orientation) -> Self {
+        Block {
+            orientation: Some(orientation),
+            ..self
+        }
+    }
+
+    /// Under tool-centre-point control (its path is the tool tip in the
+    /// workpiece frame, not X Y Z of the machine)?
+    pub fn is_tcp(&self) -> bool {
+        self.orientation.is_some_and(|o| o.is_tcp())
     }
 
     /// The same block with another blending mode.

@@ -93,6 +93,10 @@ pub struct Interval {
     /// A sample could not be kept (the interval had more than the capacity):
     /// its piece is planned with the worst case of the ones kept.
     pub overflow: bool,
+    /// The tangential jerk a five-axis block's joints allow here, mm/s³
+    /// (infinite for three-axis blocks): next to a rest point the
+    /// acceleration steps by half a tick of it at most (`rest_accel`).
+    pub joint_jerk: f64,
 }
 
 impl Interval {
@@ -105,6 +109,7 @@ impl Interval {
             samples: [AxisSample::default(); SAMPLES_PER_INTERVAL],
             n_samples: 0,
             overflow: false,
+            joint_jerk: f64::INFINITY,
         }
     }
     /// Lower the machine (`which = 0`) or feed (`1`) limit of sub-ranges
@@ -1243,7 +1248,7 @@ fn assemble_and_solve(
             let j = i - first;
             sc.lo[j] = 0.0;
             sc.hi[j] = if p.rest_start || rest_end {
-                l2.min(a_rest * h)
+                l2.min(rest_accel(a_rest, &it, &cfg) * h)
             } else {
                 l2
             };
@@ -1452,6 +1457,18 @@ fn reach_speed(s: f64, a0: f64, cfg: &InterpConfig) -> f64 {
     by_jerk.min(libm::sqrt(2.0 * cfg.max_path_accel * s))
 }
 
+/// The acceleration step allowed next to a rest point on a piece of
+/// interval `it`: half a tick of the path's jerk (`a_rest`), or of the
+/// jerk a five-axis block's joints allow there, if lower (a rotary joint
+/// that turns several degrees per mm; see `crate::fiveaxis`).
+fn rest_accel(a_rest: f64, it: &Interval, cfg: &InterpConfig) -> f64 {
+    if it.joint_jerk.is_finite() {
+        a_rest.min(0.5 * it.joint_jerk * cfg.period)
+    } else {
+        a_rest
+    }
+}
+
 /// The fallback plan of pieces `from..`: each rests at both ends
 /// (`S = 2d·u(1−u)`), with the largest `d` that keeps every limit of the
 /// linear program's rows, in closed form (each piece depends on its own `d`
@@ -1470,7 +1487,9 @@ fn crawl(d: &mut Data, from: usize, ovr: f64, lift: &Option<(f64, Stop)>) {
         let l2 = d.limit2(i, ovr, lift);
         let vmax = libm::sqrt(l2).max(1e-9);
         // Hull, rests (|S'/2| = d/h at the ends), jerk (|S''|/2 = 2d/h²).
-        let mut best = l2.min(a_rest * h).min(it.jerk * h * h / (2.0 * vmax));
+        let mut best = l2
+            .min(rest_accel(a_rest, &it, &cfg) * h)
+            .min(it.jerk * h * h / (2.0 * vmax));
         for smp in d.piece_samples(&p) {
             let u = ((smp.s - p.x0) / h).clamp(0.0, 1.0);
             for ax in 0..3 {

@@ -15,8 +15,12 @@
 
 use crate::config::{ConfigError, InterpConfig};
 use crate::feed::{ArcLengthDerivs, feed_limit, junction_speed, machine_limit, stationary_offset};
+use crate::fiveaxis::{
+    JointSample, Orientation, QueueEnd, joint_junction_speed, sample_joints, walk_joints,
+};
 use crate::geom::{Curve, Derivs, Vec3, golden_section_argmin};
 use crate::interp::{JOIN_TOLERANCE, MAX_PIECES, PushError, grid_multiple};
+use crate::kinematics::Machine;
 use crate::nurbs::Side;
 use crate::path::{Blending, Block, Path};
 use crate::plan::{AxisSample, CHUNK, Freeze, PlanError, SLIVER, WINDOW, Window, index_of};
@@ -38,9 +42,20 @@ pub struct Segment {
     /// stop, or the end of what is queued): the speed spline has a rest
     /// point there.
     pub stop_at_end: bool,
+    /// The block's rotary axes or tool axis (`crate::fiveaxis`).
+    pub orientation: Option<Orientation>,
+    /// Tangential acceleration and jerk (mm/s², mm/s³) a feed hold or
+    /// abort may brake with on this segment: where a joint turns several
+    /// units per mm, less than the path's (infinite for three-axis blocks).
+    pub stop_limits: (f64, f64),
 }
 
 impl Segment {
+    /// Under tool-centre-point control (the path is the tool tip)?
+    #[inline]
+    pub fn is_tcp(&self) -> bool {
+        self.orientation.is_some_and(|o| o.is_tcp())
+    }
     /// Arc length of the run at the end of this segment, mm.
     #[inline]
     pub fn s1(&self) -> f64 {
@@ -161,6 +176,10 @@ pub struct BlockPlanner {
     /// The last block measured and its length: a block refused for room is
     /// offered again every tick, and a NURBS's length costs a quadrature.
     length_memo: Option<(Block, f64)>,
+    /// The five-axis machine, if configured, and the joints, frame and
+    /// joint rates at the end of the queue (`crate::fiveaxis`).
+    machine_kin: Option<Machine>,
+    five: QueueEnd,
 }
 
 impl BlockPlanner {
@@ -172,6 +191,10 @@ impl BlockPlanner {
             return Err(ConfigError::OutOfRange("position"));
         }
         let h = crate::interp::grid_step(&cfg);
+        // (Computed before the literal, which then builds in place: the
+        // planner is over a MiB.)
+        let machine_kin = cfg.machine.and_then(|m| Machine::new(m).ok());
+        let five = QueueEnd::new([tail.x, tail.y, tail.z, 0.0, 0.0, 0.0]);
         Ok(BlockPlanner {
             cfg,
             h,
@@ -187,6 +210,8 @@ impl BlockPlanner {
             planned_to: tail_s,
             finished: false,
             length_memo: None,
+            machine_kin,
+            five,
         })
     }
     /// The configuration it plans for.
@@ -196,6 +221,16 @@ impl BlockPlanner {
     /// Where the next block must start.
     pub fn tail(&self) -> Vec3 {
         self.tail
+    }
+    /// The joints at the end of the queue, where the rotary axes stand
+    /// for the next block (`[X, Y, Z, A, B, C]`).
+    pub fn tail_joints(&self) -> [f64; 6] {
+        self.five.joints
+    }
+    /// Set where the rotary axes stand at the end of the queue (degrees;
+    /// the queue's X Y Z are its tail), e.g. where the machine starts.
+    pub fn set_rotary(&mut self, abc: [f64; 3]) {
+        self.five.joints[3..].copy_from_slice(&abc);
     }
     /// Arc length of the run where the next block starts, mm.
     pub fn tail_s(&self) -> f64 {
@@ -245,6 +280,12 @@ impl BlockPlanner {
         self.planned_to = tail_s;
         self.finished = false;
         self.window.reset(tail_s);
+        let abc = [
+            self.five.joints[3],
+            self.five.joints[4],
+            self.five.joints[5],
+        ];
+        self.five = QueueEnd::new([tail.x, tail.y, tail.z, abc[0], abc[1], abc[2]]);
     }
 
     /// Where the current plan of the speed ends, mm.
@@ -300,7 +341,18 @@ impl BlockPlanner {
         if !(block.feed.is_finite() && block.feed > 0.0) {
             return Err(PushError::Feed);
         }
-        let gap = (block.path.start_point() - self.tail).norm();
+        // A block in the other frame (tool tip or machine X Y Z) starts at
+        // the same machine pose seen in its frame.
+        let tail = self
+            .five
+            .start_for(self.machine_kin.as_ref(), block.is_tcp(), self.tail)
+            .map_err(PushError::Kinematics)?;
+        if let Some(o) = &block.orientation {
+            self.five
+                .check_join(self.machine_kin.as_ref(), o, block.path.u_start())
+                .map_err(PushError::Kinematics)?;
+        }
+        let gap = (block.path.start_point() - tail).norm();
         if !(gap <= JOIN_TOLERANCE) {
             return Err(PushError::Discontinuous { gap });
         }
@@ -467,6 +519,27 @@ impl BlockPlanner {
             );
         }
         let h = self.h;
+        let hs = h / (cfg.law_samples_per_interval as i64 * grid_multiple(&cfg)) as f64;
+        // Five-axis: the whole block within the machine's reach, before the
+        // window changes (the joints walked from the end of the queue).
+        let switch = self.five.tcp != block.is_tcp();
+        if let Some(o) = &block.orientation {
+            let mut q = self.five.joints;
+            let mut s = self.tail_s;
+            for (k, piece) in pieces[..n_pieces].iter().enumerate() {
+                walk_joints(
+                    self.machine_kin.as_ref(),
+                    o,
+                    piece,
+                    s,
+                    lengths[k],
+                    hs,
+                    &mut q,
+                )
+                .map_err(PushError::Kinematics)?;
+                s += lengths[k];
+            }
+        }
         let g_last = index_of(self.tail_s + total, h) + 1;
         self.window.release_before(self.machine);
         if !self.window.has_room(g_last, n_pieces + 2, self.machine) {
@@ -482,17 +555,22 @@ impl BlockPlanner {
         out.stop_at_join = false;
         if let Some(left) = self.tail_derivs {
             let entry = block.path.eval(windows[0].0, 3);
-            let v = if self.tail_exact_stop {
+            let v = if self.tail_exact_stop || switch {
+                // (A change of frame is a rest point: the machine stands
+                // while tool-centre-point control goes on or off.)
                 0.0
             } else {
                 junction_speed(&left, &entry, &cfg)
             };
+            let v = v.min(self.joint_junction(block, &left, &entry));
             if self.apply_junction(v, self.tail_s) {
                 out.stop_at_join = true;
             }
         }
         out.n_segments = n_pieces;
         let mut s = self.tail_s;
+        let mut joints = self.five.joints;
+        let mut q_s_end = None;
         for (k, piece) in pieces[..n_pieces].iter().enumerate() {
             if k > 0 {
                 // A tangent break inside the block.
@@ -510,8 +588,25 @@ impl BlockPlanner {
                 s0: s,
                 length: lengths[k],
                 stop_at_end: false,
+                orientation: block.orientation,
+                stop_limits: (f64::INFINITY, f64::INFINITY),
             };
             sample_laws(&seg, windows[k], block, &cfg, &mut self.window, h);
+            let mut seg = seg;
+            if let Some(o) = &block.orientation {
+                (q_s_end, seg.stop_limits) = sample_joints(
+                    self.machine_kin.as_ref(),
+                    o,
+                    piece,
+                    s,
+                    seg.length,
+                    &cfg,
+                    &mut self.window,
+                    h,
+                    hs,
+                    &mut joints,
+                );
+            }
             s += seg.length;
             out.segments[k] = Some(seg);
         }
@@ -526,6 +621,17 @@ impl BlockPlanner {
             self.tail_derivs,
             self.tail_exact_stop,
         );
+        let saved_five = self.five;
+        if block.orientation.is_none() {
+            // A three-axis block: X Y Z of the machine, rotary axes kept.
+            let e = block.path.end_point();
+            joints[..3].copy_from_slice(&[e.x, e.y, e.z]);
+        }
+        self.five = QueueEnd {
+            joints,
+            tcp: block.is_tcp(),
+            q_s: q_s_end,
+        };
         out.end = block.path.end_point();
         out.s1 = s;
         self.tail = out.end;
@@ -559,9 +665,47 @@ impl BlockPlanner {
                 self.tail_derivs,
                 self.tail_exact_stop,
             ) = saved;
+            self.five = saved_five;
             self.window.set_tail(saved.1);
         }
         r
+    }
+
+    /// The speed limit of the joints at the join of the queue and `block`
+    /// (tip derivatives `left` and `entry` there): the joint rates may jump
+    /// where the tool axis's rate does ([`joint_junction_speed`]). Infinite
+    /// between three-axis blocks (their join is the axes' junction).
+    fn joint_junction(&self, block: &Block, left: &Derivs, entry: &Derivs) -> f64 {
+        let (None, None) = (self.five.q_s, &block.orientation) else {
+            let tangent = |d: &Derivs| {
+                let t = d.d1 / d.d1.norm();
+                [t.x, t.y, t.z, 0.0, 0.0, 0.0]
+            };
+            let before = self.five.q_s.unwrap_or_else(|| tangent(left));
+            let after = match &block.orientation {
+                Some(o) => {
+                    let u = block.path.u_start();
+                    match JointSample::new(
+                        self.machine_kin.as_ref(),
+                        o,
+                        &block.path,
+                        u,
+                        &self.five.joints,
+                    ) {
+                        Ok(Some(smp)) => smp.q_s,
+                        // At rest or out of reach (refused before this): stop.
+                        _ => return 0.0,
+                    }
+                }
+                None => tangent(entry),
+            };
+            let mut jump = [0.0; 6];
+            for (j, d) in jump.iter_mut().enumerate() {
+                *d = after[j] - before[j];
+            }
+            return joint_junction_speed(&jump, &self.cfg);
+        };
+        f64::INFINITY
     }
 
     /// A junction of speed limit `v` at arc length `s`: a rest point, or a

@@ -256,7 +256,9 @@ impl<const W: usize> Smoother<W> {
             self.start = p0;
         }
         let from = self.tail.unwrap_or(p0);
-        if let Path::Line(_) = path {
+        // A five-axis block passes unchanged (its rotary axes or tool axis
+        // move with it: never dropped, merged, compressed or blended).
+        if let (Path::Line(_), None) = (path, &block.orientation) {
             let len = (p1 - from).norm();
             if len <= round_off(&[from, p1]) {
                 // Round-off: the next block starts here as well (within it).
@@ -367,6 +369,9 @@ impl<const W: usize> Smoother<W> {
 
     /// The `G64 P` tolerance of a block, if it may be smoothed.
     fn tolerance(&self, b: &Block) -> Option<f64> {
+        if b.orientation.is_some() {
+            return None;
+        }
         match b.blending {
             Blending::Within { tolerance } => {
                 let t = tolerance.unwrap_or(self.cfg.default_blend_tolerance);

@@ -514,6 +514,7 @@ fn constant_mrr_law_slows_concave_parts_only() {
                 tool_side: side,
             }),
             blending: Default::default(),
+            orientation: None,
         }
     };
     let cfg = InterpConfig::default();

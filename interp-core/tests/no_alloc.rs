@@ -156,3 +156,70 @@ fn kinematics_allocate_nothing() {
     );
     assert!(checked > 1900, "{checked}");
 }
+
+/// A five-axis program under tool-centre-point control (push, plan, every
+/// tick through the inverse transform, a hold and a resume) allocates
+/// nothing, and runs the same twice.
+#[test]
+fn five_axis_ticks_allocate_nothing() {
+    use interp_core::fiveaxis::Orientation;
+    use interp_core::kinematics::{Machine, MachineSpec, ToolPose};
+    let mut spec = MachineSpec::new("W/caxyBz/T".parse().unwrap());
+    spec.tool_length = 80.0;
+    spec.rotary_centres[0] = [0.0, 0.0, -40.0];
+    let cfg = InterpConfig {
+        machine: Some(spec),
+        ..InterpConfig::default()
+    };
+    let m = Machine::new(spec).unwrap();
+    let tilt = |deg: f64, y: f64| Vec3::new(deg.to_radians().sin(), y, deg.to_radians().cos());
+    let arc = Arc::from_centre(
+        Vec3::new(30.0, 0.0, 0.0),
+        Vec3::new(-30.0, 0.0, 8.0),
+        Vec3::zeros(),
+        Vec3::z(),
+        0,
+    )
+    .unwrap();
+    let path = Path::Arc(arc);
+    let (a0, a1) = (tilt(20.0, 0.0), tilt(-30.0, 0.3));
+    let block =
+        Block::new(1, path, 60.0).with_orientation(Orientation::tool_axis(&path, a0, a1).unwrap());
+    let start = m
+        .inverse(
+            &ToolPose {
+                tip: path.start_point(),
+                axis: a0,
+            },
+            &[0.0; 6],
+        )
+        .unwrap()
+        .joints;
+    let run = || {
+        let mut ip: Box<Interpolator> = Box::new(Interpolator::new(cfg, start).unwrap());
+        let mut hash = 0xcbf2_9ce4_8422_2325u64;
+        alloc_count::start();
+        ip.push(&block).unwrap();
+        ip.finish();
+        let mut ticks = 0u64;
+        loop {
+            ticks += 1;
+            match ticks {
+                800 => ip.feed_hold(),
+                1600 => ip.resume(),
+                _ => {}
+            }
+            let sp = ip.tick();
+            fold(&mut hash, &sp.axes.map(f64::to_bits));
+            if sp.state == RunState::Done || ticks > 100_000 {
+                break;
+            }
+        }
+        (alloc_count::stop(), hash, ticks)
+    };
+    let (a1, h1, t1) = run();
+    let (a2, h2, t2) = run();
+    assert_eq!((a1, a2), (0, 0), "allocations");
+    assert!(t1 > 1600 && t1 < 100_000, "{t1} ticks");
+    assert_eq!((h1, t1), (h2, t2), "two runs differ");
+}

@@ -8,15 +8,35 @@
 //! triangle teapot on 5,120 cells; add `compare` to run the exhaustive
 //! search (every cell evaluated) alternately with the bounded one and check
 //! they agree; add `centres` to test the cells at their centres only (no
-//! exact cell test). All cores are used (rayon).
+//! exact cell test). All cores are used (rayon). `repeat=N` sets the runs
+//! per phase; `every=K` maps every K-th patch only (a sample of a large part,
+//! for profiling the map; the search is skipped). Each phase prints its wall
+//! time and the process's CPU time (all threads), best of the runs.
 
 use std::time::Instant;
 
 use planner::mesh::{TriMesh, WeldOptions};
 use planner::setup::samples::{cavity, teapot};
+use planner::setup::visibility::{self, VisibilityOptions};
 use planner::setup::{
     AxisRanges, GeodesicSphere, MachineType, Phase, SetupConfig, search_setup, visibility_map,
 };
+
+/// CPU time of the whole process (all threads) so far, seconds.
+fn cpu_now() -> f64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: `ts` is a valid timespec for the call to fill.
+    unsafe { libc::clock_gettime(libc::CLOCK_PROCESS_CPUTIME_ID, &mut ts) };
+    ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
+}
+
+/// The value of a `name=value` argument.
+fn arg_value(name: &str) -> Option<usize> {
+    std::env::args().find_map(|a| a.strip_prefix(name)?.strip_prefix('=')?.parse().ok())
+}
 
 /// Prints to stderr each tenth of a phase done (the large case runs for
 /// minutes).
@@ -29,6 +49,7 @@ fn report(phase: Phase, done: usize, total: usize) {
 }
 
 fn run(name: &str, part: &TriMesh, cells: usize, repeats: usize) {
+    let repeats = arg_value("repeat").unwrap_or(repeats).max(1);
     let sphere = GeodesicSphere::with_at_least(cells).expect("valid cell count");
     let config = SetupConfig {
         cells,
@@ -45,20 +66,45 @@ fn run(name: &str, part: &TriMesh, cells: usize, repeats: usize) {
         rayon::current_num_threads()
     );
     // Each phase prints as soon as it is done (the large case takes minutes).
-    let mut vis = Vec::new();
+    let every = arg_value("every").unwrap_or(1).max(1);
+    let (mut vis, mut vis_cpu) = (Vec::new(), Vec::new());
     let mut map = None;
     for _ in 0..repeats {
-        let t = Instant::now();
-        map = Some(visibility_map(part, &sphere, &config, &report).expect("valid config"));
+        let (t, cpu) = (Instant::now(), cpu_now());
+        map = Some(if every > 1 {
+            let options = VisibilityOptions {
+                exact_cells: config.exact_cells,
+                ..VisibilityOptions::default()
+            };
+            visibility::compute_sampled(part, &sphere, options, every, &|d, n| {
+                report(Phase::Visibility, d, n)
+            })
+        } else {
+            visibility_map(part, &sphere, &config, &report).expect("valid config")
+        });
         vis.push(t.elapsed().as_secs_f64());
+        vis_cpu.push(cpu_now() - cpu);
     }
     let map = map.expect("at least one run");
+    let patches = part.triangles.len().div_ceil(every) as f64;
     println!(
-        "  visibility map : {:9.3} s  ({:.2} M patch-cell pairs/s)",
+        "  visibility map : {:9.3} s  cpu {:9.3} s  ({:.2} M patch-cell pairs/s; every {every}th patch)",
         best(&vis),
-        rays / best(&vis) / 1e6
+        best(&vis_cpu),
+        rays * patches / part.triangles.len() as f64 / best(&vis) / 1e6
     );
-    if std::env::args().any(|a| a == "map-only") {
+    // Two builds map alike when their checksums agree.
+    {
+        use std::hash::{Hash, Hasher};
+        let mut h = std::collections::hash_map::DefaultHasher::new();
+        let mut open = 0;
+        for j in 0..map.patches() {
+            map.pvc(j).hash(&mut h);
+            open += map.pvc_len(j);
+        }
+        println!("  map checksum {:016x}, {open} open pairs", h.finish());
+    }
+    if every > 1 || std::env::args().any(|a| a == "map-only") {
         return;
     }
     // `compare`: the bounded search and the exhaustive one (every cell
@@ -72,12 +118,13 @@ fn run(name: &str, part: &TriMesh, cells: usize, repeats: usize) {
         ("C,A search", MachineType::CA),
         ("A,B search", MachineType::AB),
     ] {
-        let (mut times, mut times_ex) = (Vec::new(), Vec::new());
+        let (mut times, mut times_ex, mut cpu) = (Vec::new(), Vec::new(), Vec::new());
         let mut last = None;
         for _ in 0..repeats {
-            let t = Instant::now();
+            let (t, c) = (Instant::now(), cpu_now());
             let p = search_setup(&map, &sphere, kind, &ranges, &config, &report);
             times.push(t.elapsed().as_secs_f64());
+            cpu.push(cpu_now() - c);
             if compare {
                 let t = Instant::now();
                 let e = search_setup(&map, &sphere, kind, &ranges, &exhaustive, &report);
@@ -97,9 +144,15 @@ fn run(name: &str, part: &TriMesh, cells: usize, repeats: usize) {
         }
         let p = last.expect("at least one run");
         let o = p.setup.as_ref().unwrap_or(&p.mar);
+        // The answer in full, to check that two builds agree.
         println!(
-            "  {label}     : {:9.3} s  ({} PVC classes, {} of {} cells evaluated, feasible {}, MAR {:.1?}°, gap to bound {:.2e} rad², {:?} equivalent)",
+            "  {label} answer: cell {}, area {:e} rad², required {:?} rad, lower bound {:?}",
+            o.cell, o.placement.area, o.placement.required, o.lower_bound
+        );
+        println!(
+            "  {label}     : {:9.3} s  cpu {:9.3} s  ({} PVC classes, {} of {} cells evaluated, feasible {}, MAR {:.1?}°, gap to bound {:.2e} rad², {:?} equivalent)",
             best(&times),
+            best(&cpu),
             p.pvc_classes,
             p.evaluated,
             p.cells,

@@ -11,11 +11,14 @@
 //! acceleration with the same tangential/curvature shares) at the machine's
 //! real limits (no planning margin), with jerk switched off.
 
+use core::convert::Infallible;
+
 use interp_core::feed::{junction_speed, speed_limit};
 use interp_core::geom::Curve;
 use interp_core::path::{Block, Path};
 use interp_core::smooth::{Policy, SmoothError, SmoothStats, Smoother};
-use interp_core::{InterpConfig, Interpolator, RunState, Vec3};
+use interp_core::{InterpConfig, RunState, Vec3};
+use interp_run::Run;
 
 use crate::polyline::Polyline;
 
@@ -204,38 +207,28 @@ fn run_to_done(
     keep: bool,
 ) -> Result<(f64, Vec<Vec3>), String> {
     let p = blocks[0].path.start_point();
-    let mut ip: Box<Interpolator<1024>> = Box::new(
-        Interpolator::new(*cfg, [p.x, p.y, p.z, 0.0, 0.0, 0.0]).map_err(|e| format!("{e:?}"))?,
-    );
-    let mut next = 0;
-    let mut ticks = 0u64;
+    let mut run: Run<1024> = Run::new(*cfg, [p.x, p.y, p.z, 0.0, 0.0, 0.0])
+        .map_err(|e| format!("{e:?}"))?
+        .with_tick_limit(MAX_TICKS);
     let mut pts = Vec::new();
     if keep {
         pts.push(p);
     }
-    loop {
-        while next < blocks.len() && ip.push(&blocks[next]).is_ok() {
-            next += 1;
-        }
-        if next == blocks.len() {
-            ip.finish();
-        }
-        let sp = ip.tick();
-        ticks += 1;
-        if keep {
-            pts.push(Vec3::new(sp.axes[0], sp.axes[1], sp.axes[2]));
-        }
-        if sp.state == RunState::Done {
-            return Ok((ticks as f64 * cfg.period, pts));
-        }
-        if ticks > MAX_TICKS {
-            return Err(format!(
-                "did not finish within {MAX_TICKS} ticks ({next} of {} blocks queued, feed {} mm/s)",
-                blocks.len(),
-                sp.feed
-            ));
-        }
+    let end = run
+        .run_program::<Infallible>(blocks, |sp, _| {
+            if keep {
+                pts.push(Vec3::new(sp.axes[0], sp.axes[1], sp.axes[2]));
+            }
+            Ok(())
+        })
+        .map_err(|(k, e)| match k {
+            Some(k) => format!("block {k} of {}: {e}", blocks.len()),
+            None => format!("after the last block: {e}"),
+        })?;
+    if end != RunState::Done {
+        return Err(format!("the run ended {end:?}"));
     }
+    Ok((run.ticks() as f64 * cfg.period, pts))
 }
 
 /// Our time, the trapezoidal (jerk-free) schedule's time and the optimum, s.

@@ -498,6 +498,7 @@ fn expand_block(
         feed,
         mrr,
         blending: input.blending.into(),
+        orientation: None,
     };
     let check_start = |start: Vec3| {
         let gap = (start - at).norm();

@@ -282,8 +282,8 @@ fn follow_schedule(
     trace: &Trace,
     mut segments: Option<&mut Vec<(u64, interp_core::Block)>>,
 ) -> Result<ReplayReport, ReplayError> {
+    use interp_core::Block;
     use interp_core::interp::DEFAULT_QUEUE;
-    use interp_core::{Block, Interpolator};
     let config = trace.config.clone().ok_or(TraceProgramError::NoConfig)?;
     if config.segment_queue != DEFAULT_QUEUE {
         return Err(ReplayError::Schedule(format!(
@@ -291,10 +291,8 @@ fn follow_schedule(
             config.segment_queue
         )));
     }
-    let mut ip: Box<Interpolator> = Box::new(
-        Interpolator::new(config.interp, config.start)
-            .map_err(|e| ReplayError::Sim(format!("config: {e:?}")))?,
-    );
+    let mut ip: interp_run::Run = interp_run::Run::new(config.interp, config.start)
+        .map_err(|e| ReplayError::Sim(format!("config: {e:?}")))?;
     let mut events = trace.events.iter().filter(|e| {
         matches!(
             e.kind,
@@ -379,7 +377,7 @@ fn follow_schedule(
                                     let tail = if st.idle_empty {
                                         st.point
                                     } else {
-                                        let t = ip.planner().tail();
+                                        let t = ip.driver().planner().tail();
                                         [t.x, t.y, t.z]
                                     };
                                     let p = Pipeline::new(

@@ -2,10 +2,10 @@
 //!
 //! `interpd simulate` and `interpd replay` both call [`run`]: same program +
 //! same [`ConfigMsg`] ⇒ the same setpoints, bit for bit. The driving order is
-//! part of that contract: blocks are pushed in order; when the interpolator
-//! refuses one because its queue or look-ahead is full, it ticks once and the
-//! push is tried again (the block planned once, its commit retried: the same
-//! as `push`); after the last block, `finish()` and tick until done.
+//! part of that contract, and it is `interp_run::Run`'s: blocks are pushed in
+//! order; when the interpolator refuses one because its queue or look-ahead
+//! is full, it ticks once and the push is tried again; after the last block,
+//! `finish()` and tick until done.
 //!
 //! Between the program and the interpolator runs the `G64 P` stage
 //! (`interp_core::smooth::Smoother`, window `DEFAULT_WINDOW`) of a
@@ -17,7 +17,8 @@
 
 use interp_core::interp::DEFAULT_QUEUE;
 use interp_core::smooth::SmoothStats;
-use interp_core::{Block, InterpConfig, Interpolator, RunState, Setpoint};
+use interp_core::{Block, Executor, InterpConfig, RunState, Setpoint};
+use interp_run::{Pushed, Run, RunError};
 use serde::{Deserialize, Serialize};
 
 use crate::blocks::{BlockError, Expanded, Pipeline, Program};
@@ -162,11 +163,6 @@ pub fn run<E>(
             config.segment_queue
         )));
     }
-    let mut ip: Box<Interpolator> = Box::new(
-        Interpolator::new(config.interp, config.start)
-            .map_err(|e| SimError::Config(e.to_string()))?,
-    );
-    let expanded = program.expand(config.max_ctrl_per_block, FIRST_BLOCK_ID)?;
     let period = config.interp.period;
     let max_ticks = if max_machine_time.is_finite() && max_machine_time > 0.0 {
         (max_machine_time / period).ceil() as u64
@@ -175,27 +171,34 @@ pub fn run<E>(
             "max-machine-time must be a positive number of seconds, got {max_machine_time}"
         )));
     };
+    let mut ip: Run = Run::new(config.interp, config.start)
+        .map_err(|e| SimError::Config(e.to_string()))?
+        .with_tick_limit(max_ticks);
+    let expanded = program.expand(config.max_ctrl_per_block, FIRST_BLOCK_ID)?;
     sink(SimItem::Config(config)).map_err(SimError::Sink)?;
 
     let mut last = Setpoint::default();
-    // One tick: hand it on; a fault ends the run.
-    let tick = |ip: &mut Interpolator,
-                last: &mut Setpoint,
-                sink: &mut dyn FnMut(SimItem<'_>) -> Result<(), E>|
-     -> Result<bool, SimError<E>> {
-        if last.seq >= max_ticks {
-            return Err(SimError::Timeout {
-                ticks: last.seq,
-                seconds: max_machine_time,
-            });
-        }
-        *last = ip.tick();
+    // Every tick is handed on.
+    let on_tick = |last: &mut Setpoint,
+                   sink: &mut dyn FnMut(SimItem<'_>) -> Result<(), E>,
+                   sp: &Setpoint,
+                   exec: &Executor|
+     -> Result<(), E> {
+        *last = *sp;
         sink(SimItem::Tick {
-            setpoint: last,
-            queue_depth: ip.queued_segments() as u32,
+            setpoint: sp,
+            queue_depth: exec.queued_segments() as u32,
         })
-        .map_err(SimError::Sink)?;
-        Ok(last.state != RunState::Fault)
+    };
+    let run_error = |e: RunError<E>| match e {
+        RunError::Timeout { ticks } => SimError::Timeout {
+            ticks,
+            seconds: max_machine_time,
+        },
+        RunError::Hook(e) => SimError::Sink(e),
+        // Only a push refuses a block, and `push` below names it
+        // (`SimError::Push`); the end of the run pushes nothing.
+        RunError::Push(e) => SimError::Config(e.to_string()),
     };
 
     // The program's segments through the `G64 P` stage, as the daemon's
@@ -210,32 +213,23 @@ pub fn run<E>(
     let mut released = Vec::new();
     let mut segments = 0usize;
     let mut faulted = false;
-    // Pushes one released block into the interpolator, ticking while its
-    // queue is full (the room is checked before any planning) or the parts
-    // of a long block before it are still being planned.
-    let push = |ip: &mut Interpolator,
+    // Pushes one released block into the interpolator, ticking while it
+    // must wait for room (see `Run::push_waiting`); false: it faulted.
+    let push = |ip: &mut Run,
                 last: &mut Setpoint,
                 sink: &mut dyn FnMut(SimItem<'_>) -> Result<(), E>,
                 seg: &Block,
                 eb: &crate::blocks::ExpandedBlock|
      -> Result<bool, SimError<E>> {
-        loop {
-            match ip.push(seg) {
-                Ok(()) => return Ok(true),
-                Err(e) if e.is_wait() && ip.queued_segments() > 0 => {
-                    if !tick(ip, last, sink)? {
-                        return Ok(false);
-                    }
-                }
-                Err(e) => {
-                    return Err(SimError::Push {
-                        index: eb.index,
-                        source_line: eb.input.source_line,
-                        block_id: seg.id,
-                        reason: e.to_string(),
-                    });
-                }
-            }
+        match ip.push_waiting(seg, |sp, exec| on_tick(last, sink, sp, exec)) {
+            Ok(pushed) => Ok(pushed == Pushed::Queued),
+            Err(RunError::Push(e)) => Err(SimError::Push {
+                index: eb.index,
+                source_line: eb.input.source_line,
+                block_id: seg.id,
+                reason: e.to_string(),
+            }),
+            Err(e) => Err(run_error(e)),
         }
     };
     'blocks: for (k, eb) in expanded.blocks.iter().enumerate() {
@@ -272,12 +266,8 @@ pub fn run<E>(
         }
     }
     if !faulted {
-        ip.finish();
-        while !matches!(ip.state(), RunState::Done | RunState::Fault) {
-            if !tick(&mut ip, &mut last, &mut sink)? {
-                break;
-            }
-        }
+        ip.run_to_end(|sp, exec| on_tick(&mut last, &mut sink, sp, exec))
+            .map_err(run_error)?;
     }
     let kind = if last.state == RunState::Fault {
         EventKind::Fault

@@ -23,8 +23,6 @@ use crate::service::control::{Phase, StatusReply};
 use anyhow::{Context, Error, Result, anyhow, bail};
 use tokio::io::{AsyncBufReadExt, AsyncRead, AsyncWrite, AsyncWriteExt, BufReader};
 
-use crate::service::serve::DEFAULT_PORT;
-
 /// Requests in flight at most.
 pub const WINDOW: usize = 8;
 /// No reply for this long while requests are in flight means back-pressure.
@@ -33,28 +31,22 @@ pub const STALL: Duration = Duration::from_millis(100);
 const POLL: Duration = Duration::from_millis(50);
 
 /// Options of `interpd send`.
-#[derive(Clone, Debug, clap::Args)]
-pub struct SendArgs {
+#[derive(Clone, Debug, PartialEq)]
+pub struct SendOptions {
     /// The program: G-code (`.ngc`/`.nc`), a JSON program (`.json`), or JSON
     /// blocks one per line (`.jsonl`; blank lines and `#` comments skipped).
     pub program: PathBuf,
     /// TCP address of the server.
-    #[arg(long, default_value_t = SocketAddr::from(([127, 0, 0, 1], DEFAULT_PORT)))]
     pub addr: SocketAddr,
     /// Connect to this Unix socket instead of TCP.
-    #[arg(long, value_name = "PATH")]
     pub socket: Option<PathBuf>,
     /// Token, if the server wants one.
-    #[arg(long)]
     pub token: Option<String>,
     /// Do not wait for the program to finish.
-    #[arg(long)]
     pub no_wait: bool,
     /// Print the final status as JSON.
-    #[arg(long)]
     pub json: bool,
     /// No progress output.
-    #[arg(long)]
     pub quiet: bool,
 }
 
@@ -81,8 +73,8 @@ pub fn program_lines(path: &Path, start: [f64; 3], rapid_speed: f64) -> Result<V
 }
 
 /// Sends `start` on a connection of its own (authenticated like the stream).
-async fn start_aside(args: &SendArgs) -> Result<()> {
-    async fn ask<S: AsyncRead + AsyncWrite + Unpin>(io: S, args: &SendArgs) -> Result<()> {
+async fn start_aside(args: &SendOptions) -> Result<()> {
+    async fn ask<S: AsyncRead + AsyncWrite + Unpin>(io: S, args: &SendOptions) -> Result<()> {
         let (rd, mut wr) = tokio::io::split(io);
         let mut rd = BufReader::new(rd).lines();
         if let Some(t) = &args.token {
@@ -188,7 +180,7 @@ fn bar(done: usize, total: usize) -> String {
 pub async fn stream<S: AsyncRead + AsyncWrite + Unpin>(
     io: S,
     load: &dyn Fn([f64; 3], f64) -> Result<Vec<String>>,
-    args: &SendArgs,
+    args: &SendOptions,
 ) -> Result<(Outcome, String)> {
     let (rd, mut wr) = tokio::io::split(io);
     let mut rd = BufReader::new(rd).lines();

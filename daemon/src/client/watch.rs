@@ -11,12 +11,12 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
-use interp_core::RunState;
+use interp_core::{InterpConfig, RunState};
 use serde::Serialize;
 
-use crate::service::publish::{
-    DEFAULT_SERVICE, SETPOINT_TYPE_NAME, SetpointSubscriber, run_state, state_name,
-};
+use crate::check::{Checker, Limits, Measured, Violations};
+
+use crate::service::publish::{SETPOINT_TYPE_NAME, SetpointSubscriber, run_state, state_name};
 
 /// How long one wait for samples lasts.
 const POLL: Duration = Duration::from_millis(2);
@@ -24,33 +24,76 @@ const POLL: Duration = Duration::from_millis(2);
 pub const DEFAULT_LIVENESS_S: f64 = 5.0;
 
 /// Options of `interpd watch`.
-#[derive(Clone, Debug, clap::Args)]
-pub struct WatchArgs {
+#[derive(Clone, Debug, PartialEq)]
+pub struct WatchOptions {
     /// iceoryx2 service name.
-    #[arg(long, default_value = DEFAULT_SERVICE)]
     pub service: String,
     /// Stop after this many samples.
-    #[arg(long)]
     pub count: Option<u64>,
     /// Stop after this many seconds.
-    #[arg(long)]
     pub seconds: Option<f64>,
     /// Stop at the first sample in state `done` after one that was moving.
-    #[arg(long)]
     pub until_done: bool,
     /// Give up when no sample arrives for this many seconds: the publisher
     /// is dead (or was never there).
-    #[arg(long, value_name = "SECONDS", default_value_t = DEFAULT_LIVENESS_S)]
     pub liveness: f64,
     /// Write every sample (seq,tick,time,x,y,z,feed,u,s,block_id,state) to this CSV.
-    #[arg(long, value_name = "PATH")]
     pub csv: Option<PathBuf>,
     /// Print a line per this many samples (0: none).
-    #[arg(long, default_value_t = 0)]
     pub every: u64,
     /// Print the summary as JSON.
-    #[arg(long)]
     pub json: bool,
+    /// Check every tick against the default machine limits for a program
+    /// at this feed, mm/min (the setpoint checker, `interp_run::check`),
+    /// from the first sample at rest before tick 1; a failed check makes
+    /// it exit non-zero.
+    pub check_feed: Option<f64>,
+    /// The service's interpolation period, µs (for `--check-feed`).
+    pub check_period_us: u32,
+}
+
+/// The checker of `--check-feed`: every tick once (a point published again
+/// unticked is skipped), from the rest point before tick 1.
+#[derive(Debug)]
+struct TickCheck {
+    ts: f64,
+    limits: Limits,
+    checker: Option<Checker>,
+    ticks: u64,
+}
+
+impl TickCheck {
+    fn new(args: &WatchOptions) -> Option<Self> {
+        let feed = args.check_feed?;
+        let cfg = InterpConfig {
+            period: f64::from(args.check_period_us) * 1e-6,
+            ..InterpConfig::default()
+        };
+        Some(TickCheck {
+            ts: cfg.period,
+            limits: Limits::new(&cfg, feed / 60.0),
+            checker: None,
+            ticks: 0,
+        })
+    }
+
+    fn take(&mut self, m: &crate::service::publish::SetpointMsg) {
+        let sp = m.setpoint();
+        if m.tick == 0 {
+            // The rest point before the first tick.
+            if self.checker.is_none() {
+                let start = [sp.axes[0], sp.axes[1], sp.axes[2]];
+                self.checker = Some(Checker::new(self.ts, self.limits, start));
+            }
+            return;
+        }
+        if let Some(c) = &mut self.checker
+            && m.tick > c.last().seq
+        {
+            c.check(&sp);
+            self.ticks += 1;
+        }
+    }
 }
 
 /// What `watch` saw.
@@ -75,10 +118,17 @@ pub struct WatchSummary {
     /// Seconds without a sample when it gave up (the publisher is dead),
     /// `None` when samples kept coming.
     pub silent_s: Option<f64>,
+    /// Ticks checked (`--check-feed`).
+    pub checked_ticks: u64,
+    /// Checks that failed (`--check-feed`; `None`: not asked, or no sample
+    /// at rest before tick 1 was seen).
+    pub violations: Option<Violations>,
+    /// Largest values measured on the checked ticks.
+    pub measured: Option<Measured>,
 }
 
 /// Runs `watch`; fails when samples were missed.
-pub fn main(args: &WatchArgs) -> Result<()> {
+pub fn main(args: &WatchOptions) -> Result<()> {
     if !(args.liveness.is_finite() && args.liveness > 0.0) {
         bail!("--liveness must be a positive number of seconds");
     }
@@ -109,7 +159,16 @@ pub fn main(args: &WatchArgs) -> Result<()> {
         restarts: 0,
         restart_jump_mm: 0.0,
         silent_s: None,
+        checked_ticks: 0,
+        violations: None,
+        measured: None,
     };
+    let mut check = TickCheck::new(args);
+    if let Some(f) = args.check_feed
+        && !(f.is_finite() && f > 0.0)
+    {
+        bail!("--check-feed must be a positive number of mm/min, got {f}");
+    }
     let mut moved = false;
     let mut last_rx = Instant::now();
     'outer: loop {
@@ -118,6 +177,9 @@ pub fn main(args: &WatchArgs) -> Result<()> {
             summary.first_seq.get_or_insert(m.seq);
             summary.last_seq = Some(m.seq);
             let st = run_state(m.state);
+            if let Some(c) = check.as_mut() {
+                c.take(&m);
+            }
             summary.final_state = Some(state_name(st));
             summary.final_position = Some([m.axes[0], m.axes[1], m.axes[2]]);
             if let Some(w) = csv.as_mut() {
@@ -179,6 +241,11 @@ pub fn main(args: &WatchArgs) -> Result<()> {
     summary.gaps = sub.gaps;
     summary.restarts = sub.restarts;
     summary.restart_jump_mm = sub.restart_jump_mm;
+    if let Some(c) = &check {
+        summary.checked_ticks = c.ticks;
+        summary.violations = c.checker.as_ref().map(|c| c.violations);
+        summary.measured = c.checker.as_ref().map(|c| c.measured);
+    }
     if let Some(mut w) = csv {
         w.flush().context("writing the CSV")?;
     }
@@ -205,6 +272,19 @@ pub fn main(args: &WatchArgs) -> Result<()> {
             "the publisher restarted {} time(s): its sequence started again, the position jumped {:.6} mm",
             summary.restarts, summary.restart_jump_mm
         ));
+    }
+    if let Some(v) = summary.violations
+        && v.total() > 0
+    {
+        problems.push(format!(
+            "{} check(s) failed ({}), first at tick {:?}",
+            v.total(),
+            v.breakdown(),
+            v.first_seq
+        ));
+    }
+    if check.is_some() && summary.violations.is_none() {
+        problems.push("--check-feed: no sample at rest before tick 1, nothing checked".into());
     }
     if let Some(s) = summary.silent_s {
         problems.push(if summary.received == 0 {

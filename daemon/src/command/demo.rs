@@ -1,9 +1,9 @@
 //! `interpd demo`: the bundled butterfly through the loop and the service, checked.
 
 use anyhow::Result;
-use interpd::tools::demo::{DemoArgs, main};
+use interpd::tools::demo::{DemoOptions, main};
 
 /// Runs the command.
-pub fn run(args: &DemoArgs) -> Result<()> {
+pub fn run(args: &DemoOptions) -> Result<()> {
     main(args)
 }

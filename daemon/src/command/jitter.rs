@@ -1,9 +1,9 @@
 //! `interpd jitter`: wake lateness and tick time, the pipeline against bare loops.
 
 use anyhow::Result;
-use interpd::tools::jitter::{JitterArgs, main};
+use interpd::tools::jitter::{JitterOptions, main};
 
 /// Runs the command.
-pub fn run(args: &JitterArgs) -> Result<()> {
+pub fn run(args: &JitterOptions) -> Result<()> {
     main(args)
 }

@@ -3,10 +3,10 @@
 //! `done`.
 
 use anyhow::{Context, Result, bail};
-use interpd::client::send::{Outcome, SendArgs, program_lines, stream};
+use interpd::client::send::{Outcome, SendOptions, program_lines, stream};
 
 /// Runs `send`.
-pub fn run(args: &SendArgs) -> Result<()> {
+pub fn run(args: &SendOptions) -> Result<()> {
     let rt = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()?;

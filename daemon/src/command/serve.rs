@@ -4,10 +4,10 @@
 use anyhow::{Result, bail};
 use interp_core::InterpConfig;
 use interpd::service::histogram::Percentiles;
-use interpd::service::serve::{ServeArgs, ServeSummary, start};
+use interpd::service::serve::{ServeOptions, ServeSummary, start};
 
 /// `interpd serve`.
-pub fn run(args: &ServeArgs) -> Result<()> {
+pub fn run(args: &ServeOptions) -> Result<()> {
     if let Some(p) = &args.position
         && p.iter().any(|c| !c.is_finite())
     {

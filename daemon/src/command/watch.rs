@@ -1,9 +1,9 @@
 //! `interpd watch`: subscribes to the setpoints and reports gaps, restarts and silence.
 
 use anyhow::Result;
-use interpd::client::watch::{WatchArgs, main};
+use interpd::client::watch::{WatchOptions, main};
 
 /// Runs the command.
-pub fn run(args: &WatchArgs) -> Result<()> {
+pub fn run(args: &WatchOptions) -> Result<()> {
     main(args)
 }

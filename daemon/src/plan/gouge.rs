@@ -8,7 +8,6 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
-use clap::Args;
 use planner::cutter::Cutter;
 use planner::fit::{self, FitConfig};
 use planner::gouge::{self, CcSurface, GougeConfig};
@@ -21,63 +20,46 @@ use planner::io::{ClProgram, read_cl_program, write_g1, write_g62};
 const HEAT_MAP_PIXELS: u32 = 2;
 
 /// Arguments of `interpd plan gouge`.
-#[derive(Debug, Args)]
-pub struct GougeArgs {
+#[derive(Debug)]
+pub struct GougeOptions {
     /// The design part (binary or ASCII STL, mm, Z up).
-    #[arg(long)]
     pub stl: PathBuf,
     /// The CL path: G0/G1 program of tool-tip positions.
-    #[arg(long)]
     pub path: PathBuf,
     /// Cutter: ball:D, flat:D or bull:D:r (D the diameter, mm).
-    #[arg(long)]
     pub tool: String,
     /// Allowed overcut, mm.
-    #[arg(long, default_value_t = 0.05)]
     pub tol: f64,
     /// Corrected path (G1).
-    #[arg(long)]
     pub out: PathBuf,
     /// Write before.png and after.png error heat maps into this directory.
-    #[arg(long)]
     pub plot: Option<PathBuf>,
     /// Spacing of the CC points sampled on the mesh, mm.
-    #[arg(long, default_value_t = GougeConfig::default().sample_spacing)]
     pub sample_spacing: f64,
     /// Check-point grid step of the milled-surface prediction, mm.
-    #[arg(long, default_value_t = PredictConfig::default().grid_step)]
     pub grid_step: f64,
     /// Print the report as JSON.
-    #[arg(long)]
     pub json: bool,
 }
 
 /// Arguments of `interpd plan fit`.
-#[derive(Debug, Args)]
-pub struct FitArgs {
+#[derive(Debug)]
+pub struct FitOptions {
     /// The CL path: G0/G1 program.
-    #[arg(long)]
     pub path: PathBuf,
     /// Largest distance of a CL point from its curve, mm.
-    #[arg(long, default_value_t = FitConfig::default().tolerance)]
     pub tol: f64,
     /// Curve degree (1..=5).
-    #[arg(long, default_value_t = FitConfig::default().degree)]
     pub degree: usize,
     /// G6.2 program out.
-    #[arg(long)]
     pub out: PathBuf,
     /// Re-check the fitted curves for gouges against this part (needs --tool).
-    #[arg(long, requires = "tool")]
     pub stl: Option<PathBuf>,
     /// Cutter for the re-check.
-    #[arg(long, requires = "stl")]
     pub tool: Option<String>,
     /// Allowed interference of the fitted curves in the re-check, mm.
-    #[arg(long, default_value_t = GougeConfig::default().tolerance)]
     pub gouge_tol: f64,
     /// Print the report as JSON.
-    #[arg(long)]
     pub json: bool,
 }
 
@@ -121,7 +103,7 @@ fn check_tolerance<'a>(
 }
 
 /// `interpd plan gouge`.
-pub fn gouge_main(a: &GougeArgs) -> Result<()> {
+pub fn gouge_main(a: &GougeOptions) -> Result<()> {
     let cutter: Cutter = a.tool.parse()?;
     let config = GougeConfig {
         tolerance: a.tol,
@@ -252,7 +234,7 @@ fn predict_runs(
 }
 
 /// `interpd plan fit`.
-pub fn fit_main(a: &FitArgs) -> Result<()> {
+pub fn fit_main(a: &FitOptions) -> Result<()> {
     let cfg = FitConfig {
         tolerance: a.tol,
         degree: a.degree,
@@ -387,7 +369,7 @@ mod tests {
         let (stl, naive) = seed_files(&dir);
         let fixed = dir.join("fixed.ngc");
         let plots = dir.join("plots");
-        gouge_main(&GougeArgs {
+        gouge_main(&GougeOptions {
             stl: stl.clone(),
             path: naive.clone(),
             tool: "ball:20".into(),
@@ -415,7 +397,7 @@ mod tests {
         assert!(after.stats.max_overcut <= 0.05, "{:?}", after.stats);
 
         let nurbs = dir.join("nurbs.ngc");
-        fit_main(&FitArgs {
+        fit_main(&FitOptions {
             path: fixed,
             tol: 0.001,
             degree: 3,

@@ -28,54 +28,39 @@ use planner::io::{Moves, PathWriter};
 pub const DEFAULT_BLEND_TOLERANCE: f64 = 0.001;
 
 /// Options of `interpd plan raster`.
-#[derive(Clone, Debug, clap::Args)]
-pub struct RasterArgs {
+#[derive(Clone, Debug)]
+pub struct RasterOptions {
     /// The part, binary or ASCII STL (mm).
-    #[arg(long)]
     pub stl: PathBuf,
     /// Cutter: ball:D, flat:D or bull:D:r (D the diameter, mm).
-    #[arg(long)]
     pub tool: Cutter,
     /// Distance between passes, mm.
-    #[arg(long, default_value_t = 0.5)]
     pub stepover: f64,
     /// Pass direction, degrees counter-clockwise from +X.
-    #[arg(long, default_value_t = 0.0)]
     pub angle: f64,
     /// Cut both ways (reverse every other pass).
-    #[arg(long)]
     pub zigzag: bool,
     /// Chord tolerance of the CL polylines, mm.
-    #[arg(long, default_value_t = RasterConfig::default().chord_tolerance)]
     pub chord_tolerance: f64,
     /// G-code output file.
-    #[arg(long)]
     pub out: Option<PathBuf>,
     /// Print a JSON summary on stdout instead of text.
-    #[arg(long)]
     pub json: bool,
     /// Also write the CL polylines as JSON (for scripts/ocl_compare.py).
-    #[arg(long)]
     pub cl_json: Option<PathBuf>,
     /// Safe height above the part's top for rapids, mm.
-    #[arg(long, default_value_t = 5.0)]
     pub clearance: f64,
     /// Cutting feed, mm/min.
-    #[arg(long, default_value_t = 1000.0)]
     pub feed: f64,
     /// Plunge feed, mm/min.
-    #[arg(long, default_value_t = 300.0)]
     pub plunge_feed: f64,
     /// `G64 P` written at the program's start, mm: the controller may leave
     /// the polylines by this much to run their dense moves at speed (the
     /// moves are a few µm long). 0: no G64 (the controller's exact path).
-    #[arg(long, default_value_t = DEFAULT_BLEND_TOLERANCE)]
     pub blend_tolerance: f64,
     /// Weld tolerance for the mesh's vertices, mm.
-    #[arg(long, default_value_t = WeldOptions::default().weld_tolerance)]
     pub weld_tolerance: f64,
     /// No progress bar.
-    #[arg(long)]
     pub quiet: bool,
 }
 
@@ -96,7 +81,7 @@ struct Summary {
 }
 
 /// Runs `interpd plan raster`.
-pub fn main(args: &RasterArgs) -> Result<()> {
+pub fn main(args: &RasterOptions) -> Result<()> {
     for (flag, v) in [("--feed", args.feed), ("--plunge-feed", args.plunge_feed)] {
         if !(v.is_finite() && v > 0.0) {
             bail!("{flag} must be a positive number of mm/min, got {v}");

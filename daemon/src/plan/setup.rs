@@ -23,27 +23,18 @@ use planner::setup::{
 use serde::Serialize;
 
 /// Options of `interpd plan setup`.
-#[derive(Clone, Debug, clap::Args)]
-pub struct SetupArgs {
+#[derive(Clone, Debug)]
+pub struct SetupOptions {
     /// The part, binary or ASCII STL (mm). Each triangle is one surface patch.
-    #[arg(long, value_name = "PART.stl")]
     pub stl: PathBuf,
     /// Machine configuration in W/…/T notation, e.g. W/caxyBz/T (C,A) or W/baxzBy/T (A,B).
-    #[arg(long, value_name = "W/…/T")]
     pub machine: MachineConfig,
     /// Rotary ranges in degrees: PHI_L,PHI_S (C,A: tilt axis; A,B: R1),
     /// THETA_L,THETA_S (C,A: C axis; A,B: R2).
-    #[arg(
-        long,
-        value_name = "PHI_L,PHI_S,THETA_L,THETA_S",
-        allow_hyphen_values = true
-    )]
     pub ranges: AxisRanges,
     /// Minimum number of sphere cells (rounded up to 20·f²).
-    #[arg(long, value_name = "N", default_value_t = SetupConfig::default().cells)]
     pub cells: usize,
     /// Print JSON instead of text.
-    #[arg(long)]
     pub json: bool,
 }
 
@@ -175,7 +166,7 @@ fn orientation(
     }
 }
 
-fn output(args: &SetupArgs, plan: &SetupPlan) -> PlanOut {
+fn output(args: &SetupOptions, plan: &SetupPlan) -> PlanOut {
     let m = &args.machine;
     PlanOut {
         machine: m.notation().to_string(),
@@ -274,7 +265,7 @@ fn print_text(out: &PlanOut) {
 }
 
 /// Runs `interpd plan setup`.
-pub fn main(args: &SetupArgs) -> Result<()> {
+pub fn main(args: &SetupOptions) -> Result<()> {
     let out = compute(args)?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&out)?);
@@ -285,7 +276,7 @@ pub fn main(args: &SetupArgs) -> Result<()> {
 }
 
 /// Reads the part and plans its setup.
-fn compute(args: &SetupArgs) -> Result<PlanOut> {
+fn compute(args: &SetupOptions) -> Result<PlanOut> {
     let mesh = TriMesh::from_stl_path(&args.stl, WeldOptions::default())
         .with_context(|| format!("reading {}", args.stl.display()))?;
     let config = SetupConfig {
@@ -339,8 +330,8 @@ mod tests {
     use planner::setup::samples::teapot;
     use std::fmt::Write as _;
 
-    fn args(stl: PathBuf, machine: &str, ranges: &str) -> SetupArgs {
-        SetupArgs {
+    fn args(stl: PathBuf, machine: &str, ranges: &str) -> SetupOptions {
+        SetupOptions {
             stl,
             machine: machine.parse().unwrap(),
             ranges: ranges.parse().unwrap(),

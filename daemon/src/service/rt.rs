@@ -32,12 +32,13 @@ use std::thread::JoinHandle;
 use anyhow::{Context, Result, anyhow, bail};
 use heapless::spsc::{Consumer, Producer, Queue};
 use interp_core::interp::PushError;
-use interp_core::{Block, Driver, Executor, InterpConfig, PlannedBlock, RunState, Setpoint, Vec3};
+use interp_core::{Block, Executor, InterpConfig, PlannedBlock, RunState, Setpoint};
+use interp_run::{Op, Run};
 
 use crate::service::clock::{minimise_timer_slack, now_ns, wait_until_ns};
 use crate::service::histogram::Histogram;
 use crate::service::publish::SetpointPublisher;
-use crate::service::sequencer::{Op, Sequencer, Step};
+use crate::service::sequencer::{Sequencer, Step};
 
 /// Segments queued between the control plane and the planning thread (one slot is kept free).
 pub const SEGMENT_SLOTS: usize = 16;
@@ -214,40 +215,31 @@ pub const DEFAULT_PRIORITY: i32 = 80;
 /// The RT thread's scheduling flags, shared by `interpd serve` and
 /// `interpd jitter` so that both loops of a jitter run are scheduled as
 /// `serve` would be.
-#[derive(Clone, Debug, clap::Args)]
-pub struct RtArgs {
+#[derive(Clone, Debug, PartialEq)]
+pub struct RtSettings {
     /// Interpolation period, µs (250..=10000).
-    #[arg(long, value_name = "US", default_value_t = DEFAULT_PERIOD_US,
-          value_parser = clap::value_parser!(u32).range(250..=10_000))]
     pub period_us: u32,
     /// SCHED_FIFO priority of the RT thread (1..=99).
-    #[arg(long, default_value_t = DEFAULT_PRIORITY,
-          value_parser = clap::value_parser!(i32).range(1..=99))]
     pub priority: i32,
     /// Normal scheduling: no SCHED_FIFO, no mlockall, no pinning.
-    #[arg(long)]
     pub no_rt: bool,
     /// CPU to pin the RT thread to (default: the last one).
-    #[arg(long)]
     pub cpu: Option<usize>,
     /// Wake this many µs before each deadline and spin on the clock to it
     /// (at most half the period). Keeps the core awake so that the setpoint
     /// goes out on time, at the cost of that much CPU per period; 0 sleeps
     /// to the deadline.
-    #[arg(long, value_name = "US", default_value_t = 0)]
     pub spin_us: u32,
     /// How far the planning thread runs ahead of the RT thread, ms
     /// (2..=1000): a hold, override or abort takes effect this much later;
     /// planning may take this long without the RT thread waiting for it.
-    #[arg(long, value_name = "MS", default_value_t = DEFAULT_PLAN_LEAD_MS,
-          value_parser = clap::value_parser!(u32).range(2..=1000))]
     pub plan_lead_ms: u32,
 }
 
-impl Default for RtArgs {
+impl Default for RtSettings {
     /// The defaults of `interpd serve` with no flags.
     fn default() -> Self {
-        RtArgs {
+        RtSettings {
             period_us: DEFAULT_PERIOD_US,
             priority: DEFAULT_PRIORITY,
             no_rt: false,
@@ -258,7 +250,7 @@ impl Default for RtArgs {
     }
 }
 
-impl RtArgs {
+impl RtSettings {
     /// The RT thread's options for these flags (the last CPU unless `--cpu`
     /// or `--no-rt`), publishing on `service`.
     pub fn options(&self, service: &str, autostart: bool) -> Result<RtOptions> {
@@ -464,17 +456,14 @@ pub fn spawn(cfg: InterpConfig, position: [f64; 6], opts: RtOptions) -> Result<R
         .name("interpd-plan".into())
         .stack_size(RT_STACK_BYTES)
         .spawn(move || {
-            let start = Vec3::new(position[0], position[1], position[2]);
-            let (exec, driver) = match (Executor::new(cfg, position), Driver::new(cfg, start, 0.0))
-            {
-                (Ok(e), Ok(d)) => (Box::new(e), Box::new(d)),
+            let run = match Run::new(cfg, position) {
+                Ok(r) => Box::new(r.recording()),
                 // The RT thread built the same executor from the same
                 // config: this cannot fail once it started.
-                _ => return,
+                Err(_) => return,
             };
             Sequencer {
-                exec,
-                driver,
+                run,
                 segments: seg_rx,
                 commands: cmd_rx,
                 failures: fail_tx,
@@ -493,7 +482,6 @@ pub fn spawn(cfg: InterpConfig, position: [f64; 6], opts: RtOptions) -> Result<R
                 finished: false,
                 end_requested: None,
                 pending: None,
-                outbox: Vec::new(),
             }
             .run();
         })
@@ -628,24 +616,21 @@ impl Loop {
             let Some(step) = self.steps.dequeue() else {
                 break;
             };
-            match step.op {
-                Op::Commit(plan) => {
-                    let t0 = now_ns();
-                    // A refusal is the planning thread's too: its copy was
-                    // offered the same plan in the same state.
-                    let _ = self.exec.commit(&plan);
-                    commit_ns += (now_ns() - t0).max(0) as u64;
-                    self.recycle(plan);
-                }
-                Op::Hold => self.exec.feed_hold(),
-                Op::Resume => self.exec.resume(),
-                Op::Abort { operator } => {
-                    self.exec.abort();
-                    if operator {
+            if let Some(op) = step.op {
+                let t0 = now_ns();
+                // A refusal is the planning thread's too: its copy was
+                // offered the same plan in the same state.
+                let _ = op.apply(&mut self.exec);
+                match op {
+                    Op::Commit(plan) => {
+                        commit_ns += (now_ns() - t0).max(0) as u64;
+                        self.recycle(plan);
+                    }
+                    Op::Abort if step.operator => {
                         self.status.aborts.fetch_add(1, Ordering::AcqRel);
                     }
+                    _ => {}
                 }
-                Op::Mark => {}
             }
             if let Some(what) = step.record {
                 self.record(RtRecord::Applied { tick: ticks, what });
@@ -764,7 +749,7 @@ impl Loop {
             }
         }
         while let Some(step) = self.steps.dequeue() {
-            if let Op::Commit(plan) = step.op {
+            if let Some(Op::Commit(plan)) = step.op {
                 self.recycle(plan);
             }
         }
@@ -885,12 +870,12 @@ mod tests {
 
     #[test]
     fn rt_flags_become_the_loop_options_and_a_spin_over_half_the_period_is_refused() {
-        let rt = RtArgs {
+        let rt = RtSettings {
             period_us: 500,
             priority: 70,
             cpu: Some(0),
             spin_us: 250,
-            ..RtArgs::default()
+            ..RtSettings::default()
         };
         let o = rt.options("svc", true).expect("half the period is allowed");
         assert_eq!((o.period_ns, o.spin_ns), (500_000, 250_000));
@@ -899,7 +884,7 @@ mod tests {
             (Some(70), Some(0), true)
         );
         assert_eq!((o.service.as_str(), o.autostart), ("svc", true));
-        let plain = RtArgs {
+        let plain = RtSettings {
             no_rt: true,
             ..rt.clone()
         }
@@ -909,7 +894,7 @@ mod tests {
             (plain.fifo_priority, plain.cpu, plain.lock_memory),
             (None, None, false)
         );
-        let err = RtArgs { spin_us: 251, ..rt }
+        let err = RtSettings { spin_us: 251, ..rt }
             .options("svc", false)
             .expect_err("more than half the period");
         assert!(err.to_string().contains("--spin-us 251"), "{err}");

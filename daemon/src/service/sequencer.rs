@@ -29,28 +29,10 @@ use std::time::Duration;
 
 use heapless::spsc::{Consumer, Producer};
 use interp_core::interp::PushError;
-use interp_core::{Driver, Executor, PlannedBlock, RunState};
+use interp_core::{PlannedBlock, RunState};
+use interp_run::{Op, Run};
 
 use crate::service::rt::{Applied, Command, PushFailure, RtStatus, Segment};
-
-/// What the RT thread does to its executor before a tick.
-#[derive(Debug)]
-pub enum Op {
-    /// `Executor::commit` (the buffer goes back through the spent queue).
-    Commit(Box<PlannedBlock>),
-    /// `Executor::feed_hold`.
-    Hold,
-    /// `Executor::resume`.
-    Resume,
-    /// `Executor::abort`; `operator`: an operator's abort (counted in
-    /// `RtStatus::aborts`), not the one that leaves `done` for a new program.
-    Abort {
-        /// Whether an operator asked for it.
-        operator: bool,
-    },
-    /// Nothing to the executor: a record or a status change only.
-    Mark,
-}
 
 /// One thing for the RT thread to do before its tick number `at + 1`.
 #[derive(Debug)]
@@ -63,16 +45,21 @@ pub struct Step {
     pub started: bool,
     /// The program's end was applied.
     pub finished: bool,
-    /// What to do.
-    pub op: Op,
+    /// What to give the executor (`interp_run::Op::apply`; a plan's buffer
+    /// goes back through the spent queue); `None`: a record or a status
+    /// change only.
+    pub op: Option<Op>,
+    /// The op is an operator's abort (counted in `RtStatus::aborts`), not
+    /// the one that leaves `done` for a new program.
+    pub operator: bool,
     /// What a recording notes (replayed at the same tick).
     pub record: Option<Applied>,
 }
 
 /// The planning thread's state (see the module docs).
 pub(crate) struct Sequencer {
-    pub exec: Box<Executor>,
-    pub driver: Box<Driver>,
+    /// The executor copy and its driver, recording every step given to the copy.
+    pub run: Box<Run>,
     pub segments: Consumer<'static, Segment>,
     pub commands: Consumer<'static, Command>,
     pub failures: Producer<'static, PushFailure>,
@@ -97,8 +84,6 @@ pub(crate) struct Sequencer {
     pub end_requested: Option<u32>,
     /// A segment that did not fit yet.
     pub pending: Option<Segment>,
-    /// Plans made by the current call, to send in order.
-    pub outbox: Vec<Box<PlannedBlock>>,
 }
 
 impl Sequencer {
@@ -119,18 +104,24 @@ impl Sequencer {
     }
 
     fn ticks(&self) -> u64 {
-        self.exec.stats().ticks
+        self.run.ticks()
     }
 
     /// Sends a step for the current tick (waits while the RT thread's queue
     /// is full: it drains it as it reaches the steps' ticks).
-    fn send(&mut self, op: Op, record: Option<Applied>) {
+    fn send(&mut self, op: Option<Op>, operator: bool, record: Option<Applied>) {
+        self.send_at(self.ticks(), op, operator, record);
+    }
+
+    /// [`Self::send`] for the tick `at`.
+    fn send_at(&mut self, at: u64, op: Option<Op>, operator: bool, record: Option<Applied>) {
         let mut step = Step {
-            at: self.ticks(),
+            at,
             program: self.program,
             started: self.started,
             finished: self.finished,
             op,
+            operator,
             record,
         };
         loop {
@@ -147,32 +138,22 @@ impl Sequencer {
         }
     }
 
-    /// Sends the plans the last call made.
-    fn flush(&mut self) {
-        let plans: Vec<_> = self.outbox.drain(..).collect();
-        for p in plans {
-            self.send(Op::Commit(p), None);
+    /// Sends the steps the copy was given since the last call, in order;
+    /// `record` and `operator` go with the first one (a hold, resume or
+    /// abort comes before the plans it leads to). Plan buffers the RT thread
+    /// has handed back are reused first.
+    fn flush(&mut self, record: Option<Applied>, operator: bool) {
+        let (mut record, mut operator) = (record, operator);
+        for step in self.run.take_steps() {
+            self.send_at(step.at, Some(step.op), operator, record.take());
+            operator = false;
         }
-    }
-
-    /// Runs `f` with a sink that copies every plan offered to the executor
-    /// into the outbox (buffers reused from the spent queue), then sends them.
-    fn with_sink<R>(
-        &mut self,
-        f: impl FnOnce(&mut Driver, &mut Executor, &mut dyn FnMut(&PlannedBlock)) -> R,
-    ) -> R {
-        let spent = &mut self.spent;
-        let outbox = &mut self.outbox;
-        let mut sink = |p: &PlannedBlock| {
-            let mut b = spent
-                .dequeue()
-                .unwrap_or_else(|| Box::new(PlannedBlock::new()));
-            (*b).clone_from(p);
-            outbox.push(b);
-        };
-        let r = f(&mut self.driver, &mut self.exec, &mut sink);
-        self.flush();
-        r
+        if record.is_some() {
+            self.send(None, false, record);
+        }
+        while let Some(b) = self.spent.dequeue() {
+            self.run.recycle(b);
+        }
     }
 
     /// Pushes the segments that fit, in order.
@@ -188,10 +169,11 @@ impl Sequencer {
                 self.pending = Some(seg);
                 return;
             }
-            let r = self.with_sink(|d, e, sink| d.push_into(e, &seg.block, sink));
+            let r = self.run.push(&seg.block);
+            self.flush(None, false);
             match r {
                 Ok(()) => {
-                    self.send(Op::Mark, Some(Applied::Commit(seg.block.id)));
+                    self.send(None, false, Some(Applied::Commit(seg.block.id)));
                     self.status.blocks_pushed.fetch_add(1, Ordering::AcqRel);
                 }
                 Err(e) if e.is_wait() => {
@@ -223,12 +205,12 @@ impl Sequencer {
         if seg.program == self.program {
             return true;
         }
-        match self.exec.state() {
+        match self.run.state() {
             RunState::Done => {
                 // A new program after a finished one: leave Done.
-                self.exec.abort();
+                self.run.abort();
                 self.finished = false;
-                self.send(Op::Abort { operator: false }, Some(Applied::Abort));
+                self.flush(Some(Applied::Abort), false);
             }
             RunState::Idle if !self.aborting => {}
             _ => return false,
@@ -236,7 +218,7 @@ impl Sequencer {
         self.program = seg.program;
         self.finished = false;
         self.started = self.autostart || self.start_for == seg.program;
-        self.send(Op::Mark, None);
+        self.send(None, false, None);
         true
     }
 
@@ -250,8 +232,9 @@ impl Sequencer {
         {
             self.end_requested = None;
             self.finished = true;
-            self.with_sink(|d, e, sink| d.finish_into(e, sink));
-            self.send(Op::Mark, Some(Applied::Finish));
+            self.run.finish();
+            self.flush(None, false);
+            self.send(None, false, Some(Applied::Finish));
         }
     }
 
@@ -262,40 +245,38 @@ impl Sequencer {
                     self.start_for = p;
                     if p == self.program {
                         self.started = true;
-                        self.send(Op::Mark, None);
+                        self.send(None, false, None);
                     }
                 }
                 // Only motion is held: a hold while nothing moves is not
                 // remembered for the next program.
                 Command::Hold => {
-                    if self.started && self.exec.state() == RunState::Running {
-                        self.exec.feed_hold();
-                        self.send(Op::Hold, Some(Applied::Hold));
+                    if self.started && self.run.state() == RunState::Running {
+                        self.run.feed_hold();
+                        self.flush(Some(Applied::Hold), false);
                     }
                 }
                 Command::Resume => {
-                    if self.exec.state() == RunState::Holding {
-                        self.exec.resume();
-                        self.send(Op::Resume, Some(Applied::Resume));
-                        self.with_sink(|d, e, sink| d.drive(e, sink));
+                    if self.run.state() == RunState::Holding {
+                        self.run.resume();
+                        self.flush(Some(Applied::Resume), false);
                     }
                 }
                 Command::Override(x) => {
                     // The control plane checked the range; a refusal leaves the old value.
-                    let ok = self
-                        .with_sink(|d, e, sink| d.set_feed_override_into(e, x, sink))
-                        .is_ok();
+                    let ok = self.run.set_feed_override(x).is_ok();
+                    self.flush(None, false);
                     if ok {
                         self.status
                             .feed_override
                             .store(x.to_bits(), Ordering::Release);
-                        self.send(Op::Mark, Some(Applied::Override(x)));
+                        self.send(None, false, Some(Applied::Override(x)));
                     }
                 }
                 Command::End(p) => self.end_requested = Some(p),
                 Command::Abort => {
-                    self.exec.abort();
-                    self.send(Op::Abort { operator: true }, Some(Applied::Abort));
+                    self.run.abort();
+                    self.flush(Some(Applied::Abort), true);
                     self.pending = None;
                     while self.segments.dequeue().is_some() {}
                     self.end_requested = None;
@@ -308,8 +289,10 @@ impl Sequencer {
 
     /// Plans what is due, ticks the copy, and lets the RT thread tick too.
     fn tick(&mut self) {
-        self.with_sink(|d, e, sink| d.drive(e, sink));
-        let sp = self.exec.tick();
+        // The plans due are recorded for this tick and sent before it is
+        // decided.
+        let sp = self.run.tick();
+        self.flush(None, false);
         self.decided.store(self.ticks(), Ordering::Release);
         if self.aborting && sp.state != RunState::Stopping {
             self.aborting = false;

@@ -16,8 +16,8 @@ use serde::Serialize;
 
 use crate::service::control::{Control, Stream, serve_connection};
 use crate::service::histogram::Percentiles;
-use crate::service::publish::{DEFAULT_SERVICE, remove_dead_nodes, state_name};
-use crate::service::rt::{Applied, RtArgs, RtRecord, RtReport};
+use crate::service::publish::{remove_dead_nodes, state_name};
+use crate::service::rt::{Applied, RtRecord, RtReport, RtSettings};
 
 /// What the recorder thread calls for every tick the RT thread handed it.
 pub type TickSink = Box<dyn FnMut(&RtRecord) + Send>;
@@ -28,54 +28,42 @@ pub const DEFAULT_PORT: u16 = 47_110;
 const RECORDER_POLL: Duration = Duration::from_millis(5);
 
 /// Options of `interpd serve`.
-#[derive(Clone, Debug, clap::Args)]
-pub struct ServeArgs {
+#[derive(Clone, Debug, PartialEq)]
+pub struct ServeOptions {
     /// The RT thread's period and scheduling.
-    #[command(flatten)]
-    pub rt: RtArgs,
+    pub rt: RtSettings,
     /// TCP address to listen on (loopback unless --allow-remote).
-    #[arg(long, default_value = "127.0.0.1")]
     pub listen: IpAddr,
     /// TCP port (0: any free port, printed at start).
-    #[arg(long, default_value_t = DEFAULT_PORT)]
     pub port: u16,
     /// Allow listening beyond loopback (needs --token).
-    #[arg(long)]
     pub allow_remote: bool,
     /// Token every connection must send first (`auth TOKEN`).
-    #[arg(long)]
     pub token: Option<String>,
     /// Unix socket path (mode 0600); default `$XDG_RUNTIME_DIR/interpd.sock` or `/tmp/interpd-UID.sock`.
-    #[arg(long, value_name = "PATH")]
     pub socket: Option<PathBuf>,
     /// Do not listen on a Unix socket.
-    #[arg(long)]
     pub no_socket: bool,
     /// iceoryx2 service name of the setpoints.
-    #[arg(long, default_value = DEFAULT_SERVICE)]
     pub service: String,
     /// The first program moves without waiting for `start`.
-    #[arg(long)]
     pub autostart: bool,
     /// Start position X Y Z, mm.
-    #[arg(long, num_args = 3, value_names = ["X", "Y", "Z"], allow_negative_numbers = true)]
     pub position: Option<Vec<f64>>,
     /// Record the run to this MCAP trace (config, blocks, setpoints, loop
     /// timing, events) through the `traces` recorder; `interpd replay` of it
     /// reproduces the setpoints of the first program bit for bit when that
     /// program was queued before `start`.
-    #[arg(long, value_name = "PATH")]
     pub record: Option<PathBuf>,
     /// Print the final summary as JSON.
-    #[arg(long)]
     pub json: bool,
 }
 
-impl ServeArgs {
+impl ServeOptions {
     /// Defaults as `interpd serve` with no flags, on `service`, any free port, no socket.
     pub fn in_process(service: &str) -> Self {
-        ServeArgs {
-            rt: RtArgs::default(),
+        ServeOptions {
+            rt: RtSettings::default(),
             listen: IpAddr::from([127, 0, 0, 1]),
             port: 0,
             allow_remote: false,
@@ -229,7 +217,7 @@ fn spawn_recorder(
 /// otherwise only [`Service::shutdown`] does. `on_tick` sees every recorded tick
 /// on the recorder thread.
 pub fn start(
-    args: &ServeArgs,
+    args: &ServeOptions,
     cfg: InterpConfig,
     handle_signals: bool,
     on_tick: Option<TickSink>,

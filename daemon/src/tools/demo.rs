@@ -27,12 +27,10 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Error, Result, anyhow, bail};
 use heapless::spsc::{Producer, Queue};
-use interp_core::interp::Stats;
 use interp_core::metrics::chord_error_between;
 use interp_core::samples::butterfly;
-use interp_core::{
-    Block, Curve, Driver, Executor, InterpConfig, PlannedBlock, RunState, Setpoint, Vec3,
-};
+use interp_core::{Block, Curve, InterpConfig, RunState, Setpoint, Vec3};
+use interp_run::{PlanError, Replay};
 use serde::Serialize;
 
 use crate::check::{Checker, Limits, Measured, Violations};
@@ -51,48 +49,53 @@ const CHORD_SAMPLES: usize = 16;
 const MAX_MACHINE_TIME_S: f64 = 3600.0;
 /// ... or after the path has not moved for this long while running, s.
 const STALL_TIME_S: f64 = 1.0;
+/// Planning gives up after this many ticks: the run does not end.
+const MAX_PLAN_TICKS: u64 = 100_000_000;
 
-/// Options of `interpd demo`.
-#[derive(Clone, Debug, clap::Args)]
-pub struct DemoArgs {
-    /// Programmed feed, mm/min.
-    #[arg(long, value_name = "MM_PER_MIN", default_value_t = 6000.0)]
+/// Options of `interpd demo`; [`Default`] holds the documented defaults.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DemoOptions {
+    /// Programmed feed, mm/min (default 6000).
     pub feed: f64,
-    /// Interpolation period, µs.
-    #[arg(
-        long,
-        value_name = "US",
-        default_value_t = 1000,
-        value_parser = clap::value_parser!(u32).range(1..=1_000_000)
-    )]
+    /// Interpolation period, µs (default 1000).
     pub period_us: u32,
-    /// Chord tolerance of the chord-error feed law, mm.
-    #[arg(long, value_name = "MM", default_value_t = InterpConfig::default().chord_tolerance)]
+    /// Chord tolerance of the chord-error feed law, mm (default: `InterpConfig`'s).
     pub chord_tolerance_mm: f64,
-    /// Tangential acceleration limit, mm/s².
-    #[arg(long, value_name = "MM_PER_S2", default_value_t = InterpConfig::default().max_path_accel)]
+    /// Tangential acceleration limit, mm/s² (default: `InterpConfig`'s).
     pub accel: f64,
     /// Do not sleep: tick as fast as possible. Same setpoints; timing is then not meaningful.
-    #[arg(long)]
     pub fast: bool,
     /// Print the summary as one JSON object.
-    #[arg(long)]
     pub json: bool,
     /// Write every setpoint to this CSV file (seq,time,x,y,z,feed,u,s,block_id,state).
-    #[arg(long, value_name = "PATH")]
     pub csv: Option<PathBuf>,
     /// Skip the second run through the service (RT thread, iceoryx2, TCP control plane).
-    #[arg(long)]
     pub no_service: bool,
     /// Normal scheduling for the service run (no SCHED_FIFO, mlockall or pinning).
-    #[arg(long)]
     pub no_rt: bool,
-    /// Directory for the plots (PNG) and the service run's recording (`run.mcap`); made if missing.
-    #[arg(long, value_name = "DIR", default_value = DEFAULT_OUT_DIR)]
+    /// Directory for the plots (PNG) and the service run's recording
+    /// (`run.mcap`); made if missing (default [`DEFAULT_OUT_DIR`]).
     pub out: PathBuf,
     /// Do not write the plots.
-    #[arg(long)]
     pub no_plots: bool,
+}
+
+impl Default for DemoOptions {
+    fn default() -> Self {
+        DemoOptions {
+            feed: 6000.0,
+            period_us: 1000,
+            chord_tolerance_mm: InterpConfig::default().chord_tolerance,
+            accel: InterpConfig::default().max_path_accel,
+            fast: false,
+            json: false,
+            csv: None,
+            no_service: false,
+            no_rt: false,
+            out: PathBuf::from(DEFAULT_OUT_DIR),
+            no_plots: false,
+        }
+    }
 }
 
 /// Where `interpd demo` writes its plots and recording unless `--out` says otherwise.
@@ -101,7 +104,7 @@ pub const DEFAULT_OUT_DIR: &str = "out/demo";
 pub const RECORDING_FILE: &str = "run.mcap";
 
 /// Runs the demo, prints the summary, and fails if any check failed.
-pub fn main(args: &DemoArgs) -> Result<()> {
+pub fn main(args: &DemoOptions) -> Result<()> {
     let mut setpoints = Vec::new();
     let mut summary = run(args, |sp| {
         if !args.no_plots {
@@ -191,85 +194,32 @@ impl Drop for SetOnDrop<'_> {
     }
 }
 
-/// A program as the service's RT thread runs it: every plan a [`Driver`]
-/// makes for it (blocks pushed as `simulate` pushes them), with the tick it
-/// precedes, is offered to an [`Executor`] at that tick. Planning happens
-/// before the loop; the loop's ticks cost what the RT thread's cost.
-#[derive(Debug)]
-pub(crate) struct Planned {
-    exec: Box<Executor>,
-    plans: Vec<(u64, Box<PlannedBlock>)>,
-    next: usize,
-}
-
-impl Planned {
-    /// Plans `blocks` from `start` to the end of the program.
-    fn new(cfg: InterpConfig, start: [f64; 6], blocks: &[Block]) -> Result<Self> {
-        let config = |e: interp_core::config::ConfigError| anyhow!("{e:?}");
-        let mut exec: Box<Executor> = Box::new(Executor::new(cfg, start).map_err(config)?);
-        let p = Vec3::new(start[0], start[1], start[2]);
-        let mut driver = Box::new(Driver::new(cfg, p, 0.0).map_err(config)?);
-        let mut plans = Vec::new();
-        let mut next = 0;
-        loop {
-            let at = exec.stats().ticks;
-            let mut sink = |p: &PlannedBlock| plans.push((at, Box::new(p.clone())));
-            while let Some(b) = blocks.get(next) {
-                match driver.push_into(&mut exec, b, &mut sink) {
-                    Ok(()) => next += 1,
-                    Err(e) if e.is_wait() => break,
-                    Err(e) => {
-                        return Err(Error::msg(e)).with_context(|| {
-                            format!(
-                                "planning butterfly block {} ({} of {}, {:.3} mm)",
-                                b.id,
-                                next + 1,
-                                blocks.len(),
-                                b.path.length()
-                            )
-                        });
-                    }
-                }
-                if next == blocks.len() {
-                    driver.finish_into(&mut exec, &mut sink);
-                }
-            }
-            driver.drive(&mut exec, &mut sink);
-            let sp = exec.tick();
-            if matches!(sp.state, RunState::Done | RunState::Fault) {
-                break;
-            }
-            if at > 100_000_000 {
-                bail!("planning the butterfly: the run does not end");
-            }
+/// Plans `blocks` from `start` to the end of the program before the loop
+/// (`interp_run::plan`, blocks pushed as `simulate` pushes them): the loop
+/// then gives each plan to an executor at the tick it was made for, as the
+/// service's RT thread does, and its ticks cost what the RT thread's cost.
+fn planned(cfg: InterpConfig, start: [f64; 6], blocks: &[Block]) -> Result<Replay> {
+    interp_run::plan(cfg, start, blocks, MAX_PLAN_TICKS).map_err(|e| match e {
+        PlanError::Run {
+            index: Some(k),
+            error,
+        } => {
+            let b = &blocks[k];
+            anyhow!(
+                "planning butterfly block {} ({} of {}, {:.3} mm): {error}",
+                b.id,
+                k + 1,
+                blocks.len(),
+                b.path.length()
+            )
         }
-        Ok(Planned {
-            exec: Box::new(Executor::new(cfg, start).map_err(config)?),
-            plans,
-            next: 0,
-        })
-    }
-
-    /// One period: the plans for it, then the executor's tick (no allocation).
-    fn tick(&mut self) -> Setpoint {
-        let t = self.exec.stats().ticks;
-        while let Some((at, plan)) = self.plans.get(self.next)
-            && *at == t
-        {
-            let _ = self.exec.commit(plan);
-            self.next += 1;
-        }
-        self.exec.tick()
-    }
-
-    fn stats(&self) -> Stats {
-        self.exec.stats()
-    }
+        e => anyhow!("planning the butterfly: {e}"),
+    })
 }
 
 /// The fixed-period loop. Everything it touches is allocated by the caller.
 fn run_loop(
-    ip: &mut Planned,
+    ip: &mut Replay,
     mut sub: Checker,
     mut lateness: Histogram,
     mut compute: Histogram,
@@ -571,7 +521,7 @@ pub struct Summary {
 }
 
 /// The interpolator configuration of the direct run.
-fn config(args: &DemoArgs) -> InterpConfig {
+fn config(args: &DemoOptions) -> InterpConfig {
     InterpConfig {
         period: f64::from(args.period_us) * 1e-6,
         chord_tolerance: args.chord_tolerance_mm,
@@ -585,7 +535,7 @@ fn config(args: &DemoArgs) -> InterpConfig {
 struct Prepared {
     cfg: InterpConfig,
     blocks: Vec<Block>,
-    ip: Box<Planned>,
+    ip: Box<Replay>,
     start: Vec3,
     end: Vec3,
     length: f64,
@@ -594,7 +544,7 @@ struct Prepared {
 }
 
 impl Prepared {
-    fn new(args: &DemoArgs) -> Result<Self> {
+    fn new(args: &DemoOptions) -> Result<Self> {
         if !(args.feed.is_finite() && args.feed > 0.0) {
             bail!(
                 "--feed must be a positive number of mm/min, got {}",
@@ -612,7 +562,7 @@ impl Prepared {
         let end = last.path.end_point();
         let length: f64 = blocks.iter().map(|b| b.path.length()).sum();
 
-        let ip = Box::new(Planned::new(
+        let ip = Box::new(planned(
             cfg,
             [start.x, start.y, start.z, 0.0, 0.0, 0.0],
             &blocks,
@@ -649,7 +599,7 @@ impl Prepared {
 
 /// Runs the demo and returns its summary; `on_setpoint` sees every setpoint the
 /// recorder receives (all of them unless `timing.recorder_drops > 0`).
-pub fn run(args: &DemoArgs, on_setpoint: impl FnMut(&Setpoint)) -> Result<Summary> {
+pub fn run(args: &DemoOptions, on_setpoint: impl FnMut(&Setpoint)) -> Result<Summary> {
     let prepared = Prepared::new(args)?;
     // Everything the loop touches, allocated before it starts.
     let sub = prepared.subscriber();
@@ -689,7 +639,7 @@ pub fn run(args: &DemoArgs, on_setpoint: impl FnMut(&Setpoint)) -> Result<Summar
         error: None,
     };
 
-    let out = std::thread::scope(|s| -> Result<LoopOutcome> {
+    let mut out = std::thread::scope(|s| -> Result<LoopOutcome> {
         let (ip, stop, done) = (&mut *ip, &stop, &done);
         let handle = std::thread::Builder::new()
             .name("interp-loop".into())
@@ -721,16 +671,7 @@ pub fn run(args: &DemoArgs, on_setpoint: impl FnMut(&Setpoint)) -> Result<Summar
     let stats = ip.stats();
     let last_sp = out.last;
     let final_point = [last_sp.axes[0], last_sp.axes[1], last_sp.axes[2]];
-    let mut violations = out.sub.violations;
-    if last_sp.state != RunState::Done {
-        violations.not_done = 1;
-    }
-    if final_point != point3(end) {
-        violations.end_mismatch = 1;
-    }
-    if violations.total() > 0 && violations.first_seq.is_none() {
-        violations.first_seq = Some(last_sp.seq);
-    }
+    let violations = out.sub.finish(Some(point3(end)));
     Ok(Summary {
         program: Program {
             name: "butterfly (LinuxCNC curva_farfalla, degree-4 rational NURBS, 51 control points)",
@@ -913,19 +854,22 @@ pub(crate) mod tests_support {
     use super::*;
 
     /// `interpd demo --fast --no-service --no-plots`.
-    pub(crate) fn fast_args() -> DemoArgs {
-        let mut a = tests::args(&["--fast", "--no-service", "--no-plots"]);
-        a.out = std::env::temp_dir();
-        a
+    pub(crate) fn fast_args() -> DemoOptions {
+        DemoOptions {
+            no_service: true,
+            no_plots: true,
+            out: std::env::temp_dir(),
+            ..tests::fast()
+        }
     }
 
     /// The direct run's configuration.
-    pub(crate) fn config(args: &DemoArgs) -> InterpConfig {
+    pub(crate) fn config(args: &DemoOptions) -> InterpConfig {
         super::config(args)
     }
 
     /// The butterfly's interpolator blocks.
-    pub(crate) fn blocks(args: &DemoArgs) -> Vec<Block> {
+    pub(crate) fn blocks(args: &DemoOptions) -> Vec<Block> {
         butterfly_blocks(args.feed, &config(args)).expect("the butterfly splits")
     }
 }
@@ -934,22 +878,17 @@ pub(crate) mod tests_support {
 mod tests {
     use super::*;
     use crate::check::{ACCEL_REL_TOL, FNV_OFFSET, SPEED_TOL, digest_setpoint};
-    use clap::Parser;
-
-    #[derive(Debug, Parser)]
-    struct Wrap {
-        #[command(flatten)]
-        args: DemoArgs,
-    }
-
-    pub(super) fn args(extra: &[&str]) -> DemoArgs {
-        let argv = ["demo"].iter().chain(extra).copied();
-        Wrap::try_parse_from(argv).expect("demo args parse").args
+    /// `interpd demo --fast`.
+    pub(super) fn fast() -> DemoOptions {
+        DemoOptions {
+            fast: true,
+            ..DemoOptions::default()
+        }
     }
 
     fn fast_run() -> (Summary, Vec<Setpoint>) {
         let mut sps = Vec::new();
-        let summary = run(&args(&["--fast"]), |sp| sps.push(*sp)).expect("demo runs");
+        let summary = run(&fast(), |sp| sps.push(*sp)).expect("demo runs");
         (summary, sps)
     }
 
@@ -970,13 +909,13 @@ mod tests {
 
     #[test]
     fn defaults_are_the_documented_ones() {
-        let a = args(&[]);
+        let a = DemoOptions::default();
         assert_eq!(a.feed, 6000.0);
         assert_eq!(a.period_us, 1000);
         assert_eq!(a.chord_tolerance_mm, 0.001);
         assert_eq!(a.accel, InterpConfig::default().max_path_accel);
         assert!(!a.fast && !a.json && a.csv.is_none());
-        assert!(Wrap::try_parse_from(["demo", "--period-us", "0"]).is_err());
+        assert_eq!(a.out, PathBuf::from(DEFAULT_OUT_DIR));
     }
 
     #[test]
@@ -1013,7 +952,10 @@ mod tests {
     #[test]
     fn csv_has_a_header_and_one_row_per_setpoint() {
         let path = std::env::temp_dir().join(format!("interpd-demo-{}.csv", std::process::id()));
-        let a = args(&["--fast", "--csv", path.to_str().expect("utf-8 temp path")]);
+        let a = DemoOptions {
+            csv: Some(path.clone()),
+            ..fast()
+        };
         let s = run(&a, |_| {}).expect("demo runs");
         let text = std::fs::read_to_string(&path).expect("csv written");
         let _ = std::fs::remove_file(&path);
@@ -1038,7 +980,7 @@ mod tests {
 
     #[test]
     fn the_loop_does_not_allocate() {
-        let mut p = Prepared::new(&args(&["--fast"])).expect("program queues");
+        let mut p = Prepared::new(&fast()).expect("program queues");
         let sub = p.subscriber();
         let (lateness, compute) = (Histogram::new(), Histogram::new());
         let mut queue: Box<Queue<Setpoint, QUEUE_SLOTS>> = Box::new(Queue::new());
@@ -1070,8 +1012,12 @@ mod tests {
     #[test]
     fn main_writes_the_plots_into_out_unless_told_not_to() {
         let dir = std::env::temp_dir().join(format!("interpd-demo-out-{}", std::process::id()));
-        let out = dir.to_str().expect("utf-8 temp path");
-        main(&args(&["--fast", "--no-service", "--out", out])).expect("demo passes");
+        let a = DemoOptions {
+            no_service: true,
+            out: dir.clone(),
+            ..fast()
+        };
+        main(&a).expect("demo passes");
         let mut names: Vec<String> = std::fs::read_dir(&dir)
             .expect("out dir made")
             .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
@@ -1081,21 +1027,24 @@ mod tests {
             ["acceleration", "chord_error", "feed", "jerk", "path_xy"].map(|n| format!("{n}.png"));
         assert_eq!(names, want);
         std::fs::remove_dir_all(&dir).expect("cleanup");
-        main(&args(&[
-            "--fast",
-            "--no-service",
-            "--no-plots",
-            "--out",
-            out,
-        ]))
+        main(&DemoOptions {
+            no_plots: true,
+            ..a
+        })
         .expect("demo passes");
-        assert!(!dir.exists(), "--no-plots wrote into {out}");
-        assert_eq!(args(&[]).out, PathBuf::from(DEFAULT_OUT_DIR));
+        assert!(!dir.exists(), "--no-plots wrote into {}", dir.display());
     }
 
     #[test]
     fn a_bad_feed_is_refused_with_context() {
-        let e = run(&args(&["--feed", "0"]), |_| {}).unwrap_err();
+        let e = run(
+            &DemoOptions {
+                feed: 0.0,
+                ..DemoOptions::default()
+            },
+            |_| {},
+        )
+        .unwrap_err();
         assert!(e.to_string().contains("--feed"), "{e:#}");
     }
 }

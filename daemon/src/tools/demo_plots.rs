@@ -178,7 +178,8 @@ pub fn write(inp: &PlotInput<'_>, out_dir: &Path) -> Result<Vec<PathBuf>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use interp_core::{Interpolator, Line, Path, RunState, Vec3};
+    use interp_core::{Line, Path, RunState, Vec3};
+    use interp_run::Run;
 
     /// A straight line from rest to rest: its feed limit is the programmed feed,
     /// its chord error 0, and the series match the setpoints' own differences.
@@ -187,20 +188,16 @@ mod tests {
         let cfg = InterpConfig::default();
         let line = Line::new(Vec3::new(0.0, 0.0, 0.0), Vec3::new(20.0, 0.0, 0.0)).expect("a line");
         let block = Block::new(1, Path::Line(line), 50.0);
-        let mut ip: Box<Interpolator> =
-            Box::new(Interpolator::new(cfg, [0.0; 6]).expect("default config"));
-        ip.push(&block).expect("block queued");
-        ip.finish();
-        let mut sps = Vec::new();
-        loop {
-            let sp = ip.tick();
-            sps.push(sp);
-            if sp.state == RunState::Done {
-                break;
-            }
-            assert!(sps.len() < 100_000, "the line never ended");
-        }
         let blocks = [block];
+        let mut run: Run = Run::new(cfg, [0.0; 6])
+            .expect("default config")
+            .with_tick_limit(100_000);
+        let mut sps = Vec::new();
+        let end = run.run_program::<core::convert::Infallible>(&blocks, |sp, _| {
+            sps.push(*sp);
+            Ok(())
+        });
+        assert_eq!(end.expect("the line runs"), RunState::Done);
         let inp = PlotInput {
             cfg: &cfg,
             blocks: &blocks,

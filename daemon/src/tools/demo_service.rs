@@ -13,8 +13,8 @@ use serde::Serialize;
 use crate::check::{Checker, Violations};
 use crate::service::histogram::Percentiles;
 use crate::service::publish::SetpointSubscriber;
-use crate::service::serve::ServeArgs;
-use crate::tools::demo::{DemoArgs, Summary, butterfly_request};
+use crate::service::serve::ServeOptions;
+use crate::tools::demo::{DemoOptions, Summary, butterfly_request};
 
 /// The subscriber gives up when no sample arrives for this long.
 const SAMPLE_TIMEOUT: Duration = Duration::from_secs(10);
@@ -143,7 +143,7 @@ impl ServiceRun {
 }
 
 /// Runs the butterfly through an in-process service and checks every published setpoint.
-pub fn run(args: &DemoArgs, direct: &Summary) -> Result<ServiceRun> {
+pub fn run(args: &DemoOptions, direct: &Summary) -> Result<ServiceRun> {
     let t0 = Instant::now();
     let service = format!("interpd/demo/{}", std::process::id());
     let cfg = InterpConfig {
@@ -151,7 +151,7 @@ pub fn run(args: &DemoArgs, direct: &Summary) -> Result<ServiceRun> {
         max_path_accel: args.accel,
         ..InterpConfig::default()
     };
-    let mut sargs = ServeArgs::in_process(&service);
+    let mut sargs = ServeOptions::in_process(&service);
     sargs.rt.period_us = args.period_us.clamp(250, 10_000);
     sargs.rt.no_rt = args.no_rt;
     sargs.position = Some(butterfly::START.to_vec());
@@ -203,7 +203,7 @@ pub fn run(args: &DemoArgs, direct: &Summary) -> Result<ServiceRun> {
     let svc = crate::service::serve::start(&sargs, cfg, false, None)?;
     let addr = svc.addr;
     let line = butterfly_request(args.feed);
-    let send_args = crate::client::send::SendArgs {
+    let send_args = crate::client::send::SendOptions {
         program: "butterfly".into(),
         addr,
         socket: None,

@@ -16,11 +16,12 @@ use interp_core::InterpConfig;
 use interp_core::samples::butterfly;
 use serde::Serialize;
 
+use crate::check::Violations;
 use crate::service::clock::{now_ns, wait_until_ns};
 use crate::service::histogram::Histogram;
 use crate::service::histogram::Percentiles;
-use crate::service::rt::{RtArgs, RtOptions};
-use crate::service::serve::ServeArgs;
+use crate::service::rt::{RtOptions, RtSettings};
+use crate::service::serve::ServeOptions;
 
 /// Programmed feed of the jitter program, mm/min.
 const FEED_MM_MIN: f64 = 6000.0;
@@ -30,16 +31,13 @@ const LOOPS_PER_SECOND: f64 = 5.0;
 const SUBSCRIBER_GRACE_S: f64 = 3.0;
 
 /// Options of `interpd jitter`.
-#[derive(Clone, Debug, clap::Args)]
-pub struct JitterArgs {
+#[derive(Clone, Debug, PartialEq)]
+pub struct JitterOptions {
     /// Seconds for each of the two loops.
-    #[arg(long, default_value_t = 10.0)]
     pub seconds: f64,
     /// Period and scheduling of both loops, as `interpd serve` takes them.
-    #[command(flatten)]
-    pub rt: RtArgs,
+    pub rt: RtSettings,
     /// Print the result as JSON.
-    #[arg(long)]
     pub json: bool,
 }
 
@@ -76,6 +74,10 @@ pub struct JitterReport {
     pub subscriber_received: u64,
     /// Samples it missed.
     pub subscriber_gaps: u64,
+    /// Ticks it checked against the machine's limits (`interp_run::check`).
+    pub subscriber_checked_ticks: u64,
+    /// Checks that failed there (`None`: the subscriber checked nothing).
+    pub subscriber_violations: Option<Violations>,
     /// Ticks the recorder had no room for.
     pub recorder_drops: u64,
     /// Full-pipeline p99 lateness / bare-loop p99 lateness.
@@ -165,7 +167,7 @@ fn program(loops: usize) -> Vec<String> {
 }
 
 /// Runs `jitter`.
-pub fn main(args: &JitterArgs) -> Result<()> {
+pub fn main(args: &JitterOptions) -> Result<()> {
     if !(args.seconds.is_finite() && args.seconds > 0.0) {
         bail!("--seconds must be positive");
     }
@@ -184,6 +186,11 @@ pub fn main(args: &JitterArgs) -> Result<()> {
     let child = Command::new(exe)
         .args(["watch", "--service", &service, "--json", "--seconds"])
         .arg(format!("{}", args.seconds + SUBSCRIBER_GRACE_S))
+        // Every published tick through the setpoint checker.
+        .arg("--check-feed")
+        .arg(format!("{FEED_MM_MIN}"))
+        .arg("--check-period-us")
+        .arg(format!("{}", args.rt.period_us))
         .stdout(Stdio::piped())
         .stderr(Stdio::inherit())
         .spawn()
@@ -191,13 +198,13 @@ pub fn main(args: &JitterArgs) -> Result<()> {
     // Let the subscriber open the service before the first sample.
     std::thread::sleep(Duration::from_millis(500));
 
-    let mut sargs = ServeArgs::in_process(&service);
+    let mut sargs = ServeOptions::in_process(&service);
     sargs.rt = args.rt.clone();
     sargs.position = Some(butterfly::START.to_vec());
     let svc = crate::service::serve::start(&sargs, InterpConfig::default(), false, None)?;
     let addr = svc.addr;
     let lines = program((args.seconds * LOOPS_PER_SECOND).ceil() as usize + 1);
-    let send_args = crate::client::send::SendArgs {
+    let send_args = crate::client::send::SendOptions {
         program: "jitter".into(),
         addr,
         socket: None,
@@ -265,6 +272,10 @@ pub fn main(args: &JitterArgs) -> Result<()> {
         },
         subscriber_received: sub["received"].as_u64().unwrap_or(0),
         subscriber_gaps: sub["gaps"].as_u64().unwrap_or(u64::MAX),
+        subscriber_checked_ticks: sub["checked_ticks"].as_u64().unwrap_or(0),
+        subscriber_violations: serde_json::from_value(sub["violations"].clone())
+            .ok()
+            .flatten(),
         recorder_drops: summary.recorder_drops,
         p99_lateness_ratio,
         bare_alongside,
@@ -277,7 +288,16 @@ pub fn main(args: &JitterArgs) -> Result<()> {
     } else {
         print_report(&report);
     }
-    Ok(())
+    match report.subscriber_violations {
+        None => bail!("the subscriber checked no setpoint"),
+        Some(v) if v.total() > 0 => bail!(
+            "{} check(s) failed on the published setpoints ({}), first at tick {:?}",
+            v.total(),
+            v.breakdown(),
+            v.first_seq
+        ),
+        Some(_) => Ok(()),
+    }
 }
 
 fn print_report(r: &JitterReport) {
@@ -311,6 +331,14 @@ fn print_report(r: &JitterReport) {
         r.recorder_drops,
         r.subscriber_received,
         r.subscriber_gaps
+    );
+    println!(
+        "  setpoint checks: {} ticks checked, {}",
+        r.subscriber_checked_ticks,
+        r.subscriber_violations.map_or_else(
+            || "none (no sample at rest before tick 1)".to_owned(),
+            |v| format!("{} failed", v.total())
+        )
     );
     if let Some(x) = r.p99_lateness_ratio {
         println!("  p99 lateness full / bare: {x:.2}");

@@ -21,39 +21,29 @@ use traces::sim::{self, SimItem, SimSettings};
 use traces::writer::{TraceCompression, TraceWriter};
 
 /// Options of `interpd simulate`.
-#[derive(Clone, Debug, clap::Args)]
-pub struct SimulateArgs {
+#[derive(Clone, Debug, PartialEq)]
+pub struct SimulateOptions {
     /// The program: G-code (`.ngc`, `.nc`) or the JSON block form (`docs/traces.md`).
     pub program: PathBuf,
     /// TOML configuration (`[interp]`, `[simulate]`).
-    #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,
     /// Write the trace to this MCAP file.
-    #[arg(long, value_name = "FILE")]
     pub out: Option<PathBuf>,
     /// Print the summary as one JSON object.
-    #[arg(long)]
     pub json: bool,
     /// Override any `[interp]` key, e.g. `--set planning-margin=0.05` (repeatable).
-    #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,
     /// Interpolation period, µs (`interp.period`; default 1000).
-    #[arg(long, value_name = "US")]
     pub period_us: Option<f64>,
     /// Chord tolerance, mm (`interp.chord-tolerance`; default 0.001).
-    #[arg(long, value_name = "MM")]
     pub chord_tolerance_mm: Option<f64>,
     /// Machine path-speed limit, mm/s (`interp.max-path-speed`; default 250).
-    #[arg(long, value_name = "MM_PER_S")]
     pub max_speed: Option<f64>,
     /// Tangential acceleration limit, mm/s² (`interp.max-path-accel`; default 2000).
-    #[arg(long, value_name = "MM_PER_S2")]
     pub max_accel: Option<f64>,
     /// Control points per segment when long NURBS are split (`simulate.max-ctrl-per-block`; default 20).
-    #[arg(long, value_name = "N")]
     pub max_ctrl_per_block: Option<usize>,
     /// Chunk compression of the trace: zstd (default), lz4 or none.
-    #[arg(long, value_name = "KIND", default_value = "zstd")]
     pub compression: TraceCompression,
 }
 
@@ -86,7 +76,7 @@ fn merge(base: &mut toml::Table, over: &toml::Table, section: &str, origin: &str
 }
 
 /// Defaults, then `--config`, then `--set`, then flags.
-pub fn resolve(args: &SimulateArgs) -> Result<Resolved> {
+pub fn resolve(args: &SimulateOptions) -> Result<Resolved> {
     let mut interp = table_of(&InterpConfig::default())?;
     let mut simulate = table_of(&SimSettings::default())?;
     if let Some(path) = &args.config {
@@ -157,7 +147,7 @@ pub fn writer_name() -> String {
 }
 
 /// Runs the simulation; writes the trace to `args.out` if given.
-pub fn run(args: &SimulateArgs) -> Result<Summary> {
+pub fn run(args: &SimulateOptions) -> Result<Summary> {
     let r = resolve(args)?;
     let program = crate::program::load(
         &args.program,

@@ -214,8 +214,9 @@ pub fn read_csv(path: &Path) -> Vec<Row> {
         .collect()
 }
 
-/// Starts `interpd watch --until-done --csv PATH` on `service`.
-pub fn watch(service: &str, csv: &Path) -> Child {
+/// Starts `interpd watch --until-done --csv PATH` on `service`, checking
+/// every tick against the default limits at `check_feed` mm/min.
+pub fn watch(service: &str, csv: &Path, check_feed: f64) -> Child {
     Command::new(interpd())
         .args([
             "watch",
@@ -223,6 +224,8 @@ pub fn watch(service: &str, csv: &Path) -> Child {
             "--json",
             "--service",
             service,
+            "--check-feed",
+            &check_feed.to_string(),
             "--csv",
         ])
         .arg(csv)

@@ -160,27 +160,33 @@ impl Problem<'_> {
         }
     }
 
-    /// Every class, exactly.
-    fn evaluate(&self, i: usize, w: &mut Work) -> Evaluation {
+    /// Every class, exactly; with the classes that bind the placements
+    /// when `binding` (only bounds use them).
+    fn evaluate(&self, i: usize, w: &mut Work, binding: bool) -> Evaluation {
         let dirs = self.sphere.cells();
         let group_ii = md_cells(self.classes, dirs, i, &mut w.walk);
         w.md.clear();
         w.md.extend(w.walk.md.iter().map(|&c| dirs[c as usize]));
         let p = &dirs[i];
         let solved = self.solve(p, w);
-        let mut binding = Vec::new();
-        for pl in [Some(solved.best), solved.fit].into_iter().flatten() {
+        let mut binding_classes = Vec::new();
+        let placements = if binding {
+            [Some(solved.best), solved.fit]
+        } else {
+            [None, None]
+        };
+        for pl in placements.into_iter().flatten() {
             for k in binding_points(self.kind, &pl, &w.md, BINDING_SLACK * self.sphere.spacing()) {
-                binding.push(w.walk.md_class[k]);
+                binding_classes.push(w.walk.md_class[k]);
             }
         }
-        binding.sort_unstable();
-        binding.dedup();
+        binding_classes.sort_unstable();
+        binding_classes.dedup();
         Evaluation {
             solved,
             group_ii,
             md_points: w.md.len(),
-            binding,
+            binding: binding_classes,
         }
     }
 
@@ -323,7 +329,9 @@ pub(super) fn search(
     let mut reach: Vec<f64> = vec![2.0; m];
     let mut sources: Vec<usize> = Vec::new();
     let mut boundaries: Vec<Option<Boundary>> = (0..prob.classes.classes).map(|_| None).collect();
-    let evaluate = |i: usize, w: &mut Work| prob.evaluate(i, w);
+    // Every cell evaluated at once: no bounds, so no binding classes.
+    let everything = prob.probe_cells == 0 || prob.probe_cells * 4 >= m;
+    let evaluate = |i: usize, w: &mut Work| prob.evaluate(i, w, !everything);
     let run_exact = |which: &[usize], exact: &mut Vec<Option<Evaluation>>| {
         for (&i, e) in which
             .iter()
@@ -333,7 +341,7 @@ pub(super) fn search(
         }
     };
     // 1. Probes (or everything).
-    let probes: Vec<usize> = if prob.probe_cells == 0 || prob.probe_cells * 4 >= m {
+    let probes: Vec<usize> = if everything {
         (0..m).collect()
     } else {
         let coarse = GeodesicSphere::with_at_least(prob.probe_cells).expect("valid count");

@@ -137,14 +137,18 @@ pub struct Scratch {
     active: Vec<usize>,
     order: Vec<u32>,
     keys: Vec<f64>,
+    /// Bucket of each cell, and where each bucket starts in `order`.
+    bucket_of: Vec<u32>,
     buckets: Vec<u32>,
+    fill: Vec<u32>,
     /// The MD cells of the last [`md_cells`] call.
     pub md: Vec<u32>,
     /// For each of `md`, one class whose MD point it is.
     pub md_class: Vec<u32>,
 }
 
-/// Buckets of the counting sort of cells by distance from the candidate.
+/// Most buckets of the counting sort of cells by distance from the
+/// candidate (about one cell per bucket on smaller spheres).
 const ORDER_BUCKETS: usize = 4096;
 
 /// Group II and MD points for the tool axis `cells[candidate]`.
@@ -175,7 +179,14 @@ pub fn md_cells(
     let mut remaining = classes.classes;
     order_by_angle(cells, candidate, scratch);
     let mut group_ii = 0;
-    for (step, &c) in scratch.order.iter().enumerate() {
+    // Buckets are put in exact order only when the walk reaches them: it
+    // usually stops well before the far side of the sphere.
+    let mut sorted_to = 0;
+    for step in 0..scratch.order.len() {
+        if step == sorted_to as usize {
+            sorted_to = sort_bucket_at(step, scratch);
+        }
+        let c = scratch.order[step];
         let row = classes.row(c as usize);
         let mut hit = 0usize;
         let mut first = u32::MAX;
@@ -217,47 +228,59 @@ pub fn nearer(p: &V3, cells: &[V3], a: u32, b: u32) -> bool {
     da > db || (da == db && a < b)
 }
 
-/// Cell indices in the order of [`nearer`] from `cells[candidate]`, the
-/// candidate first: a counting sort on the chord length, then an exact sort
-/// inside each bucket.
+/// Cell indices in `scratch.order` by their bucket of angle from
+/// `cells[candidate]` (a counting sort on the chord length, the candidate
+/// first); [`sort_bucket_at`] puts a bucket in the exact order of
+/// [`nearer`].
 fn order_by_angle(cells: &[V3], candidate: usize, scratch: &mut Scratch) {
     let p = cells[candidate];
     let m = cells.len();
+    let n_buckets = m.clamp(1, ORDER_BUCKETS);
     scratch.keys.clear();
     scratch.keys.extend(cells.iter().map(|c| -c.dot(&p)));
     scratch.keys[candidate] = f64::NEG_INFINITY;
-    let bucket = |key: f64| {
+    scratch.bucket_of.clear();
+    scratch.bucket_of.extend(scratch.keys.iter().map(|&key| {
         // Chord length 0..2 from −p·d.
         let chord = (2.0 * (1.0 + key).max(0.0)).sqrt();
-        ((chord * 0.5 * ORDER_BUCKETS as f64) as usize).min(ORDER_BUCKETS - 1)
-    };
+        ((chord * 0.5 * n_buckets as f64) as usize).min(n_buckets - 1) as u32
+    }));
     scratch.buckets.clear();
-    scratch.buckets.resize(ORDER_BUCKETS + 1, 0);
-    for &k in &scratch.keys {
-        scratch.buckets[bucket(k) + 1] += 1;
+    scratch.buckets.resize(n_buckets + 1, 0);
+    for &b in &scratch.bucket_of {
+        scratch.buckets[b as usize + 1] += 1;
     }
-    for b in 0..ORDER_BUCKETS {
+    for b in 0..n_buckets {
         scratch.buckets[b + 1] += scratch.buckets[b];
     }
     scratch.order.clear();
     scratch.order.resize(m, 0);
-    let mut fill = scratch.buckets.clone();
-    for (i, &k) in scratch.keys.iter().enumerate() {
-        let b = bucket(k);
-        scratch.order[fill[b] as usize] = i as u32;
-        fill[b] += 1;
+    scratch.fill.clear();
+    scratch
+        .fill
+        .extend_from_slice(&scratch.buckets[..n_buckets]);
+    for (i, &b) in scratch.bucket_of.iter().enumerate() {
+        let slot = &mut scratch.fill[b as usize];
+        scratch.order[*slot as usize] = i as u32;
+        *slot += 1;
     }
-    let keys = &scratch.keys;
-    for b in 0..ORDER_BUCKETS {
-        let (s, e) = (scratch.buckets[b] as usize, scratch.buckets[b + 1] as usize);
-        if e - s > 1 {
-            scratch.order[s..e].sort_unstable_by(|x, y| {
-                keys[*x as usize]
-                    .total_cmp(&keys[*y as usize])
-                    .then(x.cmp(y))
-            });
-        }
+}
+
+/// Sorts the bucket that starts at position `at` of `scratch.order` into
+/// the exact order of [`nearer`]; returns where the next bucket starts.
+fn sort_bucket_at(at: usize, scratch: &mut Scratch) -> u32 {
+    let b = scratch.bucket_of[scratch.order[at] as usize] as usize;
+    let (s, e) = (scratch.buckets[b] as usize, scratch.buckets[b + 1] as usize);
+    debug_assert_eq!(s, at);
+    if e - s > 1 {
+        let keys = &scratch.keys;
+        scratch.order[s..e].sort_unstable_by(|x, y| {
+            keys[*x as usize]
+                .total_cmp(&keys[*y as usize])
+                .then(x.cmp(y))
+        });
     }
+    e as u32
 }
 
 /// A placement's sort key: the area (eq. 13 / eq. 21, rad²), then the sum of

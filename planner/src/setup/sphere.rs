@@ -53,7 +53,26 @@ pub struct GeodesicSphere {
     /// Cells sharing an edge with each cell (the one across the edge
     /// opposite corner `k`, for `k = 0, 1, 2`).
     across: Vec<[u32; 3]>,
+    /// The flat faces of the turned icosahedron, for [`GeodesicSphere::locate`].
+    faces: Vec<Face>,
 }
+
+/// One flat face of the icosahedron: corner `a`, its plane `d·normal =
+/// level`, the dual vectors giving a point's coordinates along the edges
+/// `b − a` and `c − a`, and its unit centre.
+#[derive(Debug, Clone, Copy)]
+struct Face {
+    a: Dir,
+    normal: Dir,
+    level: f64,
+    du: Dir,
+    dv: Dir,
+    centre: Dir,
+}
+
+/// [`GeodesicSphere::locate`] answers only for directions at least this
+/// far (in grid steps of the flat face) from every cell edge.
+const LOCATE_MARGIN: f64 = 1e-7;
 
 impl GeodesicSphere {
     /// The smallest geodesic sphere with at least `min_cells` cells.
@@ -77,6 +96,24 @@ impl GeodesicSphere {
             ORIENTATION.1,
         );
         let verts = verts.map(|v| turn * v);
+        let flat = faces
+            .iter()
+            .map(|&[ia, ib, ic]| {
+                let (a, b, c) = (verts[ia], verts[ib], verts[ic]);
+                let (e1, e2) = (b - a, c - a);
+                let normal = e1.cross(&e2);
+                let du = e2.cross(&normal);
+                let dv = normal.cross(&e1);
+                Face {
+                    a,
+                    normal,
+                    level: normal.dot(&a),
+                    du: du / e1.dot(&du),
+                    dv: dv / e2.dot(&dv),
+                    centre: (a + b + c).normalize(),
+                }
+            })
+            .collect();
         let mut cells = Vec::with_capacity(20 * f * f);
         let mut corners = Vec::with_capacity(20 * f * f);
         let mut vertices: Vec<Dir> = Vec::new();
@@ -155,7 +192,56 @@ impl GeodesicSphere {
             touch_start,
             touching,
             across,
+            faces: flat,
         }
+    }
+
+    /// The cell holding direction `d` (any length), or `None` when `d` lies
+    /// within round-off of a cell's edge (then ask the cells themselves).
+    /// `hint` is a face to try first (a direction's neighbours usually lie
+    /// on the same face); the face used is written back to it.
+    pub fn locate(&self, d: &Dir, hint: &mut usize) -> Option<usize> {
+        let f = self.frequency;
+        let in_face = |k: usize| -> Option<usize> {
+            let face = &self.faces[k];
+            let h = face.normal.dot(d);
+            if h <= 0.0 {
+                return None;
+            }
+            // The central projection onto the face's plane: cells are the
+            // projections of the flat grid's triangles.
+            let w = d * (face.level / h) - face.a;
+            let (x, y) = (w.dot(&face.du) * f as f64, w.dot(&face.dv) * f as f64);
+            if x < 0.0 || y < 0.0 || x + y > f as f64 {
+                return None;
+            }
+            let (i, j) = (x.floor(), y.floor());
+            let (r, s) = (x - i, y - j);
+            let (i, j) = (i as usize, j as usize);
+            // Up cell: r, s ≥ 0 and r + s ≤ 1; down cell: r, s ≤ 1 and
+            // r + s ≥ 1.
+            let down = r + s > 1.0;
+            let (r, s) = if down { (1.0 - r, 1.0 - s) } else { (r, s) };
+            if r < LOCATE_MARGIN
+                || s < LOCATE_MARGIN
+                || (r + s - 1.0).abs() < LOCATE_MARGIN
+                || i + j + usize::from(down) >= f
+            {
+                return None;
+            }
+            Some(k * f * f + 2 * f * i - i * i + 2 * j + usize::from(down))
+        };
+        if let Some(c) = in_face(*hint) {
+            return Some(c);
+        }
+        let mut best = 0;
+        for (k, face) in self.faces.iter().enumerate() {
+            if face.centre.dot(d) > self.faces[best].centre.dot(d) {
+                best = k;
+            }
+        }
+        *hint = best;
+        in_face(best)
     }
 
     /// The three corners of cell `i` (unit vectors, counter-clockwise seen
@@ -478,6 +564,36 @@ mod tests {
                     "f {f}: {axis:?} {holding:?}"
                 );
             }
+        }
+    }
+
+    #[test]
+    fn locate_finds_the_cell_holding_a_direction() {
+        for f in [1, 3, 8] {
+            let s = GeodesicSphere::with_frequency(f);
+            let probe = GeodesicSphere::with_frequency(3 * f + 1);
+            let mut hint = 0;
+            let mut found = 0;
+            // Cell centres, corners of a finer sphere (some on this one's
+            // edges), and scaled directions.
+            let dirs = probe.cells().iter().chain(&probe.vertices);
+            for (k, d) in dirs.enumerate() {
+                let d = d * (0.5 + (k % 7) as f64);
+                let inside: Vec<usize> = (0..s.len())
+                    .filter(|&i| {
+                        let c = s.corners(i);
+                        (0..3).all(|e| c[e].cross(&c[(e + 1) % 3]).dot(&d) >= 0.0)
+                    })
+                    .collect();
+                match s.locate(&d, &mut hint) {
+                    Some(i) => {
+                        assert_eq!(inside, [i], "f {f}: {d:?}");
+                        found += 1;
+                    }
+                    None => assert!(!inside.is_empty(), "f {f}: {d:?} in no cell"),
+                }
+            }
+            assert!(found > probe.len() * 9 / 10, "f {f}: {found}");
         }
     }
 

@@ -13,7 +13,12 @@
 //!    seen from the patch (a silhouette). A blocked cell that no such edge
 //!    crosses lies wholly inside `U_p`, so wholly blocked: only the cells
 //!    those edges cross, and the cells the horizon crosses, are candidates.
-//! 2. A candidate is tested against every occluder whose cone meets it
+//! 2. Most candidates are settled without the hierarchy
+//!    ([`Exact::certify`]): closed when the occluders flooded over the
+//!    mesh from one covering a point of the cell have no outline edge
+//!    crossing it, open when a ray at one of its test points reaches the
+//!    patch.
+//! 3. A candidate left is tested against every occluder whose cone meets it
 //!    (found through the hierarchy, whatever the rasteriser skipped): first
 //!    at nine points (corners, edge midpoints, half-way to the corners); if
 //!    all are blocked, the occluders' outline edges and the horizon inside
@@ -230,17 +235,19 @@ impl Cone {
     /// Whether the cone may meet the cell (false only when a plane of one
     /// separates them).
     fn may_meet(&self, cells: &CellShapes, cell: usize) -> bool {
-        let corners = &cells.corners[cell];
-        if self
-            .planes
+        // Cones are mostly smaller than cells: a cell edge separates them
+        // more often than a cone plane does.
+        if cells.edges[cell]
             .iter()
-            .any(|p| corners.iter().all(|c| c.dot(p) < 0.0))
+            .any(|e| self.dirs.iter().all(|d| d.dot(e) < 0.0))
         {
             return false;
         }
-        !cells.edges[cell]
+        let corners = &cells.corners[cell];
+        !self
+            .planes
             .iter()
-            .any(|e| self.dirs.iter().all(|d| d.dot(e) < 0.0))
+            .any(|p| corners.iter().all(|c| c.dot(p) < 0.0))
     }
 }
 
@@ -384,6 +391,22 @@ pub(super) struct ExactScratch {
     cuts: Vec<f64>,
     /// Per cell opened: a direction of it that reaches the patch.
     pub(super) witnesses: Vec<(u32, V3)>,
+    /// The flood of [`Exact::flood_covers`]: `flooded[t] ==
+    /// flood_generation` once triangle `t` was looked at for this cell;
+    /// its stack of cones.
+    flooded: Vec<u32>,
+    flood_generation: u32,
+    flood: Vec<u32>,
+    /// Per cell the rasteriser closed: the triangle that closed it
+    /// ([`NONE`] when closed by a ray test).
+    blocker: Vec<u32>,
+    /// Candidates certified closed by the flood (counted for the docs'
+    /// figures; see [`ExactScratch::certified`]).
+    pub(super) certified: usize,
+    /// Face of the sphere last located ([`GeodesicSphere::locate`]).
+    face_hint: usize,
+    /// Stack of the ray tests.
+    rays: Vec<usize>,
 }
 
 impl ExactScratch {
@@ -397,7 +420,14 @@ impl ExactScratch {
             self.seen.resize(triangles, 0);
             self.cone_at.clear();
             self.cone_at.resize(triangles, NONE);
+            self.flooded.clear();
+            self.flooded.resize(triangles, 0);
+            self.flood_generation = 0;
             self.generation = 1;
+        }
+        if self.blocker.len() != cells {
+            self.blocker.clear();
+            self.blocker.resize(cells, NONE);
         }
         self.cones.clear();
         self.processed = 0;
@@ -409,6 +439,7 @@ impl ExactScratch {
         self.candidate.resize(cells.div_ceil(64), 0);
         self.list.clear();
         self.witnesses.clear();
+        self.certified = 0;
     }
 
     /// The rasteriser met a triangle in front of the patch.
@@ -436,6 +467,12 @@ impl ExactScratch {
     /// The rasteriser closed `cell` by a ray test.
     pub(super) fn forced(&mut self, cell: usize) {
         self.forced.push(cell as u32);
+        self.blocker[cell] = NONE;
+    }
+
+    /// The rasteriser closed `cell` with triangle `t`'s cone.
+    pub(super) fn blocked(&mut self, cell: usize, t: usize) {
+        self.blocker[cell] = t as u32;
     }
 
     fn mark(&mut self, cell: usize) {
@@ -452,6 +489,11 @@ pub(super) struct Exact<'a> {
     pub caster: &'a RayCaster,
     pub grid: &'a CellGrid,
     pub cells: &'a CellShapes,
+    pub sphere: &'a GeodesicSphere,
+    /// Certify candidates by flooding the mesh ([`Exact::certify`]) before
+    /// the gather; off, every candidate goes through the gather and the
+    /// exact test (the reference the tests compare it with).
+    pub flood: bool,
 }
 
 /// One patch: its centroid, normal, `sin` of the grazing margin and index.
@@ -523,11 +565,16 @@ impl Exact<'_> {
             let c = w.band[k] as usize;
             w.mark(c);
         }
-        // 2. Each candidate against every occluder that meets it.
+        // 2. Candidates the occluding surface covers whole, proved without
+        // the hierarchy; the rest against every occluder that meets them.
+        let mut added = if self.flood {
+            self.certify(p, row, w)
+        } else {
+            0
+        };
         self.gather(p, w);
         w.list.sort_unstable();
         w.pairs.sort_unstable();
-        let mut added = 0;
         let mut next = 0;
         for k in 0..w.list.len() {
             let c = w.list[k];
@@ -560,6 +607,15 @@ impl Exact<'_> {
             ua = (ua * db - ub * da).normalize();
         } else if db < 0.0 {
             ub = (ub * da - ua * db).normalize();
+        }
+        // An arc with both ends inside one (convex) cell crosses it alone.
+        if let Some(c) = self.sphere.locate(&ua, &mut w.face_hint)
+            && self.sphere.locate(&ub, &mut w.face_hint) == Some(c)
+        {
+            if !is_open(row, c) {
+                w.mark(c);
+            }
+            return;
         }
         let m = ua.cross(&ub);
         let len = m.norm().atan2(ua.dot(&ub));
@@ -623,6 +679,206 @@ impl Exact<'_> {
         false
     }
 
+    /// The index in `w.cones` of triangle `t`'s cone seen from the patch,
+    /// made once per patch; [`NONE`] when the triangle is the patch, lies
+    /// behind its plane or has no cone.
+    fn cone_of(&self, p: &PatchFrame, t: usize, w: &mut ExactScratch) -> u32 {
+        if w.seen[t] == w.generation {
+            return w.cone_at[t];
+        }
+        w.seen[t] = w.generation;
+        let caster = self.caster;
+        let level = p.normal.dot(&p.origin.coords) + caster.t_min;
+        let tri = &caster.shapes[t].corners;
+        let id = if w.stamp[t] == w.generation {
+            w.cone_at[t]
+        } else if t == p.skip || !tri.iter().any(|c| p.normal.dot(&c.coords) > level) {
+            NONE
+        } else if let Ok(cone) = Cone::new(p.origin, tri, caster.t_min, t) {
+            w.cones.push(cone);
+            (w.cones.len() - 1) as u32
+        } else {
+            NONE
+        };
+        w.cone_at[t] = id;
+        id
+    }
+
+    /// Whether the cone `id` may meet `cell` (false only when it certainly
+    /// does not).
+    fn cone_meets(&self, id: u32, cell: usize, w: &ExactScratch) -> bool {
+        w.cones[id as usize].may_meet(self.cells, cell)
+    }
+
+    /// Drops from `w.list` the candidates that the occluding surface
+    /// provably covers whole, found by walking the mesh instead of the
+    /// hierarchy, and opens those whose test point reaches the patch by a
+    /// ray; returns how many it opened.
+    ///
+    /// Per candidate cell `C` (`H` the open front half, `d·n > min_dot`,
+    /// convex, so `C ∩ H` is connected): take a point `x` of `C ∩ H` (the
+    /// centre, or the point of the cell nearest the normal) and a
+    /// triangle whose cone holds it (the rasteriser's, or the first a ray
+    /// along `x` meets; none: `x` reaches the patch and the cell is open).
+    /// From it, flood the triangles whose cone may meet `C`, across every
+    /// edge whose neighbour is in front with a cone on the other side of
+    /// the edge seen from the patch. If no other edge of the flood (a
+    /// border, a silhouette, a neighbour behind or without a cone) crosses
+    /// `C ∩ H`, the union `U` of the flooded cones holds `C ∩ H`: a
+    /// boundary point of `U` inside `C ∩ H` would lie on an edge of a
+    /// flooded cone whose neighbour covers the other side there and meets
+    /// `C`, so is flooded too, and the two cover a neighbourhood of the
+    /// point (at a corner, the fan around it does, each meeting `C`). `U`
+    /// has no boundary in the connected `C ∩ H` and holds `x`: the cell is
+    /// closed. Edges shared with the patch itself lie in its plane (the
+    /// horizon) and never cross `H`. A cell not certified this way goes to
+    /// the gather and the exact test.
+    fn certify(&self, p: &PatchFrame, row: &mut [u64], w: &mut ExactScratch) -> u32 {
+        if w.list.is_empty() {
+            return 0;
+        }
+        for id in 0..w.processed {
+            let t = w.cones[id].triangle as usize;
+            w.cone_at[t] = id as u32;
+        }
+        let n = p.normal;
+        let caster = self.caster;
+        let mut keep = 0;
+        let mut opened = 0;
+        for k in 0..w.list.len() {
+            let c = w.list[k];
+            let ci = c as usize;
+            let centre = self.cells.dirs[ci];
+            let (x, blocker) = if centre.dot(n) > p.min_dot {
+                (centre, w.blocker[ci])
+            } else {
+                let (top, at) = self.cells.max_dot(ci, n);
+                if top <= p.min_dot {
+                    // No part in front: closed whatever covers it.
+                    w.certified += 1;
+                    continue;
+                }
+                match caster.first_hit(p.origin, &at, p.skip, &mut w.rays) {
+                    None => {
+                        row[ci / 64] |= 1 << (ci % 64);
+                        w.witnesses.push((c, at));
+                        opened += 1;
+                        continue;
+                    }
+                    Some(t) => (at, t as u32),
+                }
+            };
+            if self.flood_covers(p, ci, &x, blocker, w) {
+                w.certified += 1;
+                continue;
+            }
+            // An outline crosses the cell: nearly always part of it is
+            // open, and one of the nine points of the exact test shows it.
+            let corners = &self.cells.corners[ci];
+            let nine = (0..3).flat_map(|k| {
+                let (a, b) = (corners[k], corners[(k + 1) % 3]);
+                [a, (a + b).normalize(), (a + centre).normalize()]
+            });
+            let mut reached = None;
+            for d in nine {
+                if d.dot(n) > p.min_dot
+                    && caster
+                        .first_hit(p.origin, &d, p.skip, &mut w.rays)
+                        .is_none()
+                {
+                    reached = Some(d);
+                    break;
+                }
+            }
+            if let Some(d) = reached {
+                row[ci / 64] |= 1 << (ci % 64);
+                w.witnesses.push((c, d));
+                opened += 1;
+            } else {
+                w.list[keep] = c;
+                keep += 1;
+            }
+        }
+        w.list.truncate(keep);
+        opened
+    }
+
+    /// Whether the flood from triangle `seed` (see [`Exact::certify`])
+    /// covers the whole of `cell` in front, `x` a point of it in `seed`'s
+    /// cone.
+    fn flood_covers(
+        &self,
+        p: &PatchFrame,
+        cell: usize,
+        x: &V3,
+        seed: u32,
+        w: &mut ExactScratch,
+    ) -> bool {
+        if seed == NONE {
+            return false;
+        }
+        let seed_cone = self.cone_of(p, seed as usize, w);
+        if seed_cone == NONE || !w.cones[seed_cone as usize].contains(x) {
+            return false;
+        }
+        w.flood_generation = w.flood_generation.wrapping_add(1);
+        if w.flood_generation == 0 {
+            w.flooded.iter_mut().for_each(|g| *g = 0);
+            w.flood_generation = 1;
+        }
+        let generation = w.flood_generation;
+        let caster = self.caster;
+        let n = p.normal;
+        w.flood.clear();
+        w.flood.push(seed_cone);
+        w.flooded[seed as usize] = generation;
+        while let Some(id) = w.flood.pop() {
+            let cone = w.cones[id as usize];
+            let t = cone.triangle as usize;
+            for k in 0..3 {
+                let (t2, corner) = caster.across(t, k);
+                if t2 as usize == p.skip {
+                    continue;
+                }
+                let (a, b) = (cone.dirs[k], cone.dirs[(k + 1) % 3]);
+                let m = a.cross(&b);
+                let id2 = if t2 == NONE {
+                    NONE
+                } else {
+                    self.cone_of(p, t2 as usize, w)
+                };
+                let interior = id2 != NONE && {
+                    let c2 = caster.shapes[t2 as usize].corners[corner] - p.origin;
+                    m.dot(&cone.dirs[(k + 2) % 3]) * m.dot(&c2) < 0.0
+                };
+                if interior {
+                    if w.flooded[t2 as usize] != generation {
+                        w.flooded[t2 as usize] = generation;
+                        if self.cone_meets(id2, cell, w) {
+                            w.flood.push(id2);
+                        }
+                    }
+                    continue;
+                }
+                // An outline edge: it must not cross the cell in front.
+                let (mut ua, mut ub) = (a.normalize(), b.normalize());
+                let (da, db) = (ua.dot(n), ub.dot(n));
+                if da <= 0.0 && db <= 0.0 {
+                    continue;
+                }
+                if da < 0.0 {
+                    ua = (ua * db - ub * da).normalize();
+                } else if db < 0.0 {
+                    ub = (ub * da - ua * db).normalize();
+                }
+                if self.arc_meets_cell(&ua, &ub, &ua.cross(&ub), cell) {
+                    return false;
+                }
+            }
+        }
+        true
+    }
+
     /// Pairs each candidate cell with the cones that may meet it: the
     /// rasteriser's cones, and those of the triangles in the subtrees it
     /// did not enter (appended to `w.cones`). Fills `w.pairs` (cell, cone).
@@ -657,9 +913,9 @@ impl Exact<'_> {
             cu <= -cw || u.dot(v) >= cu * cw - su * sw - CAP_MARGIN
         };
         let dirs = &self.cells.dirs;
-        w.caps.clear();
-        w.caps.extend(chunks.chunks().map(|(cap, _)| *cap));
-        let caps = &w.caps;
+        let mut caps = std::mem::take(&mut w.caps);
+        caps.clear();
+        caps.extend(chunks.chunks().map(|(cap, _)| *cap));
         let members: Vec<&[u32]> = chunks.chunks().map(|(_, cells)| cells).collect();
         // One walk per 64 chunks, each node carrying the chunks it may meet.
         for group in (0..caps.len()).step_by(64) {
@@ -691,24 +947,7 @@ impl Exact<'_> {
                         if t == p.skip {
                             continue;
                         }
-                        let id = if w.seen[t] == w.generation {
-                            w.cone_at[t]
-                        } else {
-                            w.seen[t] = w.generation;
-                            let tri = &caster.shapes[t].corners;
-                            let id = if w.stamp[t] == w.generation {
-                                w.cone_at[t]
-                            } else if !tri.iter().any(|c| n.dot(&c.coords) > level) {
-                                NONE
-                            } else if let Ok(cone) = Cone::new(o, tri, caster.t_min, t) {
-                                w.cones.push(cone);
-                                (w.cones.len() - 1) as u32
-                            } else {
-                                NONE
-                            };
-                            w.cone_at[t] = id;
-                            id
-                        };
+                        let id = self.cone_of(p, t, w);
                         if id == NONE {
                             continue;
                         }
@@ -771,6 +1010,7 @@ impl Exact<'_> {
             }
         }
         w.chunks = chunks;
+        w.caps = caps;
     }
 
     /// The outline edges of `cone` seen from the patch: those with no

@@ -1,12 +1,15 @@
 //! The setpoint checker: every setpoint against the ones before it, by
 //! finite differences as a drive sees its position commands (speed, chord
 //! speed, acceleration, path jerk, per-axis velocity, acceleration and jerk,
-//! gapless `seq`, finite values, no fault), with a digest of every field's
-//! bits. `interpd demo` runs it on its direct loop and on the setpoints the
-//! service publishes; `docs/daemon.md` gives the checks and their slack.
+//! gapless `seq`, finite values, no fault), the end of the run (`done`,
+//! exactly at the program's end), with a digest of every field's bits.
+//! `interpd demo` runs it on its direct loop and on the setpoints the
+//! service publishes, `interpd jitter`'s subscriber on every published tick,
+//! and the workspace tests on their runs; `docs/daemon.md` gives the checks
+//! and their slack.
 
 use interp_core::{InterpConfig, RunState, Setpoint, Vec3};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Absolute slack on the speed check, mm/s.
 pub const SPEED_TOL: f64 = 1e-9;
@@ -28,7 +31,7 @@ pub const LIMIT_REL_TOL: f64 = 1e-6;
 pub const DIFF_ULPS: f64 = 16.0;
 
 /// Checks that failed, by kind.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Violations {
     /// Setpoints whose `seq` is not the previous one plus one (the first must be 1).
     pub seq_gaps: u64,
@@ -76,6 +79,7 @@ impl Violations {
             + self.end_mismatch
     }
 
+    /// Every count by name, for a message.
     pub fn breakdown(&self) -> String {
         format!(
             "seq gaps {}, non-finite {}, over speed {}, over chord speed {}, over accel {}, \
@@ -170,6 +174,8 @@ pub struct Checker {
     pub digest: u64,
     /// The checks that failed.
     pub violations: Violations,
+    /// The last setpoint checked.
+    last: Setpoint,
 }
 
 /// `v ≤ limit` within the relative tolerance and `slack` of round-off.
@@ -203,6 +209,8 @@ pub fn digest_setpoint(mut h: u64, sp: &Setpoint) -> u64 {
 }
 
 impl Checker {
+    /// A checker for a period of `ts` s, with the machine at rest at `start`
+    /// before the first setpoint.
     pub fn new(ts: f64, limits: Limits, start: [f64; 3]) -> Self {
         Checker {
             ts,
@@ -217,9 +225,14 @@ impl Checker {
             measured: Measured::default(),
             digest: FNV_OFFSET,
             violations: Violations::default(),
+            last: Setpoint {
+                axes: [start[0], start[1], start[2], 0.0, 0.0, 0.0],
+                ..Setpoint::default()
+            },
         }
     }
 
+    /// Checks the next setpoint (allocates nothing).
     #[inline]
     pub fn check(&mut self, sp: &Setpoint) {
         let ts = self.ts;
@@ -310,6 +323,43 @@ impl Checker {
         self.prev_feed = sp.feed;
         self.prev_points = [p, p1, p2];
         self.prev_s = [sp.s, s1, s2];
+        self.last = *sp;
+    }
+
+    /// The end of the run: the last setpoint must be `done` and, when
+    /// `end` is given, exactly there (X Y Z). Returns the violations.
+    pub fn finish(&mut self, end: Option<[f64; 3]>) -> Violations {
+        let last = self.last;
+        let v = &mut self.violations;
+        if last.state != RunState::Done {
+            v.not_done = 1;
+        }
+        if end.is_some_and(|e| [last.axes[0], last.axes[1], last.axes[2]] != e) {
+            v.end_mismatch = 1;
+        }
+        if v.total() > 0 && v.first_seq.is_none() {
+            v.first_seq = Some(last.seq);
+        }
+        *v
+    }
+
+    /// The last setpoint checked.
+    pub fn last(&self) -> &Setpoint {
+        &self.last
+    }
+
+    /// Panics naming the checks that failed and the first `seq` (for tests).
+    #[track_caller]
+    pub fn assert_clean(&self, what: &str) {
+        let v = &self.violations;
+        assert!(
+            v.total() == 0,
+            "{what}: {} check(s) failed ({}), first at seq {:?}; measured {:?}",
+            v.total(),
+            v.breakdown(),
+            v.first_seq,
+            self.measured
+        );
     }
 }
 
@@ -421,6 +471,22 @@ mod tests {
         assert!(y.over_axis_velocity == 0 && y.over_axis_accel > 0, "{y:?}");
         let z = along([0.0, 0.0, 1.0]);
         assert_eq!(z, Violations::default());
+    }
+
+    #[test]
+    fn the_end_must_be_done_and_exactly_at_the_programs_end() {
+        let mut sps = ramp(1e-3, 50_000.0, 20, 30, [1.0, 0.0, 0.0]);
+        let end = [sps[49].axes[0], 0.0, 0.0];
+        let mut sub = check_all(limits(100.0), &sps);
+        let v = sub.finish(Some(end));
+        assert_eq!((v.not_done, v.end_mismatch, v.first_seq), (1, 0, Some(50)));
+        sps[49].state = RunState::Done;
+        let mut sub = check_all(limits(100.0), &sps);
+        assert_eq!(sub.finish(Some(end)), Violations::default());
+        sub.assert_clean("a run that ends where it should");
+        let mut sub = check_all(limits(100.0), &sps);
+        let v = sub.finish(Some([end[0] + 1e-12, 0.0, 0.0]));
+        assert_eq!((v.not_done, v.end_mismatch, v.total()), (0, 1, 1));
     }
 
     #[test]

@@ -1,4 +1,4 @@
-//! Programs and helpers shared by interp-core's benches and examples
+//! Programs and helpers shared by the loop's benches and examples
 //! (`benches/tick.rs`, `benches/tick_latency.rs`, `examples/feed_fluctuation.rs`,
 //! `examples/seed_figures.rs`, which include this file with `#[path]`).
 //!
@@ -6,13 +6,10 @@
 //! on any machine drive the interpolator through exactly the same ticks.
 #![allow(dead_code)]
 
-use interp_core::interp::Stats;
 use interp_core::nurbs::{MAX_CTRL, MAX_DEGREE, Nurbs};
 use interp_core::samples::butterfly;
-use interp_core::{
-    Block, Driver, Executor, InterpConfig, ParamUpdate, Path, PlannedBlock, RunState, Setpoint,
-    Vec3,
-};
+use interp_core::{Block, InterpConfig, ParamUpdate, Path, RunState};
+use interp_run::Replay;
 
 /// Control points of [`rational_cubic`].
 pub const CUBIC_CTRL: usize = 30;
@@ -83,82 +80,22 @@ pub fn config_with(update: ParamUpdate) -> InterpConfig {
     }
 }
 
-/// A program as the service's RT thread runs it: the plans a [`Driver`]
-/// made for it (pushed as `simulate` pushes, each with the tick it
-/// preceded), offered to a fresh [`Executor`] at the same ticks. So `tick`
-/// costs what the RT thread's tick costs, with no planning in it (the
-/// commits, microseconds, are in the ticks they precede).
-pub struct Loaded {
-    cfg: InterpConfig,
-    start: [f64; 6],
-    exec: Box<Executor>,
-    plans: Vec<(u64, Box<PlannedBlock>)>,
-    next: usize,
-}
-
-impl Loaded {
-    /// One period: the plans for it, then the executor's tick.
-    pub fn tick(&mut self) -> Setpoint {
-        let t = self.exec.stats().ticks;
-        while let Some((at, plan)) = self.plans.get(self.next)
-            && *at == t
-        {
-            let _ = self.exec.commit(plan);
-            self.next += 1;
-        }
-        self.exec.tick()
-    }
-    /// The executor's counters.
-    pub fn stats(&self) -> Stats {
-        self.exec.stats()
-    }
-}
-
-/// `blocks` planned to the end (see [`Loaded`]), ready to tick from the start.
-pub fn loaded(cfg: InterpConfig, blocks: &[Block]) -> Box<Loaded> {
-    let start = start_of(blocks);
-    let mut exec: Box<Executor> = Box::new(Executor::new(cfg, start).expect("valid config"));
-    let p = Vec3::new(start[0], start[1], start[2]);
-    let mut driver = Box::new(Driver::new(cfg, p, 0.0).expect("valid config"));
-    let mut plans = Vec::new();
-    let mut next = 0;
-    loop {
-        let at = exec.stats().ticks;
-        let mut sink = |p: &PlannedBlock| plans.push((at, Box::new(p.clone())));
-        while next < blocks.len() {
-            match driver.push_into(&mut exec, &blocks[next], &mut sink) {
-                Ok(()) => next += 1,
-                Err(e) if e.is_wait() => break,
-                Err(e) => panic!("block {next}: {e}"),
-            }
-            if next == blocks.len() {
-                driver.finish_into(&mut exec, &mut sink);
-            }
-        }
-        driver.drive(&mut exec, &mut sink);
-        if exec.tick().state == RunState::Done {
-            break;
-        }
-        assert!(at < 50_000_000, "run does not end");
-    }
-    Box::new(Loaded {
-        cfg,
-        start,
-        exec: Box::new(Executor::new(cfg, start).expect("valid config")),
-        plans,
-        next: 0,
-    })
+/// `blocks` planned to the end (`interp_run::plan`), ready to tick from the
+/// start as the service's RT thread ticks: each plan committed at the tick
+/// it was made for, so `tick` costs what the RT thread's tick costs, with no
+/// planning in it (the commits, microseconds, are in the ticks they precede).
+pub fn loaded(cfg: InterpConfig, blocks: &[Block]) -> Box<Replay> {
+    Box::new(interp_run::plan(cfg, start_of(blocks), blocks, 50_000_000).expect("program plans"))
 }
 
 /// Back to the start of the program `ip` was loaded with (`cfg` and
 /// `blocks` must be the ones it was loaded with).
-pub fn reload(ip: &mut Loaded, cfg: InterpConfig, blocks: &[Block]) {
+pub fn reload(ip: &mut Replay, cfg: InterpConfig, blocks: &[Block]) {
     assert!(
-        cfg == ip.cfg && start_of(blocks) == ip.start,
+        cfg == *ip.config() && start_of(blocks) == ip.start(),
         "reload of another program"
     );
-    *ip.exec = Executor::new(cfg, ip.start).expect("valid config");
-    ip.next = 0;
+    ip.rewind();
 }
 
 /// Runs `f` on a thread with room for the interpolator (it is built on the
@@ -173,7 +110,7 @@ pub fn on_big_stack(f: impl FnOnce() + Send + 'static) {
 }
 
 /// Runs `ip` to the end and returns how many ticks that took.
-pub fn run_to_end(ip: &mut Loaded) -> u64 {
+pub fn run_to_end(ip: &mut Replay) -> u64 {
     let mut n = 0;
     loop {
         n += 1;

@@ -17,9 +17,9 @@
 //! `stats()`. The target for `Corrected` is max |f| ≤ 1e-6.
 //!
 //! ```text
-//! cargo run --release -p interp-core --example feed_fluctuation
-//! cargo run --release -p interp-core --example feed_fluctuation -- --csv
-//! cargo run --release -p interp-core --example feed_fluctuation -- --cubic
+//! cargo run --release -p interp-run --example feed_fluctuation
+//! cargo run --release -p interp-run --example feed_fluctuation -- --csv
+//! cargo run --release -p interp-run --example feed_fluctuation -- --cubic
 //! ```
 //!
 //! `--csv` prints the same table as CSV; `--cubic` uses the benches' 3-D

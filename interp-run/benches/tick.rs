@@ -8,7 +8,7 @@
 //! queued again (planning, non-RT) outside the timed region.
 //!
 //! ```text
-//! cargo bench -p interp-core --bench tick
+//! cargo bench -p interp-run --bench tick
 //! ```
 //!
 //! For the per-tick distribution (p99, max) see `benches/tick_latency.rs`.

@@ -2,7 +2,7 @@
 //! second of planned motion, and the two halves apart (plan, commit).
 //!
 //! ```text
-//! cargo bench -p interp-core --bench plan
+//! cargo bench -p interp-run --bench plan
 //! ```
 //!
 //! Besides criterion's figures it prints the derived per-segment and
@@ -11,6 +11,7 @@
 #[path = "common/mod.rs"]
 mod common;
 
+use core::convert::Infallible;
 use core::hint::black_box;
 use std::time::Instant;
 
@@ -19,6 +20,7 @@ use criterion::{Criterion, criterion_group};
 use interp_core::geom::{Curve, Vec3};
 use interp_core::path::{Block, Line, Path};
 use interp_core::{BlockPlanner, InterpConfig, Interpolator, PlannedBlock, RunState};
+use interp_run::Run;
 
 /// 1,001 short lines zig-zagging by 2° (a CAM polyline), 0.5 mm each.
 fn polyline(n: usize) -> Vec<Block> {
@@ -37,36 +39,24 @@ fn polyline(n: usize) -> Vec<Block> {
     out
 }
 
-/// Runs `blocks` to the end as `simulate` does (each block pushed as soon
-/// as it is taken, ticking while it waits); returns the ticks.
-fn run_all(ip: &mut Interpolator, blocks: &[Block]) -> u64 {
-    let mut n = 0u64;
-    for b in blocks {
-        loop {
-            match ip.push(b) {
-                Ok(()) => break,
-                Err(e) if e.is_wait() => {
-                    black_box(ip.tick());
-                    n += 1;
-                }
-                Err(e) => panic!("{e}"),
-            }
-        }
-    }
-    ip.finish();
-    while ip.tick().state != RunState::Done {
-        n += 1;
-    }
-    n
+/// Runs `blocks` to the end from `start` as `simulate` does (each block
+/// pushed as soon as it is taken, ticking while it waits); returns the ticks.
+fn run_all(cfg: InterpConfig, start: Vec3, blocks: &[Block]) -> u64 {
+    let mut run: Run = Run::new(cfg, [start.x, start.y, start.z, 0.0, 0.0, 0.0]).unwrap();
+    let end = run
+        .run_program::<Infallible>(blocks, |sp, _| {
+            black_box(sp);
+            Ok(())
+        })
+        .unwrap();
+    assert_eq!(end, RunState::Done);
+    run.ticks()
 }
 
 /// Seconds of motion the butterfly takes at 100 mm/s.
 fn motion_seconds(blocks: &[Block]) -> f64 {
     let cfg = InterpConfig::default();
-    let s = blocks[0].path.start_point();
-    let mut ip: Box<Interpolator> =
-        Box::new(Interpolator::new(cfg, [s.x, s.y, s.z, 0.0, 0.0, 0.0]).unwrap());
-    run_all(&mut ip, blocks) as f64 * cfg.period
+    run_all(cfg, blocks[0].path.start_point(), blocks) as f64 * cfg.period
 }
 
 fn bench(c: &mut Criterion) {
@@ -78,20 +68,13 @@ fn bench(c: &mut Criterion) {
     let mut group = c.benchmark_group("plan");
     group.sample_size(10);
     group.bench_function("butterfly_run_to_the_end", |b| {
-        b.iter(|| {
-            let mut ip: Box<Interpolator> = Box::new(
-                Interpolator::new(cfg, [start.x, start.y, start.z, 0.0, 0.0, 0.0]).unwrap(),
-            );
-            black_box(run_all(&mut ip, &butterfly))
-        })
+        b.iter(|| black_box(run_all(cfg, start, &butterfly)))
     });
     group.finish();
     // Derived figures, one timed pass of 20 repetitions.
     let t0 = Instant::now();
     for _ in 0..20 {
-        let mut ip: Box<Interpolator> =
-            Box::new(Interpolator::new(cfg, [start.x, start.y, start.z, 0.0, 0.0, 0.0]).unwrap());
-        black_box(run_all(&mut ip, &butterfly));
+        black_box(run_all(cfg, start, &butterfly));
     }
     let per_run = t0.elapsed().as_secs_f64() / 20.0;
     println!(

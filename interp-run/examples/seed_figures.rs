@@ -44,9 +44,9 @@
 //! within 1 % of 1.
 //!
 //! ```text
-//! cargo run --release -p interp-core --example seed_figures > figs.csv
-//! cargo run --release -p interp-core --example seed_figures -- --summary
-//! cargo run --release -p interp-core --example seed_figures -- --cubic --summary
+//! cargo run --release -p interp-run --example seed_figures > figs.csv
+//! cargo run --release -p interp-run --example seed_figures -- --summary
+//! cargo run --release -p interp-run --example seed_figures -- --cubic --summary
 //! ```
 
 #[path = "../benches/common/mod.rs"]

@@ -12,9 +12,9 @@
 //! with nothing between): every figure includes it once.
 //!
 //! ```text
-//! cargo bench -p interp-core --bench tick_latency            # 1,000,000 ticks per case
-//! cargo bench -p interp-core --bench tick_latency -- --ticks 5000000 --csv
-//! cargo bench -p interp-core --bench tick_latency -- --ticks 20000 --sleep-us 1000
+//! cargo bench -p interp-run --bench tick_latency            # 1,000,000 ticks per case
+//! cargo bench -p interp-run --bench tick_latency -- --ticks 5000000 --csv
+//! cargo bench -p interp-run --bench tick_latency -- --ticks 20000 --sleep-us 1000
 //! ```
 //!
 //! `--sleep-us N` sleeps N µs before every tick, as the fixed-period loop

@@ -1,0 +1,695 @@
+//! Five-axis interpolation with tool-centre-point control, against paths
+//! whose tool tip and tool axis are known in closed form: every setpoint's
+//! tip on the path and axis on its program, the drives' linear joint
+//! interpolation between setpoints within the chord and angular
+//! tolerances, every joint limit on every tick (finite differences of the
+//! setpoints), on C,A and A,B machines, and the pole crossed without a C jump.
+
+mod common;
+
+use common::{LIMIT_REL_TOL, push_what_fits};
+
+use core::f64::consts::PI;
+use interp_core::fiveaxis::{JointError, Orientation};
+use interp_core::geom::Vec3;
+use interp_core::interp::PushError;
+use interp_core::kinematics::{Joints, Machine, MachineSpec, RotaryRange, ToolPose};
+use interp_core::path::{Arc, Block, Line, Path};
+use interp_core::{InterpConfig, Interpolator, RunState, Setpoint};
+
+/// Setpoints put the tip on the programmed path within this, mm.
+const ON_PATH_TOL: f64 = 1e-9;
+/// And the tool axis on its program within this (rad).
+const ON_AXIS_TOL: f64 = 1e-9;
+/// Points of the drives' linear joint interpolation checked between two setpoints.
+const BETWEEN: usize = 8;
+
+fn machine(chain: &str, tool_length: f64, centre: (usize, [f64; 3])) -> MachineSpec {
+    let mut spec = MachineSpec::new(chain.parse().expect("chain"));
+    spec.tool_length = tool_length;
+    spec.rotary_centres[centre.0] = centre.1;
+    spec
+}
+
+fn config(spec: MachineSpec) -> InterpConfig {
+    InterpConfig {
+        machine: Some(spec),
+        ..InterpConfig::default()
+    }
+}
+
+/// Runs `blocks` from `start` to the end; every setpoint.
+fn run(cfg: &InterpConfig, start: Joints, blocks: &[Block]) -> Vec<Setpoint> {
+    let mut ip: Box<Interpolator> = Box::new(Interpolator::new(*cfg, start).expect("config"));
+    let mut out = Vec::new();
+    let mut next = 0;
+    for _ in 0..2_000_000 {
+        if next < blocks.len() {
+            next += push_what_fits(&mut ip, &blocks[next..]);
+            if next == blocks.len() {
+                ip.finish();
+            }
+        }
+        let sp = ip.tick();
+        assert_ne!(sp.state, RunState::Fault, "fault at tick {}", sp.seq);
+        out.push(sp);
+        if sp.state == RunState::Done {
+            return out;
+        }
+    }
+    panic!("did not finish");
+}
+
+/// The joints at rest at `pose`, from home.
+fn joints_at(m: &Machine, tip: Vec3, axis: Vec3) -> Joints {
+    m.inverse(&ToolPose { tip, axis }, &[0.0; 6])
+        .expect("reachable")
+        .joints
+}
+
+/// What a test knows of its path in closed form: for a tip near the path,
+/// its distance from the path (an upper bound) and the programmed tool
+/// axis there.
+trait Reference {
+    fn at(&self, tip: Vec3) -> (f64, Vec3);
+}
+
+#[derive(Debug, Default)]
+struct Report {
+    on_path: f64,
+    on_axis: f64,
+    between_tip: f64,
+    between_axis: f64,
+    /// Largest velocity, acceleration and jerk of each joint over its limit.
+    ratio: [[f64; 3]; 6],
+}
+
+/// Checks every setpoint and the drives' motion between them.
+fn check(cfg: &InterpConfig, start: Joints, sps: &[Setpoint], r: &dyn Reference) -> Report {
+    let m = Machine::new(cfg.machine.expect("machine")).expect("machine");
+    let mut rep = Report::default();
+    let angle = |a: Vec3, b: Vec3| libm::atan2(a.cross(&b).norm(), a.dot(&b));
+    let mut q = vec![start, start, start];
+    q.extend(sps.iter().map(|s| s.axes));
+    for (i, sp) in sps.iter().enumerate() {
+        let pose = m.forward(&sp.axes);
+        let (d, axis) = r.at(pose.tip);
+        rep.on_path = rep.on_path.max(d);
+        rep.on_axis = rep.on_axis.max(angle(pose.axis, axis));
+        let prev = q[i + 2];
+        for k in 1..BETWEEN {
+            let l = k as f64 / BETWEEN as f64;
+            let mut j = prev;
+            for (n, v) in j.iter_mut().enumerate() {
+                *v += (sp.axes[n] - prev[n]) * l;
+            }
+            let p = m.forward(&j);
+            let (d, axis) = r.at(p.tip);
+            rep.between_tip = rep.between_tip.max(d);
+            rep.between_axis = rep.between_axis.max(angle(p.axis, axis));
+        }
+    }
+    rep.ratio = joint_ratios(cfg, &q);
+    rep
+}
+
+/// Per joint, the largest velocity, acceleration and jerk of the drives'
+/// commands `q` (three copies of the start first) by finite differences,
+/// as fractions of the joint's limits.
+fn joint_ratios(cfg: &InterpConfig, q: &[Joints]) -> [[f64; 3]; 6] {
+    let ts = cfg.period;
+    let mut ratio = [[0.0f64; 3]; 6];
+    for i in 3..q.len() {
+        for (j, r) in ratio.iter_mut().enumerate() {
+            let (vm, am, jm) = cfg.joint_limits(j);
+            let v = (q[i][j] - q[i - 1][j]) / ts;
+            let a = (q[i][j] - 2.0 * q[i - 1][j] + q[i - 2][j]) / (ts * ts);
+            let a0 = (q[i - 1][j] - 2.0 * q[i - 2][j] + q[i - 3][j]) / (ts * ts);
+            let jk = (a - a0) / ts;
+            r[0] = r[0].max(v.abs() / vm);
+            r[1] = r[1].max(a.abs() / am);
+            r[2] = r[2].max(jk.abs() / jm);
+        }
+    }
+    ratio
+}
+
+fn assert_within(cfg: &InterpConfig, rep: &Report, what: &str) {
+    eprintln!("{what}: {rep:?}");
+    assert!(
+        rep.on_path <= ON_PATH_TOL,
+        "{what}: tip off the path {rep:?}"
+    );
+    assert!(rep.on_axis <= ON_AXIS_TOL, "{what}: axis off {rep:?}");
+    assert!(
+        rep.between_tip <= cfg.chord_tolerance * (1.0 + LIMIT_REL_TOL),
+        "{what}: tip between setpoints {rep:?}"
+    );
+    assert!(
+        rep.between_axis <= cfg.angular_tolerance * (1.0 + LIMIT_REL_TOL),
+        "{what}: axis between setpoints {rep:?}"
+    );
+    for (j, r) in rep.ratio.iter().enumerate() {
+        for (k, x) in r.iter().enumerate() {
+            assert!(
+                *x <= 1.0 + LIMIT_REL_TOL,
+                "{what}: joint {j} {} {x} of its limit {rep:?}",
+                ["velocity", "acceleration", "jerk"][k]
+            );
+        }
+    }
+}
+
+/// A helix about z (radius `r`, from angle 0 over `sweep`, rising `rise`
+/// from `z0`) with the tool axis turned on the great circle from `a0` to
+/// `a1` in proportion to the angle.
+struct Helix {
+    r: f64,
+    z0: f64,
+    rise: f64,
+    sweep: f64,
+    a0: Vec3,
+    a1: Vec3,
+}
+
+impl Helix {
+    fn point(&self, t: f64) -> Vec3 {
+        Vec3::new(
+            self.r * libm::cos(t),
+            self.r * libm::sin(t),
+            self.z0 + self.rise * t / self.sweep,
+        )
+    }
+    fn axis(&self, t: f64) -> Vec3 {
+        let theta = libm::acos(self.a0.dot(&self.a1).clamp(-1.0, 1.0));
+        let w = (self.a1 - self.a0 * self.a0.dot(&self.a1)).normalize();
+        let phi = theta * (t / self.sweep).clamp(0.0, 1.0);
+        self.a0 * libm::cos(phi) + w * libm::sin(phi)
+    }
+    fn block(&self, feed: f64) -> Block {
+        let arc = Arc::from_centre(
+            self.point(0.0),
+            self.point(self.sweep),
+            Vec3::new(0.0, 0.0, self.z0),
+            Vec3::z(),
+            0,
+        )
+        .expect("arc");
+        let path = Path::Arc(arc);
+        let o = Orientation::tool_axis(&path, self.a0, self.a1).expect("orientation");
+        Block::new(1, path, feed).with_orientation(o)
+    }
+}
+
+impl Reference for Helix {
+    fn at(&self, tip: Vec3) -> (f64, Vec3) {
+        // The angle of the tip about z, unwrapped into the sweep (< 2π).
+        let mut t = libm::atan2(tip.y, tip.x);
+        if t < -1e-9 {
+            t += 2.0 * PI;
+        }
+        // The distance to the helix point at the same angle bounds the
+        // distance to the helix.
+        ((tip - self.point(t)).norm(), self.axis(t))
+    }
+}
+
+fn tilted(deg: f64, towards: Vec3) -> Vec3 {
+    let r = deg.to_radians();
+    Vec3::z() * libm::cos(r) + towards * libm::sin(r)
+}
+
+fn helix() -> Helix {
+    Helix {
+        r: 30.0,
+        z0: -5.0,
+        rise: 12.0,
+        sweep: 1.5 * PI,
+        a0: tilted(20.0, Vec3::x()),
+        a1: tilted(35.0, -Vec3::y()),
+    }
+}
+
+#[test]
+fn helix_with_a_turning_tool_on_a_ca_table() {
+    let spec = machine("W/caxyBz/T", 80.0, (0, [0.0, 0.0, -40.0]));
+    let cfg = config(spec);
+    let m = Machine::new(spec).expect("machine");
+    let h = helix();
+    let start = joints_at(&m, h.point(0.0), h.a0);
+    let sps = run(&cfg, start, &[h.block(50.0)]);
+    let rep = check(&cfg, start, &sps, &h);
+    assert_within(&cfg, &rep, "helix C,A");
+    // It ends at rest on the end pose.
+    let end = m.forward(&sps.last().expect("setpoints").axes);
+    assert!((end.tip - h.point(h.sweep)).norm() < ON_PATH_TOL);
+    assert!((end.axis - h.a1).norm() < ON_AXIS_TOL);
+    // The rotary joints really turn (C sweeps with the tool's azimuth).
+    let c: Vec<f64> = sps.iter().map(|s| s.axes[5]).collect();
+    let span =
+        c.iter().cloned().fold(f64::MIN, f64::max) - c.iter().cloned().fold(f64::MAX, f64::min);
+    assert!(span > 60.0, "C spans {span} degrees");
+}
+
+/// The flank of a cone frustum in the manner of NAS 979: the tip runs
+/// round the bottom circle (radius `r`) in eight exact arcs, and the tool
+/// axis, along the cone's generatrix (leaning `alpha` inwards) at the arcs'
+/// ends, turns on the great circle between them: known in closed form at
+/// every angle.
+struct Frustum {
+    r: f64,
+    alpha: f64,
+}
+
+/// Arcs the frustum's circle is cut into.
+const FRUSTUM_ARCS: usize = 8;
+
+impl Frustum {
+    fn generatrix(&self, t: f64) -> Vec3 {
+        Vec3::new(
+            -libm::sin(self.alpha) * libm::cos(t),
+            -libm::sin(self.alpha) * libm::sin(t),
+            libm::cos(self.alpha),
+        )
+    }
+    fn step(&self) -> f64 {
+        2.0 * PI / FRUSTUM_ARCS as f64
+    }
+    /// The programmed axis at angle `t` (on arc `⌊t/step⌋`).
+    fn axis(&self, t: f64) -> Vec3 {
+        let k = ((t / self.step()) as usize).min(FRUSTUM_ARCS - 1);
+        let (t0, t1) = (k as f64 * self.step(), (k + 1) as f64 * self.step());
+        let (a, b) = (self.generatrix(t0), self.generatrix(t1));
+        let theta = libm::atan2(a.cross(&b).norm(), a.dot(&b));
+        let w = (b - a * a.dot(&b)).normalize();
+        let phi = theta * (t - t0) / (t1 - t0);
+        a * libm::cos(phi) + w * libm::sin(phi)
+    }
+    fn blocks(&self, feed: f64) -> Vec<Block> {
+        let p = |t: f64| Vec3::new(self.r * libm::cos(t), self.r * libm::sin(t), 0.0);
+        (0..FRUSTUM_ARCS)
+            .map(|k| {
+                let (t0, t1) = (k as f64 * self.step(), (k + 1) as f64 * self.step());
+                let arc = Arc::from_centre(p(t0), p(t1), Vec3::zeros(), Vec3::z(), 0).expect("arc");
+                let path = Path::Arc(arc);
+                let o = Orientation::tool_axis(&path, self.generatrix(t0), self.generatrix(t1))
+                    .expect("orientation");
+                Block::new(k as u32 + 1, path, feed).with_orientation(o)
+            })
+            .collect()
+    }
+}
+
+impl Reference for Frustum {
+    fn at(&self, tip: Vec3) -> (f64, Vec3) {
+        let mut t = libm::atan2(tip.y, tip.x);
+        if t < -1e-9 {
+            t += 2.0 * PI;
+        }
+        let d = libm::hypot(libm::hypot(tip.x, tip.y) - self.r, tip.z);
+        (d, self.axis(t.min(2.0 * PI)))
+    }
+}
+
+/// The same workpiece path on a C,A table and an A,B table: both within
+/// every tolerance and limit, and the same tip path (each tip of one run
+/// within the chord tolerance of the other's polyline, the axis there the same).
+#[test]
+fn cone_frustum_flank_on_ca_and_ab_machines_gives_the_same_tip_path() {
+    let f = Frustum {
+        r: 40.0,
+        alpha: 15f64.to_radians(),
+    };
+    let mut tips = Vec::new();
+    for (chain, centre) in [
+        ("W/caxyBz/T", (0, [0.0, 0.0, -30.0])),
+        ("W/abxyBz/T", (1, [0.0, 0.0, -30.0])),
+    ] {
+        let spec = machine(chain, 60.0, centre);
+        let cfg = config(spec);
+        let m = Machine::new(spec).expect("machine");
+        let start = joints_at(&m, Vec3::new(f.r, 0.0, 0.0), f.generatrix(0.0));
+        let sps = run(&cfg, start, &f.blocks(40.0));
+        let rep = check(&cfg, start, &sps, &f);
+        assert_within(&cfg, &rep, chain);
+        tips.push(sps.iter().map(|s| m.forward(&s.axes)).collect::<Vec<_>>());
+    }
+    let (a, b) = (&tips[0], &tips[1]);
+    let dist = |p: Vec3, poly: &[ToolPose]| {
+        poly.windows(2)
+            .map(|w| {
+                let (s, e) = (w[0].tip, w[1].tip);
+                let d = e - s;
+                let l = if d.norm_squared() > 0.0 {
+                    ((p - s).dot(&d) / d.norm_squared()).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                (s + d * l - p).norm()
+            })
+            .fold(f64::INFINITY, f64::min)
+    };
+    let step = (b.len() / 400).max(1);
+    for p in b.iter().step_by(step) {
+        assert!(dist(p.tip, a) <= 1e-3, "tip {:?} off the other run", p.tip);
+    }
+}
+
+/// A line under the pole of a C,A table: the tool axis swings from 30°
+/// one side to 30° the other through +z (where C is undefined). C stays
+/// where it is and A changes sign; a line passing near the pole (C must
+/// turn half a revolution there) keeps C's limits.
+#[test]
+fn the_pole_is_crossed_without_a_c_jump() {
+    let spec = machine("W/caxyBz/T", 50.0, (0, [0.0, 0.0, -20.0]));
+    let cfg = config(spec);
+    let m = Machine::new(spec).expect("machine");
+    struct Swing {
+        a0: Vec3,
+        a1: Vec3,
+        len: f64,
+    }
+    impl Reference for Swing {
+        fn at(&self, tip: Vec3) -> (f64, Vec3) {
+            let t = ((tip.x + 0.5 * self.len) / self.len).clamp(0.0, 1.0);
+            let theta = libm::acos(self.a0.dot(&self.a1));
+            let w = (self.a1 - self.a0 * self.a0.dot(&self.a1)).normalize();
+            let axis = self.a0 * libm::cos(theta * t) + w * libm::sin(theta * t);
+            (libm::hypot(tip.y, tip.z), axis)
+        }
+    }
+    for off in [0.0, 0.02] {
+        let s = Swing {
+            a0: Vec3::new(0.5, off, 0.75f64.sqrt()).normalize(),
+            a1: Vec3::new(-0.5, off, 0.75f64.sqrt()).normalize(),
+            len: 40.0,
+        };
+        let (p0, p1) = (Vec3::new(-20.0, 0.0, 0.0), Vec3::new(20.0, 0.0, 0.0));
+        let path = Path::Line(Line::new(p0, p1).expect("line"));
+        let o = Orientation::tool_axis(&path, s.a0, s.a1).expect("orientation");
+        let block = Block::new(1, path, 40.0).with_orientation(o);
+        let start = joints_at(&m, p0, s.a0);
+        let sps = run(&cfg, start, &[block]);
+        let rep = check(&cfg, start, &sps, &s);
+        assert_within(&cfg, &rep, &format!("pole, offset {off}"));
+        let c0 = start[5];
+        let (a_first, a_last) = (start[3], sps.last().expect("end").axes[3]);
+        if off == 0.0 {
+            // The tilt changes sign through the pole.
+            assert!(a_first * a_last < 0.0, "A {a_first} → {a_last}");
+            // Through the pole itself: C never moves.
+            for sp in &sps {
+                assert!((sp.axes[5] - c0).abs() <= 1e-9, "C moved to {}", sp.axes[5]);
+            }
+        } else {
+            // Near it C turns by about half a revolution, within its limits (above).
+            let c_end = sps.last().expect("end").axes[5];
+            assert!((c_end - c0).abs() > 150.0, "C {c0} → {c_end}");
+        }
+    }
+}
+
+/// Without tool-centre-point control the rotary axes are plain axes that
+/// move in proportion with X Y Z; no machine is needed.
+#[test]
+fn plain_rotary_axes_move_with_the_line() {
+    let cfg = InterpConfig::default();
+    let path = Path::Line(Line::new(Vec3::zeros(), Vec3::new(10.0, 0.0, 0.0)).expect("line"));
+    let o = Orientation::axes(&path, [0.0, 0.0, 0.0], [30.0, 0.0, -15.0]).expect("axes");
+    let after = Block::new(
+        2,
+        Path::Line(Line::new(Vec3::new(10.0, 0.0, 0.0), Vec3::new(10.0, 5.0, 0.0)).expect("line")),
+        50.0,
+    );
+    let sps = run(
+        &cfg,
+        [0.0; 6],
+        &[Block::new(1, path, 50.0).with_orientation(o), after],
+    );
+    let mut q = vec![[0.0; 6]; 3];
+    q.extend(sps.iter().map(|s| s.axes));
+    for sp in &sps {
+        let x = sp.axes[0];
+        if sp.block_id == 1 {
+            assert!((sp.axes[3] - 3.0 * x).abs() < 1e-9 && (sp.axes[5] + 1.5 * x).abs() < 1e-9);
+        } else {
+            assert_eq!((sp.axes[3], sp.axes[5]), (30.0, -15.0));
+        }
+    }
+    let ratio = joint_ratios(&cfg, &q);
+    for j in [3, 5] {
+        assert!(
+            ratio[j].iter().all(|&x| x <= 1.0 + LIMIT_REL_TOL),
+            "joint {j}: velocity, acceleration, jerk {:?} of its limits",
+            ratio[j]
+        );
+    }
+}
+
+/// Tool-centre-point control needs the machine, and a pose out of the
+/// rotary ranges is refused before anything is queued.
+#[test]
+fn five_axis_blocks_out_of_reach_are_refused() {
+    let line = Path::Line(Line::new(Vec3::zeros(), Vec3::new(10.0, 0.0, 0.0)).expect("line"));
+    let o = Orientation::tool_axis(&line, Vec3::z(), tilted(40.0, Vec3::y())).expect("o");
+    let block = Block::new(1, line, 20.0).with_orientation(o);
+    let mut ip = Box::new(Interpolator::<64>::new(InterpConfig::default(), [0.0; 6]).expect("cfg"));
+    assert_eq!(
+        ip.push(&block),
+        Err(PushError::Kinematics(JointError::NoMachine))
+    );
+    let mut spec = machine("W/caxyBz/T", 0.0, (0, [0.0; 3]));
+    spec.rotary_ranges[0] = RotaryRange {
+        min: -30.0,
+        max: 30.0,
+    };
+    let mut ip = Box::new(Interpolator::<64>::new(config(spec), [0.0; 6]).expect("cfg"));
+    match ip.push(&block) {
+        Err(PushError::Kinematics(JointError::Inverse(e))) => {
+            assert!(e.to_string().contains('A'), "{e}")
+        }
+        other => panic!("expected out of range, got {other:?}"),
+    }
+    assert_eq!(ip.queued_segments(), 0);
+}
+
+/// Where the drives' linear joint interpolation is what limits the speed:
+/// a part 300 mm from the C axis of a fast table, the tool axis turning on
+/// the way. The tip's deviation between setpoints comes close to the chord
+/// tolerance and stays within it; with a tight angular tolerance, the axis
+/// deviation does the same. Same blocks and config: the same setpoints.
+#[test]
+fn the_between_setpoint_tolerances_bind_and_hold() {
+    let spec = machine("W/caxyBz/T", 40.0, (0, [0.0, 0.0, -20.0]));
+    let fast = InterpConfig {
+        machine: Some(spec),
+        axis_max_velocity: [2000.0; 3],
+        axis_max_accel: [40_000.0; 3],
+        axis_max_jerk: [2e6; 3],
+        rotary_max_velocity: [3600.0; 3],
+        rotary_max_accel: [36_000.0; 3],
+        rotary_max_jerk: [2e6; 3],
+        ..InterpConfig::default()
+    };
+    let m = Machine::new(spec).expect("machine");
+    struct Straight {
+        p0: Vec3,
+        p1: Vec3,
+        a0: Vec3,
+        a1: Vec3,
+    }
+    impl Reference for Straight {
+        fn at(&self, tip: Vec3) -> (f64, Vec3) {
+            let d = self.p1 - self.p0;
+            let t = ((tip - self.p0).dot(&d) / d.norm_squared()).clamp(0.0, 1.0);
+            let theta = libm::acos(self.a0.dot(&self.a1));
+            let w = (self.a1 - self.a0 * self.a0.dot(&self.a1)).normalize();
+            let axis = self.a0 * libm::cos(theta * t) + w * libm::sin(theta * t);
+            ((self.p0 + d * t - tip).norm(), axis)
+        }
+    }
+    let s = Straight {
+        p0: Vec3::new(300.0, 0.0, 0.0),
+        p1: Vec3::new(300.0, 40.0, 0.0),
+        a0: tilted(10.0, Vec3::x()),
+        a1: tilted(10.0, Vec3::y()),
+    };
+    let path = Path::Line(Line::new(s.p0, s.p1).expect("line"));
+    let o = Orientation::tool_axis(&path, s.a0, s.a1).expect("orientation");
+    let block = Block::new(1, path, 200.0).with_orientation(o);
+    let start = joints_at(&m, s.p0, s.a0);
+    for (cfg, tip_binds) in [
+        (fast, true),
+        (
+            InterpConfig {
+                angular_tolerance: 2e-7,
+                ..fast
+            },
+            false,
+        ),
+    ] {
+        let sps = run(&cfg, start, &[block]);
+        let rep = check(&cfg, start, &sps, &s);
+        assert_within(&cfg, &rep, "far from C");
+        if tip_binds {
+            assert!(rep.between_tip > 0.5 * cfg.chord_tolerance, "{rep:?}");
+            assert_eq!(run(&cfg, start, &[block]), sps, "deterministic");
+        } else {
+            assert!(rep.between_axis > 0.5 * cfg.angular_tolerance, "{rep:?}");
+        }
+    }
+}
+
+/// A feed hold in the middle of a five-axis block rests on the path with
+/// the tool axis on its program, within every joint limit, and resume
+/// finishes; an abort rests likewise, and the machine is idle in its own
+/// X Y Z (tool-centre-point control off) where a new program starts.
+#[test]
+fn hold_and_abort_stay_on_the_path_with_the_axis_on_its_program() {
+    let spec = machine("W/caxyBz/T", 80.0, (0, [0.0, 0.0, -40.0]));
+    let cfg = config(spec);
+    let m = Machine::new(spec).expect("machine");
+    let h = helix();
+    let start = joints_at(&m, h.point(0.0), h.a0);
+    let block = h.block(50.0);
+    for abort in [false, true] {
+        let mut ip: Box<Interpolator> = Box::new(Interpolator::new(cfg, start).expect("cfg"));
+        ip.push(&block).expect("push");
+        if !abort {
+            ip.finish();
+        }
+        let mut sps = Vec::new();
+        for k in 0..200_000 {
+            if k == 700 {
+                if abort {
+                    ip.abort();
+                } else {
+                    ip.feed_hold();
+                }
+            }
+            if k == 1500 && !abort {
+                ip.resume();
+            }
+            let sp = ip.tick();
+            sps.push(sp);
+            if matches!(sp.state, RunState::Done)
+                || (abort && k > 700 && sp.state == RunState::Idle)
+            {
+                break;
+            }
+        }
+        let rep = check(&cfg, start, &sps, &h);
+        assert_within(&cfg, &rep, if abort { "abort" } else { "hold" });
+        let held = if abort {
+            sps.last().expect("end")
+        } else {
+            &sps[1400]
+        };
+        assert!(abort || held.feed == 0.0, "at rest while held");
+        let pose = m.forward(&held.axes);
+        assert!(h.at(pose.tip).0 <= ON_PATH_TOL);
+        if abort {
+            // Idle in the machine's X Y Z: a three-axis move starts there.
+            let q = sps.last().expect("end").axes;
+            let from = Vec3::new(q[0], q[1], q[2]);
+            let next = Block::new(
+                9,
+                Path::Line(Line::new(from, from + Vec3::new(0.0, 0.0, 5.0)).expect("line")),
+                20.0,
+            );
+            ip.push(&next)
+                .expect("a new program from where the machine stands");
+            ip.finish();
+            let mut last = ip.tick();
+            while last.state != RunState::Done {
+                last = ip.tick();
+            }
+            assert_eq!(&last.axes[3..], &q[3..], "rotary axes stay");
+            assert!((last.axes[2] - q[2] - 5.0).abs() < 1e-12);
+        } else {
+            assert_eq!(sps.last().expect("end").state, RunState::Done);
+        }
+    }
+}
+
+/// A block whose rotary axes do not start where the previous one left
+/// them is refused (the joints would jump); the G64 smoothing stage passes
+/// five-axis blocks through unchanged.
+#[test]
+fn rotary_jumps_are_refused_and_smoothing_passes_five_axis_blocks() {
+    let cfg = InterpConfig::default();
+    let l1 = Path::Line(Line::new(Vec3::zeros(), Vec3::new(1.0, 0.0, 0.0)).expect("line"));
+    let l2 =
+        Path::Line(Line::new(Vec3::new(1.0, 0.0, 0.0), Vec3::new(2.0, 0.1, 0.0)).expect("line"));
+    let b1 = Block::new(1, l1, 20.0)
+        .with_orientation(Orientation::axes(&l1, [0.0; 3], [10.0, 0.0, 0.0]).expect("axes"));
+    let jump = Block::new(2, l2, 20.0).with_orientation(
+        Orientation::axes(&l2, [11.0, 0.0, 0.0], [12.0, 0.0, 0.0]).expect("axes"),
+    );
+    let mut ip = Box::new(Interpolator::<64>::new(cfg, [0.0; 6]).expect("cfg"));
+    ip.push(&b1).expect("first");
+    match ip.push(&jump) {
+        Err(PushError::Kinematics(JointError::Jump(d))) => assert!((d - 1.0).abs() < 1e-12, "{d}"),
+        other => panic!("expected a jump, got {other:?}"),
+    }
+    // Under G64 two short collinear-ish oriented lines are neither merged
+    // nor compressed.
+    let within = interp_core::path::Blending::Within {
+        tolerance: Some(0.05),
+    };
+    let mut sm: Box<interp_core::Smoother> =
+        Box::new(interp_core::Smoother::new(&cfg, 1).expect("smoother"));
+    let b2 = Block::new(2, l2, 20.0).with_orientation(
+        Orientation::axes(&l2, [10.0, 0.0, 0.0], [12.0, 0.0, 0.0]).expect("axes"),
+    );
+    for b in [b1, b2] {
+        sm.push(&b.with_blending(within)).expect("push");
+    }
+    sm.finish();
+    let out: Vec<Block> = core::iter::from_fn(|| sm.pop()).collect();
+    assert_eq!(out.len(), 2);
+    assert_eq!((out[0].path, out[0].orientation), (b1.path, b1.orientation));
+    assert_eq!((out[1].path, out[1].orientation), (b2.path, b2.orientation));
+}
+
+/// Leaving the pole of a C,A table towards an azimuth C does not stand at
+/// would make C jump: refused, naming the jump; leaving it towards where C
+/// stands runs with C continuous.
+#[test]
+fn leaving_the_pole_needs_c_where_the_axis_goes() {
+    let spec = machine("W/caxyBz/T", 50.0, (0, [0.0, 0.0, -20.0]));
+    let cfg = config(spec);
+    let m = Machine::new(spec).expect("machine");
+    let (p0, p1) = (Vec3::new(10.0, 0.0, 0.0), Vec3::new(20.0, 0.0, 0.0));
+    let path = Path::Line(Line::new(p0, p1).expect("line"));
+    // Tilting towards +x from the pole needs C = ±90 (the axis is
+    // (sin C sin A, −cos C sin A, cos A)).
+    let o = Orientation::tool_axis(&path, Vec3::z(), tilted(20.0, Vec3::x())).expect("o");
+    let block = Block::new(1, path, 20.0).with_orientation(o);
+    for (c, ok) in [(0.0, false), (90.0, true), (-90.0, true)] {
+        let mut start = m
+            .inverse(
+                &ToolPose {
+                    tip: p0,
+                    axis: Vec3::z(),
+                },
+                &[0.0, 0.0, 0.0, 0.0, 0.0, c],
+            )
+            .expect("ik")
+            .joints;
+        start[5] = c;
+        let mut ip = Box::new(Interpolator::<64>::new(cfg, start).expect("cfg"));
+        match (ip.push(&block), ok) {
+            (Err(PushError::Kinematics(JointError::PoleDeparture(d))), false) => {
+                assert!((d - 90.0).abs() < 1e-6, "{d}")
+            }
+            (Ok(()), true) => {
+                let sps = run(&cfg, start, &[block]);
+                for w in sps.windows(2) {
+                    assert!((w[1].axes[5] - w[0].axes[5]).abs() < 1e-9, "C moved");
+                }
+            }
+            (r, _) => panic!("C at {c}: {r:?}"),
+        }
+    }
+}
