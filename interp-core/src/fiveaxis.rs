@@ -24,7 +24,7 @@ use crate::geom::{Curve, Vec3};
 use crate::kinematics::{InverseError, Joints, Machine, ToolPose};
 use crate::path::Path;
 use crate::plan::{AxisSample, Window, index_of};
-use crate::prepare::axis_jerk_may_bind;
+use crate::prepare::{axis_jerk_may_bind, keep_axis_sample};
 
 /// Beyond this angle (rad) from its start a tool axis cannot be turned to
 /// its end on a unique great circle (the two are nearly opposite).
@@ -712,10 +712,8 @@ pub(crate) fn sample_joints(
                 smp_ax.css[ax] = smp.q_ss[jt] * scale;
                 smp_ax.csss[ax] = smp.q_sss[jt] * scale;
             }
-            if (0..3).any(|ax| axis_jerk_may_bind(&smp_ax, ax, l2, cfg))
-                && let Some(it) = w.interval_mut(g)
-            {
-                it.add_sample(smp_ax);
+            if (0..3).any(|ax| axis_jerk_may_bind(&smp_ax, ax, l2, cfg)) {
+                keep_axis_sample(w, smp_ax, h, l2, cfg);
             }
         }
     });

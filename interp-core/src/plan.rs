@@ -91,7 +91,7 @@ pub struct Interval {
     /// Samples held.
     pub n_samples: u8,
     /// A sample could not be kept (the interval had more than the capacity):
-    /// its piece is planned with the worst case of the ones kept.
+    /// the speed limit there was lowered until its axis jerk cannot bind.
     pub overflow: bool,
     /// The tangential jerk a five-axis block's joints allow here, mm/s³
     /// (infinite for three-axis blocks): next to a rest point the
@@ -125,27 +125,19 @@ impl Interval {
         }
     }
     /// Keep a per-axis sample (the first ones; then the worst by curvature).
-    pub fn add_sample(&mut self, a: AxisSample) {
+    /// Keep a per-axis sample; false when the interval holds
+    /// [`SAMPLES_PER_INTERVAL`] already (the caller then makes it
+    /// unnecessary: see `prepare::keep_axis_sample`).
+    #[must_use]
+    pub fn add_sample(&mut self, a: AxisSample) -> bool {
         let n = self.n_samples as usize;
         if n < SAMPLES_PER_INTERVAL {
             self.samples[n] = a;
             self.n_samples += 1;
-            return;
-        }
-        self.overflow = true;
-        // Replace the sample with the smallest curvature terms.
-        let weight = |x: &AxisSample| {
-            x.css.iter().map(|v| v.abs()).sum::<f64>() + x.csss.iter().map(|v| v.abs()).sum::<f64>()
-        };
-        let (mut k, mut w) = (0, f64::INFINITY);
-        for (i, s) in self.samples.iter().enumerate() {
-            if weight(s) < w {
-                w = weight(s);
-                k = i;
-            }
-        }
-        if weight(&a) > w {
-            self.samples[k] = a;
+            true
+        } else {
+            self.overflow = true;
+            false
         }
     }
 }
@@ -182,6 +174,11 @@ struct WPiece {
     /// Machine-law and feed-law speed limits over the piece, mm/s.
     machine: f64,
     feed: f64,
+    /// The squared-speed cap of the rows its coefficient was last solved
+    /// under (`None` before any): a re-solve that continues a kept plan
+    /// keeps the rows just past it as loose as they were (see
+    /// [`kept_caps`]).
+    solved_cap: Option<f64>,
 }
 
 impl WPiece {
@@ -230,6 +227,9 @@ pub struct PlanTotals {
     pub passes: u64,
     /// Interior-point iterations, all passes.
     pub iterations: u64,
+    /// First passes that failed and were retried with the rows past the
+    /// kept plan as loose as that plan's (see `kept_caps`).
+    pub kept_rows: u64,
     /// Solves that kept a rest point at the old end of the queue.
     pub fell_back: u64,
     /// Solves that fell back to the crawl.
@@ -296,6 +296,8 @@ struct Scratch {
     backup_x: [f64; REGION],
     /// The plan before a solve, to fall back on.
     backup: [WPiece; WINDOW],
+    /// How many pieces `backup` holds.
+    backup_n: usize,
 }
 
 /// The look-ahead window and its solver.
@@ -372,21 +374,36 @@ impl Data {
     /// round-off of its ends, its neighbours': a sample on a knot belongs to
     /// both pieces, whichever interval it was stored in).
     fn piece_samples<'a>(&'a self, p: &'a WPiece) -> impl Iterator<Item = &'a AxisSample> + 'a {
-        // A piece cut next to a rest point may hold no sample of its own: it
-        // is checked against every sample of its interval (at its nearer end).
-        let tol = if p.h() < 0.5 * self.h {
-            p.h().max(self.h / SUB as f64)
-        } else {
-            SLIVER * self.h
-        };
+        // Its own samples, those at its ends included (the jerk jumps at a
+        // knot: a sample there bounds both sides). A piece with none (one
+        // cut between samples, next to a rest point or a limit change) is
+        // checked against the nearest sample on each side, at its nearer
+        // end: which ones those are does not turn on round-off.
+        let tol = SLIVER * self.h;
         let held = |g: i64| g >= self.g_base && g < self.g_base + self.n_int as i64;
-        (p.g - 1..=p.g + 1)
-            .filter(move |&g| held(g))
-            .flat_map(move |g| {
-                let it = self.interval(g);
-                it.samples[..it.n_samples as usize].iter()
-            })
-            .filter(move |smp| smp.s >= p.x0 - tol && smp.s <= p.x1 + tol)
+        let near = move || {
+            (p.g - 1..=p.g + 1)
+                .filter(move |&g| held(g))
+                .flat_map(move |g| {
+                    let it = self.interval(g);
+                    it.samples[..it.n_samples as usize].iter()
+                })
+        };
+        let own = move |smp: &&AxisSample| smp.s >= p.x0 - tol && smp.s <= p.x1 + tol;
+        let none = !near().any(|smp| own(&smp));
+        let closest = |before: bool| {
+            near()
+                .filter(move |smp| none && if before { smp.s < p.x0 } else { smp.s > p.x1 })
+                .min_by(move |a, b| {
+                    let da = if before { p.x0 - a.s } else { a.s - p.x1 };
+                    let db = if before { p.x0 - b.s } else { b.s - p.x1 };
+                    da.total_cmp(&db)
+                })
+        };
+        near()
+            .filter(own)
+            .chain(closest(true))
+            .chain(closest(false))
     }
 
     /// The squared speed limit of piece `i` at override `ovr`.
@@ -425,6 +442,13 @@ impl Data {
 
     /// Rebuild pieces `from..` (starting at `x`) up to the tail out of the
     /// intervals and rest points.
+    /// Remember the caps the rows of pieces `first..` were solved under.
+    fn note_caps(&mut self, cap2: &[f64; WINDOW], first: usize) {
+        for i in first..self.n_pieces {
+            self.pieces[i].solved_cap = Some(cap2[i]);
+        }
+    }
+
     fn rebuild_from(
         &mut self,
         from: usize,
@@ -469,6 +493,7 @@ impl Data {
                     d,
                     machine: f64::INFINITY,
                     feed: f64::INFINITY,
+                    solved_cap: None,
                 };
                 n += 1;
                 rest = false;
@@ -487,7 +512,7 @@ impl Data {
     /// sub-ranges it overlaps).
     fn range_limits(&self, x0: f64, x1: f64) -> (f64, f64) {
         let hs = self.h / SUB as f64;
-        let snap = 1e-9;
+        let snap = SUB_SNAP;
         let k0 = libm::floor(x0 / hs + snap) as i64;
         let k1 = (libm::ceil(x1 / hs - snap) as i64 - 1).max(k0);
         let (mut m, mut f) = (f64::INFINITY, f64::INFINITY);
@@ -615,6 +640,7 @@ impl Data {
                     d: if j == 0 { p.d } else { 0.0 },
                     machine: f64::INFINITY,
                     feed: f64::INFINITY,
+                    solved_cap: None,
                 };
                 x1 = x0;
             }
@@ -660,6 +686,7 @@ impl Window {
                 cap2: [0.0; WINDOW],
                 backup_x: [0.0; REGION],
                 backup: [WPiece::default(); WINDOW],
+                backup_n: 0,
             },
             ovr: 1.0,
             last: SolveStats::default(),
@@ -779,9 +806,7 @@ impl Window {
     /// both sides), in the intervals held.
     pub fn lower_range(&mut self, s0: f64, s1: f64, which: usize, v: f64) {
         let hs = self.data.h / SUB as f64;
-        // Within round-off of a boundary counts as on it (law samples fall
-        // on boundaries, and `k·hs/hs` need not be `k`).
-        let snap = 1e-9;
+        let snap = SUB_SNAP;
         let (q0, q1) = (s0 / hs, s1 / hs);
         let (k0, k1) = if s1 > s0 {
             // The sub-ranges overlapping the open range.
@@ -952,6 +977,7 @@ impl Window {
         // The current plan, to fall back on (it comes to rest at its end).
         let backup_n = self.data.n_pieces;
         self.scratch.backup[..backup_n].copy_from_slice(&self.data.pieces[..backup_n]);
+        self.scratch.backup_n = backup_n;
         let backup_prev = self.data.prev;
         let old_end = {
             let d = &self.data;
@@ -992,6 +1018,9 @@ impl Window {
         };
         self.ovr = ovr;
         let mut fell_back = false;
+        // After a failed first pass: once more with the rows past the kept
+        // pieces as loose as the kept plan's were (see [`kept_caps`]).
+        let mut keep_rows = false;
         loop {
             self.data.rebuild_from(first, from_x, rest, end)?;
             let n = self.data.n_pieces;
@@ -1010,7 +1039,11 @@ impl Window {
                 first,
                 ovr,
                 &lift,
-                false,
+                if keep_rows {
+                    Pass::KeptRows
+                } else {
+                    Pass::First
+                },
                 &mut |it| {
                     if let Some(t) = trace {
                         t(it)
@@ -1018,6 +1051,7 @@ impl Window {
                 },
             ) {
                 Ok(mut st) => {
+                    self.data.note_caps(&self.scratch.cap2, first);
                     // Sequential refinement: each pass caps every piece near
                     // the speed the last one planned there, which loosens the
                     // jerk rows; the last plan stays feasible, so a pass can
@@ -1034,10 +1068,11 @@ impl Window {
                             first,
                             ovr,
                             &lift,
-                            true,
+                            Pass::Refine,
                             &mut |_| {},
                         ) {
                             Ok(s2) => {
+                                self.data.note_caps(&self.scratch.cap2, first);
                                 st.iterations += s2.iterations;
                                 st.passes += 1;
                             }
@@ -1066,6 +1101,11 @@ impl Window {
                     return Ok(changed);
                 }
                 Err(e @ PlanError::Solver(_)) if !fallback => return Err(e),
+                Err(PlanError::Solver(e)) if !keep_rows && first > 0 => {
+                    self.totals.last_failure = Some(e);
+                    self.totals.kept_rows += 1;
+                    keep_rows = true;
+                }
                 Err(PlanError::Solver(e)) if !fell_back && old_end > from_x => {
                     self.totals.last_failure = Some(e);
                     if !self.insert_stop(old_end) {
@@ -1181,6 +1221,18 @@ impl RowSink<'_> {
     }
 }
 
+/// Which caps a linear program's rows are written with.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Pass {
+    /// The reach caps ([`reach_caps`]).
+    First,
+    /// The reach caps, and past the kept pieces the caps the kept plan was
+    /// solved under ([`kept_caps`]): the retry of a failed first pass.
+    KeptRows,
+    /// A trust region about the last plan.
+    Refine,
+}
+
 /// Build the linear program over the unknowns of pieces `first ..n` and
 /// solve it into the pieces.
 fn assemble_and_solve(
@@ -1189,7 +1241,7 @@ fn assemble_and_solve(
     first: usize,
     ovr: f64,
     lift: &Option<(f64, Stop)>,
-    refine: bool,
+    pass: Pass,
     trace: &mut dyn FnMut(lp::Iteration),
 ) -> Result<SolveStats, PlanError> {
     let n = d.n_pieces;
@@ -1207,7 +1259,7 @@ fn assemble_and_solve(
         crate::prepare::axis_jerk_may_bind(smp, ax, l2, &cfg)
     };
     let lo_i = first.saturating_sub(1);
-    if refine {
+    if pass == Pass::Refine {
         // Cap each unknown piece near what the last pass planned there
         // (kept in `backup_x` to restore if this pass fails).
         for i in first..n {
@@ -1219,6 +1271,16 @@ fn assemble_and_solve(
         }
     } else {
         reach_caps(d, &mut sc.cap2, lo_i, first, ovr, lift);
+        // The kept piece before the first unknown gets rows too (its end
+        // knot moves): the ones it was solved under, not tighter.
+        if lo_i < first
+            && let Some(c) = d.pieces[lo_i].solved_cap
+        {
+            sc.cap2[lo_i] = sc.cap2[lo_i].min(c);
+        }
+        if pass == Pass::KeptRows {
+            kept_caps(d, &mut sc.cap2, &sc.backup[..sc.backup_n], first);
+        }
     }
     let mut needed = 0usize;
     for i in lo_i..n {
@@ -1273,11 +1335,24 @@ fn assemble_and_solve(
         // (d(S^−½)/dS = −½·S^−³ᐟ²): maximise Σ ∫S ds / V_p³, which weighs
         // slow pieces the most, where the time is spent.
         let floor = MIN_SPEED2 * cfg.max_path_speed * cfg.max_path_speed;
-        let weight = h / (3.0 * l2.max(floor) * libm::sqrt(l2.max(floor)));
+        let weigh = |l: f64| h / (3.0 * l.max(floor) * libm::sqrt(l.max(floor)));
+        let weight = weigh(l2);
+        // Next to a rest point the middle coefficient is bounded far below
+        // the piece's limit (the acceleration step at rest), and it alone
+        // sets how the motion leaves or reaches the rest: with it at zero
+        // the speed there goes like the distance, which takes forever. So
+        // it is linearised about its own bound, as the others are about
+        // theirs; without that, trading it for the next piece's coefficient
+        // looks free and the plan creeps out of every rest point.
+        let w_mid = if p.rest_start || rest_end {
+            weigh(l2.min(rest_accel(a_rest, &it, &cfg) * h))
+        } else {
+            weight
+        };
         for m in 0..3 {
             let q = i as isize + m as isize - 1;
             if q >= first as isize && (q as usize) < n {
-                sc.c[q as usize - first] += (e0[m] + mid[m] + e1[m]) * weight;
+                sc.c[q as usize - first] += (e0[m] + e1[m]) * weight + mid[m] * w_mid;
             }
         }
         // Tangential jerk |α|·v ≤ J, α = (e0 − 2d + e1)/h², v ≤ √l2.
@@ -1422,6 +1497,71 @@ fn reach_caps(
         }
     }
 }
+
+/// A re-solve continues the kept plan (pieces before `first`), which was
+/// solved under its own caps: the jerk rows bound `|S''|` by `2J/√cap`, so
+/// a larger cap is a tighter row, and the first pass's caps (the reach, see
+/// [`reach_caps`]) are often larger than the trust caps of the refinement
+/// that made the kept plan. Just past the kept pieces, where their momentum
+/// leaves no choice, new rows tighter than the old ones can make the
+/// program infeasible (a kept braking towards a rest point that the new
+/// rows cannot finish). So up to the next rest point, or as far as braking
+/// from the speed there takes, each piece is capped by the caps the old plan
+/// was solved under where it overlaps them: the old plan stays feasible
+/// there, and the plan beyond is free.
+fn kept_caps(d: &Data, cap2: &mut [f64; WINDOW], old: &[WPiece], first: usize) {
+    let n = d.n_pieces;
+    if first == 0 || first >= n || old.is_empty() {
+        return;
+    }
+    let cfg = &d.cfg;
+    let xb = d.pieces[first].x0;
+    // The old plan's cap where the kept pieces end: its speed there at most.
+    let at = old.partition_point(|p| p.x1 <= xb);
+    let Some(Some(cb)) = old.get(at).map(|p| p.solved_cap) else {
+        return;
+    };
+    let (a, j) = (cfg.max_path_accel, cfg.max_path_jerk);
+    let vb = libm::sqrt(cb.max(0.0));
+    // Braking distance with a jerk-limited ramp, doubled.
+    let reach = 2.0 * (vb * vb / (2.0 * a) + vb * a / j);
+    let mut end = (xb + reach).min(old[old.len() - 1].x1);
+    for p in &d.pieces[first + 1..n] {
+        if p.rest_start {
+            end = end.min(p.x0);
+            break;
+        }
+    }
+    for i in first..n {
+        let p = &d.pieces[i];
+        if p.x0 >= end {
+            break;
+        }
+        // The old pieces overlapping this one: the largest of their caps
+        // (the old plan stays below it here).
+        let mut k = old.partition_point(|q| q.x1 <= p.x0);
+        let mut c: f64 = 0.0;
+        while k < old.len() && old[k].x0 < p.x1 {
+            match old[k].solved_cap {
+                Some(v) => c = c.max(v),
+                None => {
+                    c = f64::INFINITY;
+                    break;
+                }
+            }
+            k += 1;
+        }
+        if c > 0.0 {
+            cap2[i] = cap2[i].min(c);
+        }
+    }
+}
+
+/// Within this fraction of a sub-range of its boundary, a point counts as
+/// on it (and lowers both sides): law samples fall on boundaries and
+/// `k·hs/hs` need not be `k`, and a refined law minimum at a sample or a
+/// knot is placed there by an arc-length quadrature, to ~1e-10 mm.
+const SUB_SNAP: f64 = 1e-6;
 
 /// Where the pieces next to a rest point are cut, as fractions of the grid
 /// step (or of the piece, when shorter) from the rest.
