@@ -47,9 +47,9 @@ pub const WINDOW: usize = REGION + 8;
 /// Longest stretch of a block planned at once, in grid intervals: longer
 /// blocks are planned in parts of this size (at fixed arc lengths, so the
 /// parts do not depend on timing).
-pub const CHUNK: usize = 192;
+pub const CHUNK: usize = 128;
 /// Per-axis derivative samples kept per grid interval.
-pub const SAMPLES_PER_INTERVAL: usize = 18;
+pub const SAMPLES_PER_INTERVAL: usize = 24;
 /// Rest points the window can hold.
 pub const MAX_STOPS: usize = 256;
 /// Rows of one linear program.
@@ -413,7 +413,9 @@ impl Data {
         let mut v = p.machine.min(ovr * p.feed).min(top);
         if let Some((x_f, stop)) = lift {
             // The feed may not fall faster than the machine can brake.
-            let vb = stop.speed_after(p.x0 - x_f);
+            // Over the whole piece: the speed still rises at first while
+            // an acceleration the machine had ramps down.
+            let vb = stop.top_speed_over(p.x0 - x_f, p.x1 - x_f);
             v = v.max(vb.min(p.machine).min(top));
         }
         if !v.is_finite() {
@@ -1100,12 +1102,12 @@ impl Window {
                     self.commit_region(freeze, keep_from, from_x);
                     return Ok(changed);
                 }
-                Err(e @ PlanError::Solver(_)) if !fallback => return Err(e),
                 Err(PlanError::Solver(e)) if !keep_rows && first > 0 => {
                     self.totals.last_failure = Some(e);
                     self.totals.kept_rows += 1;
                     keep_rows = true;
                 }
+                Err(e @ PlanError::Solver(_)) if !fallback => return Err(e),
                 Err(PlanError::Solver(e)) if !fell_back && old_end > from_x => {
                     self.totals.last_failure = Some(e);
                     if !self.insert_stop(old_end) {
@@ -1649,4 +1651,12 @@ fn crawl(d: &mut Data, from: usize, ovr: f64, lift: &Option<(f64, Stop)>) {
 #[inline]
 pub fn index_of(s: f64, h: f64) -> i64 {
     libm::floor(s / h) as i64
+}
+
+/// The interval a per-axis sample at `s` is kept in: as [`index_of`], with a
+/// sample within round-off of an interval's start counted in it (samples
+/// fall on boundaries; which interval holds one must not turn on
+/// round-off, since an interval holds [`SAMPLES_PER_INTERVAL`] at most).
+pub(crate) fn sample_interval(s: f64, h: f64) -> i64 {
+    libm::floor(s / h + SUB_SNAP / SUB as f64) as i64
 }

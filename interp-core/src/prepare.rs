@@ -26,7 +26,9 @@ use crate::interp::{JOIN_TOLERANCE, MAX_PIECES, PushError, grid_multiple};
 use crate::kinematics::Machine;
 use crate::nurbs::Side;
 use crate::path::{Blending, Block, Path};
-use crate::plan::{AxisSample, CHUNK, Freeze, PlanError, SLIVER, WINDOW, Window, index_of};
+use crate::plan::{
+    AxisSample, CHUNK, Freeze, PlanError, SLIVER, WINDOW, Window, index_of, sample_interval,
+};
 use crate::spline::Piece;
 use crate::stop::Stop;
 
@@ -88,6 +90,9 @@ pub struct PlannedBlock {
     /// The last queued segment before these comes to rest at its end
     /// (a corner or an exact stop at the join).
     pub(crate) stop_at_join: bool,
+    /// The next part of the block before it (a long block is planned in
+    /// parts): the join is no junction of the program.
+    pub(crate) continues: bool,
     /// The spline update: pieces from `from_x` on, the first starting at rest
     /// when `rest_start`.
     pub(crate) from_x: f64,
@@ -118,6 +123,7 @@ impl PlannedBlock {
             segments: [None; MAX_PIECES],
             n_segments: 0,
             stop_at_join: false,
+            continues: false,
             from_x: 0.0,
             rest_start: true,
             pieces: [Piece::default(); WINDOW],
@@ -398,6 +404,7 @@ impl BlockPlanner {
             (*block, None)
         };
         self.plan_part(&part, out)?;
+        out.continues = false;
         self.pending = rest;
         Ok(())
     }
@@ -408,7 +415,10 @@ impl BlockPlanner {
             return Ok(());
         };
         match self.plan(&b, out) {
-            Ok(()) => Ok(()),
+            Ok(()) => {
+                out.continues = true;
+                Ok(())
+            }
             Err(e) => {
                 self.pending = Some(b);
                 Err(e)
@@ -926,8 +936,9 @@ fn sample_laws(
                     // the whole bracket: which sample brackets it may turn
                     // on round-off, where it lies does not.
                     lower(w, s_min, s_min, which, law(&d_min, which).min(v_min));
-                    if which == 0 {
-                        // Where a curvature peak lies: a per-axis sample there too.
+                    if which == 0 && (term == 0 || term >= 4) {
+                        // Where a peak of the curvature or of an axis's `C‴`
+                        // lies: a per-axis sample there too.
                         sample(w, s_min, &d_min);
                     }
                 }
@@ -1003,7 +1014,7 @@ pub(crate) fn keep_axis_sample(
     l2: f64,
     cfg: &InterpConfig,
 ) {
-    if let Some(it) = w.interval_mut(index_of(smp.s, h))
+    if let Some(it) = w.interval_mut(sample_interval(smp.s, h))
         && !it.add_sample(smp)
     {
         let load = |v: f64| {
@@ -1024,7 +1035,6 @@ pub(crate) fn keep_axis_sample(
         w.lower_range(smp.s, smp.s, 0, lo);
     }
 }
-
 
 /// A term of the laws whose sampled local minimum is within this factor of
 /// the law there is refined (see `sample_laws`).
