@@ -375,11 +375,18 @@ impl Data {
     /// both pieces, whichever interval it was stored in).
     fn piece_samples<'a>(&'a self, p: &'a WPiece) -> impl Iterator<Item = &'a AxisSample> + 'a {
         // Its own samples, those at its ends included (the jerk jumps at a
-        // knot: a sample there bounds both sides). A piece with none (one
-        // cut between samples, next to a rest point or a limit change) is
-        // checked against the nearest sample on each side, at its nearer
-        // end: which ones those are does not turn on round-off.
+        // knot: a sample there bounds both sides). A short piece with none
+        // (cut next to a rest point, or where a limit changes) is checked
+        // against the nearest sample on each side, at its nearer end, if it
+        // lies within the piece's length or a sample spacing; samples lie on
+        // a grid of that spacing, so the reach stops a hair short of it
+        // (whether a sample counts must not turn on round-off).
         let tol = SLIVER * self.h;
+        let reach = if p.h() < 0.5 * self.h {
+            p.h().max(self.h / SUB as f64) * (1.0 - SUB_SNAP)
+        } else {
+            tol
+        };
         let held = |g: i64| g >= self.g_base && g < self.g_base + self.n_int as i64;
         let near = move || {
             (p.g - 1..=p.g + 1)
@@ -391,9 +398,12 @@ impl Data {
         };
         let own = move |smp: &&AxisSample| smp.s >= p.x0 - tol && smp.s <= p.x1 + tol;
         let none = !near().any(|smp| own(&smp));
-        let closest = |before: bool| {
+        let closest = move |before: bool| {
             near()
-                .filter(move |smp| none && if before { smp.s < p.x0 } else { smp.s > p.x1 })
+                .filter(move |smp| {
+                    let gap = if before { p.x0 - smp.s } else { smp.s - p.x1 };
+                    none && gap > 0.0 && gap <= reach
+                })
                 .min_by(move |a, b| {
                     let da = if before { p.x0 - a.s } else { a.s - p.x1 };
                     let db = if before { p.x0 - b.s } else { b.s - p.x1 };
