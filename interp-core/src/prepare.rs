@@ -258,6 +258,10 @@ impl BlockPlanner {
     pub fn has_pending(&self) -> bool {
         self.pending.is_some()
     }
+    /// The rest of a long block still to be planned, if any.
+    pub fn pending(&self) -> Option<&Block> {
+        self.pending.as_ref()
+    }
     /// Feed override the plans are made for.
     pub fn feed_override(&self) -> f64 {
         self.ovr
