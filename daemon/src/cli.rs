@@ -379,7 +379,7 @@ pub struct SimulateArgs {
     /// Tangential acceleration limit, mm/s² (`interp.max-path-accel`; default 2000).
     #[arg(long, value_name = "MM_PER_S2")]
     pub max_accel: Option<f64>,
-    /// Control points per segment when long NURBS are split (`simulate.max-ctrl-per-block`; default 20).
+    /// Control points per segment when long NURBS are split (`simulate.max-ctrl-per-block`; default 32, as `serve`).
     #[arg(long, value_name = "N")]
     pub max_ctrl_per_block: Option<usize>,
     /// Chunk compression of the trace: zstd (default), lz4 or none.

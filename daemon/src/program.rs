@@ -4,15 +4,17 @@
 //! One loader and one rapid policy for every command: `send` and `simulate`
 //! turn the same file into the same blocks. G-code (`.ngc`, `.nc`) is parsed
 //! with `gcode::parse_from` from where the machine is when the program is
-//! accepted (`send` asks the server, `simulate` starts at the origin), and
-//! its rapids (G0) run at the machine's path-speed limit (`max-path-speed`);
+//! accepted (`send` asks the server, `simulate` starts at the origin) and
+//! converted by the one conversion (`gcode::Program::for_each_move`, through
+//! `traces::Program::from_gcode`); its rapids (G0) run at the machine's
+//! path-speed limit (`max-path-speed`);
 //! `.json` is a whole program (`{"start": …, "blocks": […]}`); anything else
 //! is JSON blocks, one per line (blank lines and `#` comments skipped).
 
 use std::path::Path;
 
-use anyhow::{Context, Result, bail};
-use traces::blocks::{InputBlock, PathSpec, Program};
+use anyhow::{Context, Result};
+use traces::blocks::{InputBlock, Program};
 
 /// How a program file becomes blocks.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -33,7 +35,11 @@ pub fn load(path: &Path, opts: &LoadOptions) -> Result<Program> {
         let start = opts.start.unwrap_or([0.0; 3]);
         let g = gcode::parse_from(&text, start)
             .with_context(|| format!("parsing {}", path.display()))?;
-        let mut p = program_from_gcode(&g, opts.rapid_speed)
+        let core = gcode::CoreOptions {
+            rapid_speed: opts.rapid_speed,
+            machine: None,
+        };
+        let mut p = Program::from_gcode(&g, &core)
             .with_context(|| format!("converting {}", path.display()))?;
         if opts.start.is_some() {
             p.start = Some(start);
@@ -64,112 +70,49 @@ pub fn load(path: &Path, opts: &LoadOptions) -> Result<Program> {
     })
 }
 
-/// A parsed G-code program in the JSON block form (so that traces record it,
-/// and replay re-runs it, without the G-code text). Moves of zero length are
-/// dropped and blocks without a path skipped, as `gcode::Program::to_core_blocks` does.
-pub fn program_from_gcode(g: &gcode::Program, rapid_speed: f64) -> Result<Program> {
-    use gcode::{BlockKind, Feed};
-    let per_minute = |f: Feed, line: u32| match f {
-        Feed::PerMinute(v) => Ok(v),
-        Feed::InverseTime(_) => {
-            bail!("line {line}: G93 inverse-time feed is not supported by simulate yet")
-        }
-    };
-    let mut start: Option<[f64; 3]> = None;
-    let mut blocks = Vec::new();
-    let mut blending = traces::blocks::BlendingSpec::ExactPath;
-    for b in &g.blocks {
-        if let BlockKind::PathControl(mode) = &b.kind {
-            blending = gcode::core_blending(*mode).into();
-            continue;
-        }
-        // Rotary axes and tool-centre-point control are parsed, not yet
-        // interpolated: refuse rather than run the program as three-axis.
-        if !b
-            .kind
-            .orientation()
-            .is_none_or(gcode::Orientation::is_fixed)
-        {
-            return Err(gcode::ConvertError::FiveAxis { line: b.line }.into());
-        }
-        let (from, block) = match &b.kind {
-            BlockKind::Rapid(m) => (
-                m.start,
-                InputBlock {
-                    source_line: Some(b.line),
-                    feed: rapid_speed * 60.0,
-                    mrr: None,
-                    blending,
-                    path: PathSpec::Line { end: m.end },
-                },
-            ),
-            BlockKind::Linear(m) => (
-                m.start,
-                InputBlock {
-                    source_line: Some(b.line),
-                    feed: per_minute(m.feed, b.line)?,
-                    mrr: None,
-                    blending,
-                    path: PathSpec::Line { end: m.end },
-                },
-            ),
-            BlockKind::Arc(m) => (
-                m.start,
-                InputBlock {
-                    source_line: Some(b.line),
-                    feed: per_minute(m.feed, b.line)?,
-                    mrr: None,
-                    blending,
-                    path: PathSpec::Arc {
-                        end: m.end,
-                        centre: m.centre,
-                        axis: m.plane.normal(),
-                        clockwise: m.clockwise,
-                        turns: m.extra_turns,
-                    },
-                },
-            ),
-            BlockKind::Nurbs(m) => (
-                m.points.first().copied().unwrap_or_default(),
-                InputBlock {
-                    source_line: Some(m.first_line),
-                    feed: per_minute(m.feed, b.line)?,
-                    mrr: None,
-                    blending,
-                    path: PathSpec::Nurbs {
-                        degree: m.degree,
-                        points: m.points.clone(),
-                        weights: Some(m.weights.clone()),
-                        knots: m.knots.clone(),
-                    },
-                },
-            ),
-            _ => continue,
-        };
-        if let PathSpec::Line { end } = &block.path
-            && *end == from
-        {
-            continue; // zero length: moves nothing
-        }
-        start.get_or_insert(from);
-        blocks.push(block);
-    }
-    Ok(Program { start, blocks })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
+    fn write(name: &str, text: &str) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("interpd-program-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    }
+
     #[test]
     fn five_axis_moves_are_refused_naming_the_line_not_run_as_three_axis() {
-        let g = gcode::parse("G21 G90\nG1 X10 F600\nG1 X20 A15\n").unwrap();
-        let err = program_from_gcode(&g, 100.0).unwrap_err().to_string();
-        assert!(
-            err.contains("line 3: five-axis motion is not interpolated yet"),
-            "{err}"
+        let opts = LoadOptions {
+            start: None,
+            rapid_speed: 100.0,
+        };
+        let p = write("five.ngc", "G21 G90\nG1 X10 F600\nG1 X20 A15\n");
+        let err = format!("{:#}", load(&p, &opts).unwrap_err());
+        assert!(err.contains("line 3: five-axis motion"), "{err}");
+        let p = write("three.ngc", "G21 G90\nG1 X10 F600\nG1 X20\n");
+        assert_eq!(load(&p, &opts).unwrap().blocks.len(), 2);
+    }
+
+    /// The loader is the one conversion (`gcode::Program::for_each_move`):
+    /// G93 inverse time is a feed like any other, rapids run at the
+    /// machine's path-speed limit, a move to where the machine is moves
+    /// nothing.
+    #[test]
+    fn g93_rapids_and_zero_length_moves_follow_the_one_conversion() {
+        let opts = LoadOptions {
+            start: Some([20.0, 20.0, 0.0]),
+            rapid_speed: 100.0,
+        };
+        let p = write(
+            "g93.ngc",
+            "G21 G90\nG1 X20 Y20 F600\nG93 G1 X30 F2\nG94 G0 X0\n",
         );
-        let g = gcode::parse("G21 G90\nG1 X10 F600\nG1 X20\n").unwrap();
-        assert_eq!(program_from_gcode(&g, 100.0).unwrap().blocks.len(), 2);
+        let prog = load(&p, &opts).unwrap();
+        assert_eq!(prog.start, Some([20.0, 20.0, 0.0]));
+        let feeds: Vec<f64> = prog.blocks.iter().map(|b| b.feed).collect();
+        // 10 mm in half a minute: 20 mm/min; the rapid at 100 mm/s.
+        assert_eq!(feeds, [20.0, 6000.0]);
     }
 }

@@ -31,8 +31,10 @@ pub const FIRST_BLOCK_ID: u32 = 1;
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, rename_all = "kebab-case", deny_unknown_fields)]
 pub struct SimSettings {
-    /// Control points per segment when long NURBS are split. Default 20
-    /// (as `interpd demo`); at most `interp_core::nurbs::MAX_CTRL`.
+    /// Control points per segment when long NURBS are split. Default
+    /// `interp_core::nurbs::MAX_CTRL` (32, the most), as `interpd serve`
+    /// and `gcode::Program::to_core_blocks` split them, so the same program
+    /// gives the same segments everywhere.
     pub max_ctrl_per_block: usize,
     /// The run is abandoned after this much machine time, s. Default 3600.
     pub max_machine_time: f64,
@@ -41,7 +43,7 @@ pub struct SimSettings {
 impl Default for SimSettings {
     fn default() -> Self {
         SimSettings {
-            max_ctrl_per_block: 20,
+            max_ctrl_per_block: interp_core::nurbs::MAX_CTRL,
             max_machine_time: 3600.0,
         }
     }

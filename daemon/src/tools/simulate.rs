@@ -41,7 +41,7 @@ pub struct SimulateOptions {
     pub max_speed: Option<f64>,
     /// Tangential acceleration limit, mm/s² (`interp.max-path-accel`; default 2000).
     pub max_accel: Option<f64>,
-    /// Control points per segment when long NURBS are split (`simulate.max-ctrl-per-block`; default 20).
+    /// Control points per segment when long NURBS are split (`simulate.max-ctrl-per-block`; default 32, as `serve`).
     pub max_ctrl_per_block: Option<usize>,
     /// Chunk compression of the trace: zstd (default), lz4 or none.
     pub compression: TraceCompression,
@@ -193,4 +193,30 @@ pub fn run(args: &SimulateOptions) -> Result<Summary> {
         }
     }
     Ok(analyzer.summary())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `simulate` cuts NURBS as the service does (one program, the same
+    /// segments): the default pieces are the service's.
+    #[test]
+    fn simulate_splits_nurbs_as_serve_does_by_default() {
+        let args = SimulateOptions {
+            program: PathBuf::from("unused.ngc"),
+            config: None,
+            out: None,
+            json: false,
+            set: Vec::new(),
+            period_us: None,
+            chord_tolerance_mm: None,
+            max_speed: None,
+            max_accel: None,
+            max_ctrl_per_block: None,
+            compression: TraceCompression::default(),
+        };
+        let r = resolve(&args).unwrap();
+        assert_eq!(r.settings.max_ctrl_per_block, crate::protocol::PIECE_CTRL);
+    }
 }
