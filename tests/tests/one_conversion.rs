@@ -57,8 +57,9 @@ fn to_core_blocks_and_the_json_block_form_give_the_same_blocks_bit_for_bit() {
         .map(unnumbered)
         .collect();
     // What a trace records and `send` streams: JSON text, every bit.
-    let json = serde_json::to_string(&traces::Program::from_gcode(&g, &opts).expect("converts"))
-        .expect("serialises");
+    let json =
+        serde_json::to_string(&traces::Program::from_gcode(&g, &opts, [0.0; 6]).expect("converts"))
+            .expect("serialises");
     let program: traces::Program = serde_json::from_str(&json).expect("reads back");
     let expanded = program.expand(MAX_CTRL, 1).expect("expands");
     let cut: Vec<Block> = expanded.segments().map(unnumbered).collect();

@@ -29,6 +29,10 @@ pub struct Program {
     /// is a NURBS, else the origin.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub start: Option<[f64; 3]>,
+    /// Where the rotary joints A B C stand at the start, degrees (default
+    /// 0 0 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rotary: Option<[f64; 3]>,
     /// The blocks, in order; each starts where the previous one ends.
     pub blocks: Vec<InputBlock>,
 }
@@ -48,9 +52,65 @@ pub struct InputBlock {
     /// `exact-path`, G64 P `{"within": {"tolerance": P}}`); absent: exact path.
     #[serde(default, skip_serializing_if = "BlendingSpec::is_exact_path")]
     pub blending: BlendingSpec,
+    /// Where the block starts, mm, when it is not the previous block's end:
+    /// required on the first block after tool-centre-point control goes on
+    /// or off (the machine's pose seen in the new frame: the tool tip of its
+    /// joints, or their X Y Z); elsewhere it must be the previous end
+    /// (within 1e-6 mm).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub start: Option<[f64; 3]>,
+    /// The rotary axes or the tool axis along the block (absent: a
+    /// three-axis block, the rotary axes stay where they are).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub orientation: Option<OrientationSpec>,
     /// The geometry.
     #[serde(flatten)]
     pub path: PathSpec,
+}
+
+/// What a block does beside its path (`docs/five-axis.md`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+pub enum OrientationSpec {
+    /// Tool-centre-point control off: the path is X Y Z of the machine and
+    /// the rotary joints A B C (degrees) move from `start` to `end` with it.
+    Axes {
+        /// A B C where the block starts, degrees.
+        start: [f64; 3],
+        /// A B C where it ends, degrees.
+        end: [f64; 3],
+    },
+    /// Tool-centre-point control on (G43.4, G43.5): the path is the tool
+    /// tip in the workpiece frame and the tool axis (from the tip into the
+    /// spindle, any length) turns from `start` to `end` on the great circle.
+    ToolAxis {
+        /// Tool axis where the block starts.
+        start: [f64; 3],
+        /// Tool axis where it ends.
+        end: [f64; 3],
+    },
+}
+
+impl From<gcode::MoveOrientation> for OrientationSpec {
+    fn from(o: gcode::MoveOrientation) -> Self {
+        match o {
+            gcode::MoveOrientation::Axes { start, end } => OrientationSpec::Axes { start, end },
+            gcode::MoveOrientation::ToolAxis { start, end } => {
+                OrientationSpec::ToolAxis { start, end }
+            }
+        }
+    }
+}
+
+impl From<OrientationSpec> for gcode::MoveOrientation {
+    fn from(o: OrientationSpec) -> Self {
+        match o {
+            OrientationSpec::Axes { start, end } => gcode::MoveOrientation::Axes { start, end },
+            OrientationSpec::ToolAxis { start, end } => {
+                gcode::MoveOrientation::ToolAxis { start, end }
+            }
+        }
+    }
 }
 
 /// How the path may pass a block's end (`interp_core::Blending`).
@@ -287,6 +347,13 @@ impl Expanded {
 }
 
 impl Program {
+    /// The machine's joints X Y Z A B C at the start.
+    pub fn start_joints(&self) -> [f64; 6] {
+        let [x, y, z] = self.start_point();
+        let [a, b, c] = self.rotary.unwrap_or_default();
+        [x, y, z, a, b, c]
+    }
+
     /// The start point ([`Program::start`] or its default).
     pub fn start_point(&self) -> [f64; 3] {
         if let Some(s) = self.start {
@@ -394,16 +461,18 @@ impl core::fmt::Debug for Pipeline {
 }
 
 impl Pipeline {
-    /// A program that starts at `start` (mm), run under `cfg`, with segment
-    /// ids (and released block ids) from `first_id`.
+    /// A program that starts at `start` (mm; the tool tip when `tcp`, the
+    /// queue's end under tool-centre-point control), run under `cfg`, with
+    /// segment ids (and released block ids) from `first_id`.
     pub fn new(
         start: [f64; 3],
+        tcp: bool,
         first_id: u32,
         max_ctrl: usize,
         cfg: &InterpConfig,
     ) -> Result<Self, ConfigError> {
         Ok(Pipeline {
-            cutter: Cutter::new(start, false, first_id, max_ctrl),
+            cutter: Cutter::new(start, tcp, first_id, max_ctrl),
             stage: Box::new(Smoother::new(cfg, first_id)?),
             next_out: first_id,
         })
@@ -412,6 +481,11 @@ impl Pipeline {
     /// Where the next input block starts (the end of the last one), mm.
     pub fn tail(&self) -> [f64; 3] {
         self.cutter.cut.tail()
+    }
+
+    /// Whether [`Pipeline::tail`] is the tool tip (tool-centre-point control).
+    pub fn tail_is_tcp(&self) -> bool {
+        self.cutter.cut.is_tcp()
     }
 
     /// The id the next released block gets.
@@ -482,6 +556,33 @@ impl Pipeline {
     }
 }
 
+/// Samples per block at which [`joints_after`] follows the joints.
+pub const JOINT_WALK_SAMPLES: f64 = 64.0;
+
+/// Moves the machine's joints `q` from the start of `block` to its end: its
+/// orientation walked along it (the inverse nearest the last sample, as
+/// the planner walks a block), or, for a three-axis block, its end as
+/// X Y Z with the rotary axes kept. A block the machine cannot follow
+/// (which the planner refuses) leaves the joints where they were walked to.
+pub fn joints_after(
+    block: &Block,
+    machine: Option<&interp_core::kinematics::Machine>,
+    q: &mut [f64; 6],
+) {
+    let end = block.path.end_point();
+    match &block.orientation {
+        None => q[..3].copy_from_slice(&[end.x, end.y, end.z]),
+        Some(o) => {
+            let length = block.path.length();
+            let hs = length / JOINT_WALK_SAMPLES;
+            if !(hs > 0.0 && hs.is_finite()) {
+                return;
+            }
+            let _ = interp_core::fiveaxis::walk_joints(machine, o, &block.path, 0.0, length, hs, q);
+        }
+    }
+}
+
 impl InputBlock {
     /// The block of a move (`gcode::Move`, field for field).
     pub fn from_move(m: &Move<'_>) -> Self {
@@ -490,6 +591,8 @@ impl InputBlock {
             feed: m.feed,
             mrr: m.mrr.map(MrrSpec::from),
             blending: m.blending.into(),
+            start: m.start,
+            orientation: m.orientation.map(OrientationSpec::from),
             path: match m.path {
                 MovePath::Line { end } => PathSpec::Line { end },
                 MovePath::Arc {
@@ -549,7 +652,7 @@ impl InputBlock {
             first_line: line,
             feed: self.feed,
             blending: self.blending.into(),
-            start: None,
+            start: self.start,
             path: match &self.path {
                 PathSpec::Line { end } => MovePath::Line { end: *end },
                 PathSpec::Arc {
@@ -577,52 +680,40 @@ impl InputBlock {
                     knots,
                 },
             },
-            orientation: None,
+            orientation: self.orientation.map(gcode::MoveOrientation::from),
             mrr,
         })
     }
 }
 
-/// Why a G-code program has no JSON block form ([`Program::from_gcode`]).
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
-pub enum FromGcodeError {
-    /// The conversion refused a block.
-    #[error(transparent)]
-    Convert(#[from] gcode::ConvertError),
-    /// A five-axis move: the JSON block form carries X Y Z only so far.
-    #[error(
-        "line {line}: five-axis motion is not carried by the JSON block form yet (a rotary axis moves or tool-centre-point control G43.4/G43.5 is on)"
-    )]
-    FiveAxis {
-        /// Source line.
-        line: u32,
-    },
-}
-
 impl Program {
     /// A G-code program in the JSON block form: its moves
     /// (`gcode::Program::for_each_move`, the one conversion), from the
-    /// first move's start.
+    /// machine's joints `start` (those it was parsed from). The first move
+    /// keeps its start (a first move under tool-centre-point control starts
+    /// at the tool tip, not at the program's X Y Z).
     pub fn from_gcode(
         g: &gcode::Program,
         opts: &gcode::CoreOptions,
-    ) -> Result<Self, FromGcodeError> {
-        let mut start = None;
+        start: [f64; 6],
+    ) -> Result<Self, gcode::ConvertError> {
         let mut blocks = Vec::new();
         g.for_each_move(opts, |m| {
-            if m.orientation.is_some() {
-                return Err(FromGcodeError::FiveAxis { line: m.line });
-            }
-            if start.is_none() {
-                start = m.start;
-            }
             blocks.push(InputBlock::from_move(m));
-            Ok(())
+            Ok::<(), core::convert::Infallible>(())
         })
         .map_err(|e| match e {
-            gcode::ConvertOrSinkError::Convert(c) => FromGcodeError::Convert(c),
-            gcode::ConvertOrSinkError::Sink(e) => e,
+            gcode::ConvertOrSinkError::Convert(c) => c,
+            gcode::ConvertOrSinkError::Sink(never) => match never {},
         })?;
-        Ok(Program { start, blocks })
+        let [x, y, z, a, b, c] = start;
+        Ok(Program {
+            start: Some([x, y, z]),
+            rotary: start[3..]
+                .iter()
+                .any(|v| v.to_bits() != 0)
+                .then_some([a, b, c]),
+            blocks,
+        })
     }
 }

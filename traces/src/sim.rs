@@ -121,7 +121,7 @@ pub struct SimOutcome {
 /// `G64 P` stage of a [`Pipeline`], exactly as [`run`] pushes them (for
 /// analysis and replay).
 pub fn smoothed_segments(expanded: &Expanded, cfg: &InterpConfig) -> Result<Vec<Block>, String> {
-    let mut pipeline = Pipeline::new(expanded.start, FIRST_BLOCK_ID, usize::MAX, cfg)
+    let mut pipeline = Pipeline::new(expanded.start, false, FIRST_BLOCK_ID, usize::MAX, cfg)
         .map_err(|e| e.to_string())?;
     let mut out = Vec::new();
     for eb in &expanded.blocks {
@@ -139,14 +139,13 @@ pub fn config_for(
     writer: &str,
     source: &str,
 ) -> ConfigMsg {
-    let [x, y, z] = program.start_point();
     ConfigMsg {
         format_version: FORMAT_VERSION,
         writer: writer.to_owned(),
         source: source.to_owned(),
         realtime: false,
         interp,
-        start: [x, y, z, 0.0, 0.0, 0.0],
+        start: program.start_joints(),
         max_ctrl_per_block: settings.max_ctrl_per_block,
         segment_queue: DEFAULT_QUEUE,
     }
@@ -207,6 +206,7 @@ pub fn run<E>(
     // control plane sends them.
     let mut pipeline = Pipeline::new(
         expanded.start,
+        false,
         FIRST_BLOCK_ID,
         config.max_ctrl_per_block,
         &config.interp,
