@@ -232,9 +232,20 @@ pub struct ServeArgs {
     /// The first program moves without waiting for `start`.
     #[arg(long)]
     pub autostart: bool,
-    /// Start position X Y Z, mm.
-    #[arg(long, num_args = 3, value_names = ["X", "Y", "Z"], allow_negative_numbers = true)]
+    /// Start position X Y Z (mm), and A B C (degrees, default 0).
+    #[arg(long, num_args = 3..=6, value_names = ["X", "Y", "Z", "A", "B", "C"], allow_negative_numbers = true)]
     pub position: Option<Vec<f64>>,
+    /// TOML configuration: the `[interp]` table, as `simulate --config`
+    /// reads it (the five-axis machine is `[interp.machine]`).
+    #[arg(long, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+    /// Override any `[interp]` key, e.g. `--set planning-margin=0.05` (repeatable).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
+    /// The five-axis machine description (TOML, docs/five-axis.md; e.g.
+    /// examples/five_axis/machine.toml), over `[interp.machine]`.
+    #[arg(long, value_name = "FILE")]
+    pub machine: Option<PathBuf>,
     /// Record the run to this MCAP trace (config, blocks, setpoints, loop
     /// timing, events) through the `traces` recorder; `interpd replay` of it
     /// reproduces the setpoints of the first program bit for bit when that
@@ -259,6 +270,9 @@ impl From<ServeArgs> for ServeOptions {
             service: a.service,
             autostart: a.autostart,
             position: a.position,
+            config: a.config,
+            set: a.set,
+            machine: a.machine,
             record: a.record,
             json: a.json,
         }
@@ -367,6 +381,10 @@ pub struct SimulateArgs {
     /// Override any `[interp]` key, e.g. `--set planning-margin=0.05` (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,
+    /// The five-axis machine description (TOML, docs/five-axis.md; e.g.
+    /// examples/five_axis/machine.toml), over `[interp.machine]`.
+    #[arg(long, value_name = "FILE")]
+    pub machine: Option<PathBuf>,
     /// Interpolation period, µs (`interp.period`; default 1000).
     #[arg(long, value_name = "US")]
     pub period_us: Option<f64>,
@@ -379,7 +397,7 @@ pub struct SimulateArgs {
     /// Tangential acceleration limit, mm/s² (`interp.max-path-accel`; default 2000).
     #[arg(long, value_name = "MM_PER_S2")]
     pub max_accel: Option<f64>,
-    /// Control points per segment when long NURBS are split (`simulate.max-ctrl-per-block`; default 20).
+    /// Control points per segment when long NURBS are split (`simulate.max-ctrl-per-block`; default 32, as `serve`).
     #[arg(long, value_name = "N")]
     pub max_ctrl_per_block: Option<usize>,
     /// Chunk compression of the trace: zstd (default), lz4 or none.
@@ -395,6 +413,7 @@ impl From<SimulateArgs> for SimulateOptions {
             out: a.out,
             json: a.json,
             set: a.set,
+            machine: a.machine,
             period_us: a.period_us,
             chord_tolerance_mm: a.chord_tolerance_mm,
             max_speed: a.max_speed,

@@ -9,6 +9,7 @@
 /// The setpoint checker (`interp_run::check`), shared with the workspace tests.
 pub use interp_run::check;
 pub mod client;
+pub mod config;
 pub mod plan;
 pub mod program;
 pub mod protocol;

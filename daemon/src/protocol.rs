@@ -132,13 +132,14 @@ pub enum Reply {
         /// Last segment id.
         last: u32,
     },
-    /// `ok begin program N at X Y Z`: program N belongs to this connection
-    /// and starts at X Y Z.
+    /// `ok begin program N at X Y Z A B C`: program N belongs to this
+    /// connection and starts with the machine's joints there (a reply with
+    /// X Y Z only, from an older server, reads as A B C = 0).
     Begin {
         /// The program's number.
         program: u32,
-        /// Where it starts, mm.
-        at: [f64; 3],
+        /// Where it starts: the joints X Y Z (mm) A B C (degrees).
+        at: [f64; 6],
     },
     /// `ok start`.
     Start,
@@ -183,8 +184,8 @@ impl core::fmt::Display for Reply {
             Reply::Begin { program, at } => {
                 write!(
                     f,
-                    "ok begin program {program} at {} {} {}",
-                    at[0], at[1], at[2]
+                    "ok begin program {program} at {} {} {} {} {} {}",
+                    at[0], at[1], at[2], at[3], at[4], at[5]
                 )
             }
             Reply::Start => f.write_str("ok start"),
@@ -242,7 +243,11 @@ impl Reply {
             }
             ["ok", "begin", "program", n, "at", x, y, z] => Reply::Begin {
                 program: n.parse().map_err(|_| bad())?,
-                at: [num(x)?, num(y)?, num(z)?],
+                at: [num(x)?, num(y)?, num(z)?, 0.0, 0.0, 0.0],
+            },
+            ["ok", "begin", "program", n, "at", x, y, z, a, b, c] => Reply::Begin {
+                program: n.parse().map_err(|_| bad())?,
+                at: [num(x)?, num(y)?, num(z)?, num(a)?, num(b)?, num(c)?],
             },
             _ => return Err(bad()),
         })
@@ -284,8 +289,8 @@ pub fn expand_from(
     first_id: u32,
     cfg: &InterpConfig,
 ) -> Result<(Vec<Block>, Vec<traces::messages::SegmentInfo>), String> {
-    let mut pipeline =
-        Pipeline::new(start, first_id, PIECE_CTRL, cfg).map_err(|e| format!("config: {e}"))?;
+    let mut pipeline = Pipeline::new(start, false, first_id, PIECE_CTRL, cfg)
+        .map_err(|e| format!("config: {e}"))?;
     let (mut blocks, info) = expand(block, &mut pipeline)?;
     blocks.extend(pipeline.finish());
     Ok((blocks, info))
@@ -309,6 +314,8 @@ pub fn nurbs_json(
         feed: feed_mm_min,
         mrr: None,
         blending: Default::default(),
+        start: None,
+        orientation: None,
         path: PathSpec::Nurbs {
             degree,
             points: points.to_vec(),
@@ -383,7 +390,7 @@ mod tests {
             },
             Reply::Begin {
                 program: 7,
-                at: [20.0, -0.1, 1e-17],
+                at: [20.0, -0.1, 1e-17, 0.0, -30.5, 1e300],
             },
             Reply::Start,
             Reply::Hold,
@@ -411,6 +418,19 @@ mod tests {
         );
         assert!(Reply::parse("ok sure").is_err());
         assert!(Reply::parse("err x y").is_err());
+        // A begin with X Y Z only (an older server): the rotary axes at 0.
+        assert_eq!(
+            Reply::parse("ok begin program 2 at 1 2 3"),
+            Ok(Reply::Begin {
+                program: 2,
+                at: [1.0, 2.0, 3.0, 0.0, 0.0, 0.0]
+            })
+        );
+        assert!(Reply::parse("ok begin program 2 at 1 2 3 4").is_err());
+        // A five-axis block, its frame's start and its tool axis, both ways.
+        let line = r#"{"feed":600.0,"start":[1.0,2.0,-50.0],"orientation":{"tool-axis":{"start":[0.0,0.0,1.0],"end":[0.5,0.0,0.866]}},"kind":"line","end":[10.0,0.0,0.0]}"#;
+        let r = parse(line).unwrap();
+        assert_eq!(r.to_string(), line);
     }
 
     #[test]

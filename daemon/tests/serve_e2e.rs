@@ -582,10 +582,26 @@ fn g64_program() -> String {
     t
 }
 
+/// A short five-axis program for the C,A table of [`FIVE_AXIS_CONFIG`]:
+/// tool-centre-point control on from the machine's home (the first move
+/// starts at the tool tip of the joints), the tool leaning 5° towards −Y
+/// (C stands at 0 at the pole), a move with the axis kept, one turning it
+/// back upright, then TCP off.
+const FIVE_AXIS_PROGRAM: &str = "G21 G90 G94 G61\nG43.5 H1\n\
+    G1 X0 Y0 Z-95 I0 J-0.087156 K0.996195 F6000\nG1 X5 Y0 Z-95\n\
+    G1 X5 Y5 Z-95 I0 J0 K1\nG49\nG1 X0 Y0 Z0\nM2\n";
+
+/// The machine of `examples/five_axis/machine.toml` as `serve` and
+/// `simulate` read it (`--config`).
+const FIVE_AXIS_CONFIG: &str = "[interp.machine]\nchain = \"W/caxyBz/T\"\ntool-length = 100.0\n\
+    rotary-centres = [[0.0, 0.0, -50.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]\n\
+    rotary-ranges = [{ min = -110.0, max = 110.0 }, { min = 0.0, max = 0.0 }, \
+    { min = -inf, max = inf }]\n";
+
 /// The setpoints of a trace from the last one before it moved to the first
 /// one `done` (the service publishes before `start` and after the end),
 /// without `seq` and `time`.
-fn moving_setpoints(trace: &std::path::Path) -> Vec<[u64; 9]> {
+fn moving_setpoints(trace: &std::path::Path) -> Vec<[u64; 11]> {
     let t = traces::reader::Trace::open(trace).expect("trace reads");
     let first = t
         .setpoints
@@ -609,49 +625,60 @@ fn moving_setpoints(trace: &std::path::Path) -> Vec<[u64; 9]> {
                 s.s.to_bits(),
                 u64::from(s.block_id),
                 s.a.to_bits(),
+                s.b.to_bits(),
+                s.c.to_bits(),
                 s.state as u64,
             ]
         })
         .collect()
 }
 
-#[test]
-fn a_g64_program_gives_the_same_setpoints_served_as_simulated() {
-    let dir = temp_dir("g64");
-    let service = service_name("g64");
+/// Serves `program` (with `config`, if any, for both) recorded, simulates
+/// it, and checks the motion is the same bit for bit and the recording
+/// replays; returns the served and simulated traces' paths.
+fn served_as_simulated(
+    test: &str,
+    program: &str,
+    config: Option<&str>,
+) -> (std::path::PathBuf, std::path::PathBuf) {
+    let dir = temp_dir(test);
+    let service = service_name(test);
     let served = dir.join("served.mcap");
     let simulated = dir.join("simulated.mcap");
-    let program = dir.join("g64.ngc");
-    std::fs::write(&program, g64_program()).unwrap();
-    let srv = Server::start(
-        &service,
-        &["--no-socket", "--record", served.to_str().unwrap()],
-    );
-    let (st, status, err) = send(srv.port, &program, &[]);
+    let path = dir.join("program.ngc");
+    std::fs::write(&path, program).unwrap();
+    let mut flags = vec![
+        "--no-socket".to_owned(),
+        "--record".to_owned(),
+        served.display().to_string(),
+    ];
+    if let Some(c) = config {
+        let cp = dir.join("config.toml");
+        std::fs::write(&cp, c).unwrap();
+        flags.extend(["--config".to_owned(), cp.display().to_string()]);
+    }
+    let flag_refs: Vec<&str> = flags.iter().map(String::as_str).collect();
+    let srv = Server::start(&service, &flag_refs);
+    let (st, status, err) = send(srv.port, &path, &[]);
     assert!(st.success(), "send: {err}");
     let status = status.expect("send --json prints the status");
     assert_eq!(status["state"], "done", "{status}");
     let (st, text) = srv.stop();
     assert!(st.success(), "serve exited with {st}: {text}");
 
-    let out = std::process::Command::new(interpd())
-        .args(["simulate", "--json", "--out"])
-        .arg(&simulated)
-        .arg(&program)
-        .output()
-        .expect("interpd simulate");
+    let mut cmd = std::process::Command::new(interpd());
+    cmd.args(["simulate", "--json", "--out"]).arg(&simulated);
+    if config.is_some() {
+        cmd.arg("--config").arg(dir.join("config.toml"));
+    }
+    let out = cmd.arg(&path).output().expect("interpd simulate");
     assert!(
         out.status.success(),
         "simulate: {}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).expect("summary JSON");
-
     let a = moving_setpoints(&served);
     let b = moving_setpoints(&simulated);
-    // The stage reshaped the program: fewer interpolator blocks than moves.
-    let last_id = b.last().unwrap()[6];
-    assert!(last_id > 3 && last_id < 100, "{last_id} blocks: {summary}");
     assert_eq!(
         a.len(),
         b.len(),
@@ -667,4 +694,39 @@ fn a_g64_program_gives_the_same_setpoints_served_as_simulated() {
     }
     // The recording replays bit for bit by its schedule, stage included.
     assert!(replay_bit_identical(&served) >= a.len() as u64);
+    (served, simulated)
+}
+
+#[test]
+fn a_g64_program_gives_the_same_setpoints_served_as_simulated() {
+    let (_, simulated) = served_as_simulated("g64", &g64_program(), None);
+    // The stage reshaped the program: fewer interpolator blocks than moves.
+    let last_id = moving_setpoints(&simulated).last().unwrap()[6];
+    assert!(last_id > 3 && last_id < 100, "{last_id} blocks");
+}
+
+/// A five-axis program through `send`/`serve` and `simulate` with the
+/// machine from the config file: the same joints bit for bit, the
+/// recording replays, and the trace records the tool tip and tool axis in
+/// the workpiece frame (the tip on the program's moves under TCP).
+#[test]
+fn a_five_axis_program_gives_the_same_setpoints_served_as_simulated() {
+    let (served, _) = served_as_simulated("five", FIVE_AXIS_PROGRAM, Some(FIVE_AXIS_CONFIG));
+    let t = traces::reader::Trace::open(&served).expect("trace reads");
+    let moving: Vec<_> = t.setpoints.iter().filter(|s| s.s > 0.0).collect();
+    assert!(moving.iter().all(|s| {
+        let a = s.tool_axis.expect("tool axis recorded");
+        let n = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+        s.tip.is_some() && (n - 1.0).abs() < 1e-12
+    }));
+    // The rotary joints moved (the tool leaned and came back upright).
+    assert!(moving.iter().any(|s| s.a.abs() > 4.9), "A never tilted");
+    // Along `G1 X5 Y0 Z-95` (segment 2) the tip runs on the line z = −95,
+    // y = 0 in the workpiece frame, whatever the joints do.
+    let on_line: Vec<_> = moving.iter().filter(|s| s.block_id == 2).collect();
+    assert!(on_line.len() > 10);
+    for s in on_line {
+        let p = s.tip.unwrap();
+        assert!(p[1].abs() < 1e-9 && (p[2] + 95.0).abs() < 1e-9, "{p:?}");
+    }
 }

@@ -4,10 +4,10 @@ use interp_core::Vec3;
 use interp_core::nurbs::{MAX_CTRL, SplitError, split_program_curve};
 use interp_core::path::{Arc, Blending, Block, Line, Path, PathError};
 
-use interp_core::fiveaxis::Orientation as CoreOrientation;
 use interp_core::kinematics::{Joints, Machine, MachineSpec, ToolPose};
 
 use crate::error::{ConvertError, FiveAxisReason};
+use crate::moves::{CutError, Cutter, Move, MoveOrientation, MovePath, SECONDS_PER_MINUTE};
 use crate::program::{BlockKind, Feed, Orientation, PathControl, Program, Rotary};
 
 /// The interp-core blending mode of a path control mode: G61.1 exact stop,
@@ -22,9 +22,6 @@ pub fn core_blending(mode: PathControl) -> Blending {
         },
     }
 }
-
-/// Seconds per minute: G-code feeds are per minute, interp-core's per second.
-const SECONDS_PER_MINUTE: f64 = 60.0;
 
 /// How program blocks become interp-core blocks.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -55,51 +52,84 @@ fn v3(p: [f64; 3]) -> Vec3 {
     Vec3::new(p[0], p[1], p[2])
 }
 
-/// Feed in mm/s for a move of `length` mm.
-fn feed_mm_s(feed: Feed, length: f64, line: u32) -> Result<f64, ConvertError> {
+impl CoreOptions {
+    /// The options of a run under `cfg`: rapids at its `max_path_speed`
+    /// (the one rapid policy), its machine.
+    pub fn for_config(cfg: &interp_core::InterpConfig) -> Self {
+        CoreOptions {
+            rapid_speed: cfg.max_path_speed,
+            machine: cfg.machine,
+        }
+    }
+}
+
+/// Feed in mm/min for a move of `length` mm (G93: the move's length × F),
+/// refused unless it is positive and finite in mm/s too.
+fn feed_mm_min(feed: Feed, length: f64, line: u32) -> Result<f64, ConvertError> {
     let f = match feed {
-        Feed::PerMinute(v) => v / SECONDS_PER_MINUTE,
-        Feed::InverseTime(v) => length * v / SECONDS_PER_MINUTE,
+        Feed::PerMinute(v) => v,
+        Feed::InverseTime(v) => length * v,
     };
-    if !(f > 0.0) || !f.is_finite() {
-        return Err(ConvertError::Feed { line, feed: f });
+    let per_second = f / SECONDS_PER_MINUTE;
+    if !(per_second > 0.0) || !per_second.is_finite() {
+        return Err(ConvertError::Feed {
+            line,
+            feed: per_second,
+        });
     }
     Ok(f)
 }
 
+/// The `ConvertError` of a move the [`Cutter`] refused.
+fn cut_error(line: u32, e: CutError) -> ConvertError {
+    match e {
+        CutError::Feed(f) => ConvertError::Feed {
+            line,
+            feed: f / SECONDS_PER_MINUTE,
+        },
+        CutError::Path(error) => ConvertError::Path { line, error },
+        CutError::Nurbs(error) => ConvertError::Nurbs { line, error },
+        CutError::Orientation(e) => ConvertError::FiveAxisMove {
+            line,
+            reason: FiveAxisReason::Orientation(e),
+        },
+        error @ (CutError::Discontinuous { .. } | CutError::FrameStart) => {
+            ConvertError::Move { line, error }
+        }
+    }
+}
+
 impl Program {
-    /// Converts the motion blocks into interp-core blocks, in order, calling
-    /// `sink` with each. Each block's `id` is its source line.
+    /// Converts the motion blocks into [`Move`]s, in order, calling `sink`
+    /// with each: the one conversion of a program, whose moves
+    /// [`Program::for_each_core_block`] cuts into interp-core blocks and the
+    /// `traces` JSON block form carries field for field.
     ///
-    /// - G0 becomes a line at `opts.rapid_speed` (the machine's maximum path speed);
-    /// - G1 a line, G2/G3 an exact arc ([`Arc::from_centre`]);
-    /// - a NURBS is passed on exactly as written, cut by
-    ///   [`split_program_curve`] into pieces of at most [`MAX_CTRL`] control
-    ///   points that are the same curve;
+    /// - G0 runs at `opts.rapid_speed` (the machine's maximum path speed);
+    ///   G1, G2/G3 and NURBS at F (G94, mm/min) or in the time G93 gives
+    ///   (the move's length × F, for a NURBS the whole curve's);
+    /// - a NURBS is passed on exactly as written;
     /// - moves of zero length are dropped (RS274/NGC allows them; they move nothing);
     /// - dwell, spindle, tool, path-control and tool-centre-point blocks
     ///   carry no path and are skipped; the path control mode in force (G61.1,
-    ///   G61, G64 P; G61 until the program sets one) becomes each block's
+    ///   G61, G64 P; G61 until the program sets one) becomes each move's
     ///   `blending`;
-    /// - A B C of a move without tool-centre-point control become an
-    ///   [`CoreOrientation::Axes`]; under
-    ///   G43.4 the rotary positions become tool axes through
-    ///   `opts.machine`'s forward transform, under G43.5 the I J K are the
-    ///   tool axis, and the axis turns on the great circle between them
-    ///   ([`CoreOrientation::ToolAxis`]). The first move after TCP goes on
-    ///   or off starts where the machine stands, seen in its frame (the tool
-    ///   tip of its joints, or their X Y Z; the joints are followed through
-    ///   the inverse transform). What cannot be converted yet is refused
-    ///   naming the line ([`ConvertError::FiveAxisMove`]).
-    ///
-    /// Feeds become mm/s (G93 inverse time: the move's length × F / 60).
-    pub fn for_each_core_block<E>(
+    /// - A B C of a move without tool-centre-point control become
+    ///   [`MoveOrientation::Axes`]; under G43.4 the rotary positions become
+    ///   tool axes through `opts.machine`'s forward transform, under G43.5
+    ///   the I J K are the tool axis ([`MoveOrientation::ToolAxis`]). The
+    ///   first move after TCP goes on or off starts where the machine
+    ///   stands, seen in its frame (the tool tip of its joints, or their
+    ///   X Y Z; the joints are followed through the inverse transform), and
+    ///   says so in [`Move::start`], as the first move does. What cannot be
+    ///   converted yet is refused naming the line
+    ///   ([`ConvertError::FiveAxisMove`]).
+    pub fn for_each_move<E>(
         &self,
         opts: &CoreOptions,
-        mut sink: impl FnMut(Block) -> Result<(), E>,
+        mut sink: impl FnMut(&Move<'_>) -> Result<(), E>,
     ) -> Result<(), ConvertOrSinkError<E>> {
         let mut blending = Blending::ExactPath;
-        let mut sink = |b: Block, mode: Blending| sink(b.with_blending(mode));
         let machine = match opts.machine {
             Some(spec) => Some(Machine::new(spec).map_err(|e| {
                 // (Before any line: reported as line 0.)
@@ -115,17 +145,21 @@ impl Program {
             joints: None,
             tcp: false,
         };
+        // The frame of the last move handed out (`None`: none yet). A move
+        // in another frame says where it starts.
+        let mut emitted_tcp: Option<bool> = None;
         for b in &self.blocks {
             let line = b.line;
             if let BlockKind::PathControl(mode) = &b.kind {
                 blending = core_blending(*mode);
                 continue;
             }
-            let path_err =
-                |error: PathError| ConvertOrSinkError::Convert(ConvertError::Path { line, error });
+            let convert = ConvertOrSinkError::Convert;
             let five_err = |reason: FiveAxisReason| {
                 ConvertOrSinkError::Convert(ConvertError::FiveAxisMove { line, reason })
             };
+            let path_err =
+                |error: PathError| ConvertOrSinkError::Convert(ConvertError::Path { line, error });
             let Some(orientation) = b.kind.orientation() else {
                 continue;
             };
@@ -145,7 +179,7 @@ impl Program {
             let start = pose
                 .start(programmed_start, orientation, tcp, &b.kind)
                 .map_err(five_err)?;
-            match &b.kind {
+            let (path, feed, first_line) = match &b.kind {
                 BlockKind::Rapid(_) | BlockKind::Linear(_) => {
                     let l = match Line::new(v3(start), v3(programmed_end)) {
                         Ok(l) => l,
@@ -160,87 +194,147 @@ impl Program {
                         Err(e) => return Err(path_err(e)),
                     };
                     let feed = match &b.kind {
-                        BlockKind::Linear(m) => feed_mm_s(m.feed, l.length(), line)?,
-                        _ => feed_mm_s(
+                        BlockKind::Linear(m) => feed_mm_min(m.feed, l.length(), line),
+                        _ => feed_mm_min(
                             Feed::PerMinute(opts.rapid_speed * SECONDS_PER_MINUTE),
                             0.0,
                             line,
-                        )?,
-                    };
-                    let path = Path::Line(l);
-                    let block = pose
-                        .orient(Block::new(line, path, feed), orientation)
-                        .map_err(five_err)?;
-                    pose.after(programmed_end, orientation, tcp)
-                        .map_err(five_err)?;
-                    sink(block, blending).map_err(ConvertOrSinkError::Sink)?;
+                        ),
+                    }
+                    .map_err(convert)?;
+                    (
+                        MovePath::Line {
+                            end: programmed_end,
+                        },
+                        feed,
+                        line,
+                    )
                 }
                 BlockKind::Arc(m) => {
-                    let n = m.plane.normal();
-                    let s = if m.clockwise { -1.0 } else { 1.0 };
-                    let axis = Vec3::new(s * n[0], s * n[1], s * n[2]);
-                    let a =
-                        Arc::from_centre(v3(m.start), v3(m.end), v3(m.centre), axis, m.extra_turns)
-                            .map_err(path_err)?;
-                    let feed = feed_mm_s(m.feed, a.length(), line)?;
-                    let block = pose
-                        .orient(Block::new(line, Path::Arc(a), feed), orientation)
-                        .map_err(five_err)?;
-                    pose.after(m.end, orientation, tcp).map_err(five_err)?;
-                    sink(block, blending).map_err(ConvertOrSinkError::Sink)?;
-                }
-                BlockKind::Nurbs(m) => {
-                    let mut pieces = Vec::new();
-                    let r: Result<(), SplitError<core::convert::Infallible>> = split_program_curve(
-                        m.degree,
-                        &m.points,
-                        &m.weights,
-                        &m.knots,
-                        MAX_CTRL,
-                        |seg| {
-                            pieces.push(seg);
-                            Ok(())
-                        },
-                    );
-                    match r {
-                        Ok(()) => {}
-                        Err(SplitError::Invalid(error)) => {
-                            return Err(ConvertOrSinkError::Convert(ConvertError::Nurbs {
-                                line,
-                                error,
-                            }));
-                        }
-                        Err(SplitError::Sink(never)) => match never {},
-                    }
+                    let path = MovePath::Arc {
+                        end: m.end,
+                        centre: m.centre,
+                        axis: m.plane.normal(),
+                        clockwise: m.clockwise,
+                        turns: m.extra_turns,
+                    };
                     let length = match m.feed {
                         Feed::InverseTime(_) => {
-                            pieces.iter().map(|p| Path::Nurbs(*p).length()).sum()
+                            let n = m.plane.normal();
+                            let s = if m.clockwise { -1.0 } else { 1.0 };
+                            let axis = Vec3::new(s * n[0], s * n[1], s * n[2]);
+                            Arc::from_centre(
+                                v3(start),
+                                v3(m.end),
+                                v3(m.centre),
+                                axis,
+                                m.extra_turns,
+                            )
+                            .map_err(path_err)?
+                            .length()
                         }
                         Feed::PerMinute(_) => 0.0,
                     };
-                    let feed = feed_mm_s(m.feed, length, line)?;
+                    (
+                        path,
+                        feed_mm_min(m.feed, length, line).map_err(convert)?,
+                        line,
+                    )
+                }
+                BlockKind::Nurbs(m) => {
+                    let length = match m.feed {
+                        // The whole curve's length (in pieces, as it runs).
+                        Feed::InverseTime(_) => {
+                            let mut length = 0.0;
+                            let r: Result<(), SplitError<core::convert::Infallible>> =
+                                split_program_curve(
+                                    m.degree,
+                                    &m.points,
+                                    &m.weights,
+                                    &m.knots,
+                                    MAX_CTRL,
+                                    |seg| {
+                                        length += Path::Nurbs(seg).length();
+                                        Ok(())
+                                    },
+                                );
+                            match r {
+                                Ok(()) => {}
+                                Err(SplitError::Invalid(error)) => {
+                                    return Err(convert(ConvertError::Nurbs { line, error }));
+                                }
+                                Err(SplitError::Sink(never)) => match never {},
+                            }
+                            length
+                        }
+                        Feed::PerMinute(_) => 0.0,
+                    };
+                    let feed = feed_mm_min(m.feed, length, line).map_err(convert)?;
                     if !m.rotary.is_empty() {
                         return Err(five_err(FiveAxisReason::RotaryNurbs));
                     }
-                    for seg in pieces {
-                        let path = Path::Nurbs(seg);
-                        let block = pose
-                            .orient(Block::new(line, path, feed), orientation)
-                            .map_err(five_err)?;
-                        sink(block, blending).map_err(ConvertOrSinkError::Sink)?;
-                    }
-                    pose.after(programmed_end, orientation, tcp)
-                        .map_err(five_err)?;
+                    let path = MovePath::Nurbs {
+                        degree: m.degree,
+                        points: &m.points,
+                        weights: Some(&m.weights),
+                        knots: &m.knots,
+                    };
+                    (path, feed, m.first_line)
                 }
-                BlockKind::Dwell { .. }
-                | BlockKind::Spindle { .. }
-                | BlockKind::ToolChange { .. }
-                | BlockKind::PathControl(_)
-                | BlockKind::ToolControl(_)
-                | BlockKind::ProgramEnd => {}
-            }
+                _ => continue,
+            };
+            let mv = Move {
+                line,
+                first_line,
+                feed,
+                blending,
+                start: (emitted_tcp != Some(tcp)).then_some(start),
+                path,
+                orientation: pose.orientation(orientation).map_err(five_err)?,
+                mrr: None,
+            };
+            pose.after(programmed_end, orientation, tcp)
+                .map_err(five_err)?;
+            emitted_tcp = Some(tcp);
+            sink(&mv).map_err(ConvertOrSinkError::Sink)?;
         }
         Ok(())
+    }
+
+    /// Converts the motion blocks into interp-core blocks, in order, calling
+    /// `sink` with each: [`Program::for_each_move`], cut by a [`Cutter`]
+    /// from the first move's start (NURBS into pieces of at most
+    /// [`MAX_CTRL`] control points that are the same curve; G2/G3 exact
+    /// arcs, [`Arc::from_centre`]; feeds in mm/s). Each block's `id` is
+    /// its source line.
+    pub fn for_each_core_block<E>(
+        &self,
+        opts: &CoreOptions,
+        mut sink: impl FnMut(Block) -> Result<(), E>,
+    ) -> Result<(), ConvertOrSinkError<E>> {
+        let mut cutter: Option<Cutter> = None;
+        let r = self.for_each_move(opts, |m| {
+            let c = cutter.get_or_insert_with(|| {
+                Cutter::new(m.start.unwrap_or_default(), m.is_tcp(), 1, MAX_CTRL)
+            });
+            let blocks = c
+                .cut(m)
+                .map_err(|e| ConvertOrSinkError::Convert(cut_error(m.line, e)))?;
+            for b in blocks {
+                sink(Block { id: m.line, ..b }).map_err(ConvertOrSinkError::Sink)?;
+            }
+            Ok(())
+        });
+        match r {
+            Ok(()) => Ok(()),
+            Err(ConvertOrSinkError::Convert(e))
+            | Err(ConvertOrSinkError::Sink(ConvertOrSinkError::Convert(e))) => {
+                Err(ConvertOrSinkError::Convert(e))
+            }
+            Err(ConvertOrSinkError::Sink(ConvertOrSinkError::Sink(e))) => {
+                Err(ConvertOrSinkError::Sink(e))
+            }
+        }
     }
 
     /// [`Program::for_each_core_block`] collected into a `Vec`.
@@ -363,25 +457,26 @@ impl Pose {
         })
     }
 
-    /// `block` with the core orientation of `o`.
-    fn orient(&self, block: Block, o: &Orientation) -> Result<Block, FiveAxisReason> {
-        let path = &block.path;
-        let core = match o {
-            Orientation::Fixed => return Ok(block),
+    /// The orientation a move hands on (`None`: a three-axis move, or
+    /// rotary axes that do not move).
+    fn orientation(&self, o: &Orientation) -> Result<Option<MoveOrientation>, FiveAxisReason> {
+        Ok(match o {
+            Orientation::Fixed => None,
             Orientation::Axes { start, end } => {
                 let (a, b) = (self.with_rotary(start), self.with_rotary(end));
-                if a == b {
-                    return Ok(block);
-                }
-                CoreOrientation::axes(path, [a[3], a[4], a[5]], [b[3], b[4], b[5]])
+                (a != b).then_some(MoveOrientation::Axes {
+                    start: [a[3], a[4], a[5]],
+                    end: [b[3], b[4], b[5]],
+                })
             }
             Orientation::TcpRotary { .. } | Orientation::TcpVector { .. } => {
                 let (a, b) = self.tool_axes(o)?;
-                CoreOrientation::tool_axis(path, a, b)
+                Some(MoveOrientation::ToolAxis {
+                    start: [a.x, a.y, a.z],
+                    end: [b.x, b.y, b.z],
+                })
             }
-        }
-        .map_err(FiveAxisReason::Orientation)?;
-        Ok(block.with_orientation(core))
+        })
     }
 
     /// After a move to `end` (programmed): the joints there.

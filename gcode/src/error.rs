@@ -110,14 +110,14 @@ pub enum ConvertError {
         /// interp-core's reason.
         error: NurbsError,
     },
-    /// A move that turns a rotary axis or runs under tool-centre-point
-    /// control: interp-core blocks carry X Y Z only so far.
-    #[error(
-        "line {line}: five-axis motion is not interpolated yet (a rotary axis moves or tool-centre-point control G43.4/G43.5 is on)"
-    )]
-    FiveAxis {
+    /// A move the blocks cannot be cut from (it does not start where the
+    /// last one ends, or where it starts is not known).
+    #[error("line {line}: {error}")]
+    Move {
         /// Source line.
         line: u32,
+        /// Why.
+        error: crate::moves::CutError,
     },
     /// A five-axis move that cannot be converted, and why.
     #[error("line {line}: {reason}")]

@@ -2,9 +2,11 @@
 //!
 //! [`parse`] turns program text into a [`Program`] of typed blocks (mm,
 //! absolute, each with its source line); [`emit`] writes a program back as
-//! text; [`Program::to_core_blocks`] converts it into interp-core blocks (NURBS
-//! exactly as written, cut into pieces of at most `MAX_CTRL` control points;
-//! arcs exact). The parser never panics on any input: every defect is a
+//! text; [`Program::for_each_move`] is the one conversion into moves for the
+//! interpolator (rapid speed, feed units, G93, zero-length moves, five-axis
+//! frames decided once), which a [`Cutter`] turns into interp-core blocks
+//! ([`Program::to_core_blocks`]: NURBS exactly as written, cut into pieces of
+//! at most `MAX_CTRL` control points; arcs exact). The parser never panics on any input: every defect is a
 //! [`ParseError`] with `line:column: message`.
 //!
 //! The dialect is LinuxCNC's: see `docs/gcode.md` for what is covered.
@@ -14,6 +16,7 @@ mod emit;
 mod error;
 mod expr;
 pub mod generate;
+mod moves;
 mod parser;
 mod program;
 
@@ -21,6 +24,7 @@ pub use convert::{ConvertOrSinkError, CoreOptions, core_blending};
 pub use emit::{EMIT_HEADER, emit};
 pub use error::{ConvertError, FiveAxisReason, ParseError, ParseErrorKind};
 pub use expr::{MAX_EXPRESSION_DEPTH, NEAR_INT_TOL, PARAMETER_COUNT};
+pub use moves::{CutError, Cutter, Move, MoveOrientation, MovePath, SECONDS_PER_MINUTE};
 pub use parser::{
     ARC_R_TINY, CENTER_ARC_RADIUS_TOLERANCE_INCH, CENTER_ARC_RADIUS_TOLERANCE_MM,
     G5_2_DEFAULT_ORDER, RADIUS_TOLERANCE_INCH, SPIRAL_ABS_HARD_FACTOR, SPIRAL_RELATIVE_TOLERANCE,

@@ -406,14 +406,32 @@ impl<'de> serde::Deserialize<'de> for Chain {
     }
 }
 
-/// The joint range of one rotary axis, degrees. Infinite bounds: endless.
+/// The joint range of one rotary axis, degrees. Infinite bounds: endless
+/// (TOML writes them `-inf`/`inf`; JSON has no infinity and writes `null`,
+/// which reads back as the endless bound).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct RotaryRange {
     /// Lowest joint value, degrees.
+    #[cfg_attr(feature = "serde", serde(deserialize_with = "endless_below"))]
     pub min: f64,
     /// Highest joint value, degrees.
+    #[cfg_attr(feature = "serde", serde(deserialize_with = "endless_above"))]
     pub max: f64,
+}
+
+/// A lower bound; `null` (JSON's infinity) is endless.
+#[cfg(feature = "serde")]
+fn endless_below<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    use serde::Deserialize;
+    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NEG_INFINITY))
+}
+
+/// An upper bound; `null` (JSON's infinity) is endless.
+#[cfg(feature = "serde")]
+fn endless_above<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    use serde::Deserialize;
+    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::INFINITY))
 }
 
 impl RotaryRange {
@@ -1684,5 +1702,9 @@ pole-tolerance = 1e-9         # rad, default 1e-9
         assert_eq!(s.rotary_ranges[2], RotaryRange::UNLIMITED);
         assert_eq!(s.tool_length, 120.0);
         assert!(Machine::new(s).is_ok());
+        // An endless range through JSON (a trace's config): null both ways.
+        let text = serde_json::to_string(&s).unwrap();
+        assert!(text.contains(r#"{"min":null,"max":null}"#), "{text}");
+        assert_eq!(serde_json::from_str::<MachineSpec>(&text).unwrap(), s);
     }
 }

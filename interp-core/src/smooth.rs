@@ -145,6 +145,10 @@ struct Seg {
     len: f64,
     /// The path differs from what was pushed (merged).
     modified: bool,
+    /// The block changes frame (tool-centre-point control on or off): it
+    /// starts at its own start, the machine's pose seen in its frame, not
+    /// where the last block's path ends.
+    restart: bool,
 }
 
 impl Seg {
@@ -179,6 +183,9 @@ pub struct Smoother<const W: usize = DEFAULT_WINDOW> {
     join: Option<(Vec3, Vec3)>,
     /// End of the last block pushed (kept).
     tail: Option<Vec3>,
+    /// The last block pushed was under tool-centre-point control (`tail`
+    /// is the tool tip).
+    tail_tcp: bool,
     out: Deque<Block, OUT>,
     next_id: u32,
     finished: bool,
@@ -227,6 +234,7 @@ impl<const W: usize> Smoother<W> {
             start_trimmed: false,
             join: None,
             tail: None,
+            tail_tcp: false,
             out: Deque::new(),
             next_id: first_id,
             finished: false,
@@ -255,7 +263,9 @@ impl<const W: usize> Smoother<W> {
         if self.tail.is_none() {
             self.start = p0;
         }
-        let from = self.tail.unwrap_or(p0);
+        // A change of frame starts where the block says (see `Seg::restart`).
+        let restart = self.tail.is_some() && block.is_tcp() != self.tail_tcp;
+        let from = if restart { p0 } else { self.tail.unwrap_or(p0) };
         // A five-axis block passes unchanged (its rotary axes or tool axis
         // move with it: never dropped, merged, compressed or blended).
         if let (Path::Line(_), None) = (path, &block.orientation) {
@@ -284,8 +294,9 @@ impl<const W: usize> Smoother<W> {
             }
             _ => (Vec3::zeros(), 0.0),
         };
-        // A line after a dropped one starts where the stage's path is.
-        let modified = matches!(path, Path::Line(_)) && from != p0;
+        // A line after a dropped one starts where the stage's path is. A
+        // five-axis line keeps its start (the planner checks it).
+        let modified = matches!(path, Path::Line(_)) && block.orientation.is_none() && from != p0;
         let mut b = *block;
         if modified {
             b.path = Path::Line(Line::new(from, p1).map_err(|_| SmoothError::Full)?);
@@ -296,9 +307,11 @@ impl<const W: usize> Smoother<W> {
             dir,
             len,
             modified,
+            restart,
         });
         self.stats.blocks_in += 1;
         self.tail = Some(p1);
+        self.tail_tcp = block.is_tcp();
         Ok(())
     }
 
@@ -397,6 +410,11 @@ impl<const W: usize> Smoother<W> {
         let Some(&front) = self.segs.front() else {
             return false;
         };
+        if front.restart && !self.start_trimmed && self.start != front.block.path.start_point() {
+            // A new frame: the path goes on from the block's own start.
+            self.start = front.block.path.start_point();
+            self.join = None;
+        }
         let may_grow = self
             .segs
             .back()
@@ -415,6 +433,7 @@ impl<const W: usize> Smoother<W> {
             // Not smoothed: as it is (the start only moves after a dropped line).
             let mut b = front.block;
             if front.line()
+                && b.orientation.is_none()
                 && (self.start_trimmed || self.start != b.path.start_point())
                 && let Ok(l) = Line::new(self.start, front.end)
             {

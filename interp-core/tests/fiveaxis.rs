@@ -642,14 +642,34 @@ fn rotary_jumps_are_refused_and_smoothing_passes_five_axis_blocks() {
     let b2 = Block::new(2, l2, 20.0).with_orientation(
         Orientation::axes(&l2, [10.0, 0.0, 0.0], [12.0, 0.0, 0.0]).expect("axes"),
     );
-    for b in [b1, b2] {
+    // After a change of frame (TCP on) a line starts at the tool tip of
+    // the joints, not where the last path ends: its start is kept.
+    let l3 = Path::Line(
+        Line::new(Vec3::new(2.0, 0.1, -50.0), Vec3::new(3.0, 0.1, -50.0)).expect("line"),
+    );
+    let b3 = Block::new(3, l3, 20.0)
+        .with_orientation(Orientation::tool_axis(&l3, Vec3::z(), Vec3::z()).expect("axis"));
+    for b in [b1, b2, b3] {
         sm.push(&b.with_blending(within)).expect("push");
     }
     sm.finish();
     let out: Vec<Block> = core::iter::from_fn(|| sm.pop()).collect();
-    assert_eq!(out.len(), 2);
+    assert_eq!(out.len(), 3);
     assert_eq!((out[0].path, out[0].orientation), (b1.path, b1.orientation));
     assert_eq!((out[1].path, out[1].orientation), (b2.path, b2.orientation));
+    assert_eq!((out[2].path, out[2].orientation), (b3.path, b3.orientation));
+    // Under G61 too (not smoothed: passed as they are).
+    let mut sm: Box<interp_core::Smoother> =
+        Box::new(interp_core::Smoother::new(&cfg, 1).expect("smoother"));
+    for b in [b1, b2, b3] {
+        sm.push(&b).expect("push");
+    }
+    sm.finish();
+    let out: Vec<Block> = core::iter::from_fn(|| sm.pop()).collect();
+    assert_eq!(
+        out.iter().map(|b| b.path).collect::<Vec<_>>(),
+        [b1.path, b2.path, b3.path]
+    );
 }
 
 /// Leaving the pole of a C,A table towards an azimuth C does not stand at

@@ -57,12 +57,21 @@ pub fn golden_programs() -> Vec<(String, Program)> {
     out
 }
 
-/// The config every golden trace is recorded with: all defaults.
+/// Control points per segment of the golden traces: they were recorded
+/// when `simulate` split NURBS at 20 (its default now is `MAX_CTRL`, as
+/// `serve` splits them); kept so that they stay as blessed.
+pub const GOLDEN_MAX_CTRL: usize = 20;
+
+/// The config every golden trace is recorded with: all defaults but
+/// [`GOLDEN_MAX_CTRL`].
 pub fn golden_config(program: &Program, name: &str) -> ConfigMsg {
     sim::config_for(
         program,
         interp_core::InterpConfig::default(),
-        &SimSettings::default(),
+        &SimSettings {
+            max_ctrl_per_block: GOLDEN_MAX_CTRL,
+            ..SimSettings::default()
+        },
         GOLDEN_WRITER,
         &format!("tests/golden/{name}.json"),
     )

@@ -102,6 +102,9 @@ pub struct Analyzer {
     /// A segment id was reused since the last setpoint: a new program of a
     /// session, which starts where the last one stopped.
     new_program: bool,
+    /// The run's machine: under tool-centre-point control the path is the
+    /// tool tip, which its forward transform gives.
+    machine: Option<interp_core::kinematics::Machine>,
 }
 
 fn p3(sp: &Setpoint) -> Vec3 {
@@ -149,6 +152,22 @@ impl Analyzer {
             prev_accel: 0.0,
             mrr_range: None,
             new_program: false,
+            machine: crate::messages::run_machine(config),
+        }
+    }
+
+    /// Whether the path of `sp`'s block is the tool tip (tool-centre-point control).
+    fn tcp_at(&self, sp: &Setpoint) -> bool {
+        self.segments.get(&sp.block_id).is_some_and(Block::is_tcp)
+    }
+
+    /// The point of `sp` on the path, in the frame of a block under
+    /// tool-centre-point control (`tcp`: the tool tip in the workpiece
+    /// frame) or not (X Y Z of the machine).
+    fn path_point(&self, sp: &Setpoint, tcp: bool) -> Vec3 {
+        match (&self.machine, tcp) {
+            (Some(m), true) => m.forward(&sp.axes).tip,
+            _ => p3(sp),
         }
     }
 
@@ -164,7 +183,8 @@ impl Analyzer {
 
     /// Chord error of the tick from `a` to `b` over the blocks between.
     fn chord_error(&self, a: &Setpoint, b: &Setpoint) -> f64 {
-        let (pa, pb) = (p3(a), p3(b));
+        let tcp = self.tcp_at(b);
+        let (pa, pb) = (self.path_point(a, tcp), self.path_point(b, tcp));
         let mut worst = 0.0f64;
         let first = a.block_id.max(1);
         if b.block_id < first {
@@ -234,11 +254,13 @@ impl Analyzer {
             centripetal_accel: sp.feed * sp.feed * curvature,
             mrr,
         };
+        let tcp = self.tcp_at(sp);
+        let step = (self.path_point(sp, tcp) - self.path_point(&self.prev, tcp)).norm();
         let m = &mut self.summary;
         m.setpoints += 1;
         m.missing_setpoints += ticks - 1;
         m.duration_s = sp.time;
-        m.length_mm += (p3(sp) - p3(&self.prev)).norm();
+        m.length_mm += step;
         m.max_feed_mm_s = m.max_feed_mm_s.max(sp.feed);
         m.max_feed_mm_min = m.max_feed_mm_s * 60.0;
         if chord_error > m.max_chord_error_mm {
@@ -340,9 +362,10 @@ pub fn program_of(trace: &Trace) -> Result<(ConfigMsg, Program), TraceProgramErr
             });
         }
     }
-    let [x, y, z, ..] = config.start;
+    let [x, y, z, a, b, c] = config.start;
     let program = Program {
         start: Some([x, y, z]),
+        rotary: Some([a, b, c]),
         blocks: trace.blocks.iter().map(|b| b.block.clone()).collect(),
     };
     Ok((config, program))

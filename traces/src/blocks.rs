@@ -1,26 +1,25 @@
 //! The JSON block form of a program: lines, arcs and NURBS with their feed
 //! (mm/min) and optional constant-MRR parameters.
 //!
-//! `interpd simulate` reads it until G-code input is wired in, the
-//! `/interpd/blocks` channel records each block in it, and the daemon's
-//! control plane reuses it for JSON blocks. See `docs/traces.md` for the
-//! format. [`expand`] turns a program into interpolator blocks, splitting long
-//! NURBS with `interp_core::nurbs::split_program_curve` and recording how.
+//! An [`InputBlock`] is a `gcode::Move` field for field: G-code becomes
+//! this form through the one conversion ([`Program::from_gcode`]), `interpd
+//! simulate` and `interpd send` read it, the `/interpd/blocks` channel
+//! records each block in it, and the daemon's control plane takes it for
+//! JSON blocks. See `docs/traces.md` for the format. [`Program::expand`]
+//! and [`Pipeline`] cut it into interpolator blocks with `gcode::Cutter`
+//! (long NURBS split with `interp_core::nurbs::split_program_curve`),
+//! recording how.
 
+use gcode::{CutError, Move, MovePath};
 use interp_core::InterpConfig;
 use interp_core::config::ConfigError;
-use interp_core::interp::JOIN_TOLERANCE;
-use interp_core::nurbs::{SplitError, split_program_curve};
 use interp_core::path::{MrrParams, PathError, ToolSide};
 use interp_core::smooth::{SmoothError, SmoothStats, Smoother};
-use interp_core::{Arc, Blending, Block, Curve, Line, NurbsError, Path, Vec3};
+use interp_core::{Blending, Block, Curve, NurbsError, Path};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use crate::messages::SegmentInfo;
-
-/// Seconds per minute: feeds are programmed in mm/min, the core works in mm/s.
-const SECONDS_PER_MINUTE: f64 = 60.0;
 
 /// A program in the JSON block form.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
@@ -30,6 +29,10 @@ pub struct Program {
     /// is a NURBS, else the origin.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub start: Option<[f64; 3]>,
+    /// Where the rotary joints A B C stand at the start, degrees (default
+    /// 0 0 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rotary: Option<[f64; 3]>,
     /// The blocks, in order; each starts where the previous one ends.
     pub blocks: Vec<InputBlock>,
 }
@@ -49,9 +52,65 @@ pub struct InputBlock {
     /// `exact-path`, G64 P `{"within": {"tolerance": P}}`); absent: exact path.
     #[serde(default, skip_serializing_if = "BlendingSpec::is_exact_path")]
     pub blending: BlendingSpec,
+    /// Where the block starts, mm, when it is not the previous block's end:
+    /// required on the first block after tool-centre-point control goes on
+    /// or off (the machine's pose seen in the new frame: the tool tip of its
+    /// joints, or their X Y Z); elsewhere it must be the previous end
+    /// (within 1e-6 mm).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub start: Option<[f64; 3]>,
+    /// The rotary axes or the tool axis along the block (absent: a
+    /// three-axis block, the rotary axes stay where they are).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub orientation: Option<OrientationSpec>,
     /// The geometry.
     #[serde(flatten)]
     pub path: PathSpec,
+}
+
+/// What a block does beside its path (`docs/five-axis.md`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+pub enum OrientationSpec {
+    /// Tool-centre-point control off: the path is X Y Z of the machine and
+    /// the rotary joints A B C (degrees) move from `start` to `end` with it.
+    Axes {
+        /// A B C where the block starts, degrees.
+        start: [f64; 3],
+        /// A B C where it ends, degrees.
+        end: [f64; 3],
+    },
+    /// Tool-centre-point control on (G43.4, G43.5): the path is the tool
+    /// tip in the workpiece frame and the tool axis (from the tip into the
+    /// spindle, any length) turns from `start` to `end` on the great circle.
+    ToolAxis {
+        /// Tool axis where the block starts.
+        start: [f64; 3],
+        /// Tool axis where it ends.
+        end: [f64; 3],
+    },
+}
+
+impl From<gcode::MoveOrientation> for OrientationSpec {
+    fn from(o: gcode::MoveOrientation) -> Self {
+        match o {
+            gcode::MoveOrientation::Axes { start, end } => OrientationSpec::Axes { start, end },
+            gcode::MoveOrientation::ToolAxis { start, end } => {
+                OrientationSpec::ToolAxis { start, end }
+            }
+        }
+    }
+}
+
+impl From<OrientationSpec> for gcode::MoveOrientation {
+    fn from(o: OrientationSpec) -> Self {
+        match o {
+            OrientationSpec::Axes { start, end } => gcode::MoveOrientation::Axes { start, end },
+            OrientationSpec::ToolAxis { start, end } => {
+                gcode::MoveOrientation::ToolAxis { start, end }
+            }
+        }
+    }
 }
 
 /// How the path may pass a block's end (`interp_core::Blending`).
@@ -180,6 +239,20 @@ impl From<MrrSpec> for MrrParams {
     }
 }
 
+impl From<MrrParams> for MrrSpec {
+    fn from(m: MrrParams) -> Self {
+        MrrSpec {
+            tool_radius: m.tool_radius,
+            depth_of_cut: m.depth_of_cut,
+            tool_side: match m.tool_side {
+                ToolSide::Direction(v) => ToolSideSpec::Direction(v),
+                ToolSide::LeftOfPath(v) => ToolSideSpec::LeftOfPath(v),
+                ToolSide::RightOfPath(v) => ToolSideSpec::RightOfPath(v),
+            },
+        }
+    }
+}
+
 /// What is wrong with one block.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum BlockErrorKind {
@@ -207,6 +280,29 @@ pub enum BlockErrorKind {
         /// Distance, mm.
         gap: f64,
     },
+    /// Another refusal of the cutter (`gcode::CutError`).
+    #[error("{0}")]
+    Cut(CutError),
+}
+
+impl From<CutError> for BlockErrorKind {
+    fn from(e: CutError) -> Self {
+        match e {
+            CutError::Feed(f) => BlockErrorKind::Feed(f),
+            CutError::Path(p) => BlockErrorKind::Path(p),
+            CutError::Nurbs(n) => BlockErrorKind::Nurbs(n),
+            CutError::Discontinuous {
+                start,
+                previous_end,
+                gap,
+            } => BlockErrorKind::Discontinuous {
+                start,
+                previous_end,
+                gap,
+            },
+            e => BlockErrorKind::Cut(e),
+        }
+    }
 }
 
 /// A block of a program that cannot be used.
@@ -250,15 +346,14 @@ impl Expanded {
     }
 }
 
-fn v3(p: [f64; 3]) -> Vec3 {
-    Vec3::new(p[0], p[1], p[2])
-}
-
-fn a3(p: Vec3) -> [f64; 3] {
-    [p.x, p.y, p.z]
-}
-
 impl Program {
+    /// The machine's joints X Y Z A B C at the start.
+    pub fn start_joints(&self) -> [f64; 6] {
+        let [x, y, z] = self.start_point();
+        let [a, b, c] = self.rotary.unwrap_or_default();
+        [x, y, z, a, b, c]
+    }
+
     /// The start point ([`Program::start`] or its default).
     pub fn start_point(&self) -> [f64; 3] {
         if let Some(s) = self.start {
@@ -277,7 +372,7 @@ impl Program {
     /// does.
     pub fn expand(&self, max_ctrl: usize, first_id: u32) -> Result<Expanded, BlockError> {
         let start = self.start_point();
-        let mut cutter = Cutter::new(start, first_id, max_ctrl);
+        let mut cutter = Cutter::new(start, false, first_id, max_ctrl);
         let mut out = Vec::with_capacity(self.blocks.len());
         for input in &self.blocks {
             out.push(cutter.push(input)?);
@@ -286,24 +381,20 @@ impl Program {
     }
 }
 
-/// Cuts a program's blocks, in order, into interpolator segments (long
-/// NURBS split into pieces of at most `max_ctrl` control points, the same
-/// curve), each from the end of the one before.
+/// Cuts a program's blocks, in order, into interpolator segments
+/// (`gcode::Cutter`: long NURBS split into pieces of at most `max_ctrl`
+/// control points, the same curve), each from the end of the one before.
 #[derive(Clone, Debug)]
 struct Cutter {
-    at: Vec3,
-    next_id: u32,
+    cut: gcode::Cutter,
     index: usize,
-    max_ctrl: usize,
 }
 
 impl Cutter {
-    fn new(start: [f64; 3], first_id: u32, max_ctrl: usize) -> Self {
+    fn new(start: [f64; 3], tcp: bool, first_id: u32, max_ctrl: usize) -> Self {
         Cutter {
-            at: v3(start),
-            next_id: first_id,
+            cut: gcode::Cutter::new(start, tcp, first_id, max_ctrl),
             index: 0,
-            max_ctrl,
         }
     }
 
@@ -314,8 +405,8 @@ impl Cutter {
             source_line: input.source_line,
             kind,
         };
-        let segments =
-            expand_block(input, self.at, self.max_ctrl, &mut self.next_id).map_err(err)?;
+        let m = input.as_move().map_err(err)?;
+        let segments = self.cut.cut(&m).map_err(|e| err(e.into()))?;
         let info = segments
             .iter()
             .map(|b| SegmentInfo {
@@ -329,9 +420,6 @@ impl Cutter {
                 length: b.path.length(),
             })
             .collect();
-        if let Some(last) = segments.last() {
-            self.at = last.path.end_point();
-        }
         self.index += 1;
         Ok(ExpandedBlock {
             index,
@@ -373,16 +461,18 @@ impl core::fmt::Debug for Pipeline {
 }
 
 impl Pipeline {
-    /// A program that starts at `start` (mm), run under `cfg`, with segment
-    /// ids (and released block ids) from `first_id`.
+    /// A program that starts at `start` (mm; the tool tip when `tcp`, the
+    /// queue's end under tool-centre-point control), run under `cfg`, with
+    /// segment ids (and released block ids) from `first_id`.
     pub fn new(
         start: [f64; 3],
+        tcp: bool,
         first_id: u32,
         max_ctrl: usize,
         cfg: &InterpConfig,
     ) -> Result<Self, ConfigError> {
         Ok(Pipeline {
-            cutter: Cutter::new(start, first_id, max_ctrl),
+            cutter: Cutter::new(start, tcp, first_id, max_ctrl),
             stage: Box::new(Smoother::new(cfg, first_id)?),
             next_out: first_id,
         })
@@ -390,7 +480,12 @@ impl Pipeline {
 
     /// Where the next input block starts (the end of the last one), mm.
     pub fn tail(&self) -> [f64; 3] {
-        a3(self.cutter.at)
+        self.cutter.cut.tail()
+    }
+
+    /// Whether [`Pipeline::tail`] is the tool tip (tool-centre-point control).
+    pub fn tail_is_tcp(&self) -> bool {
+        self.cutter.cut.is_tcp()
     }
 
     /// The id the next released block gets.
@@ -426,8 +521,7 @@ impl Pipeline {
     pub fn push_expanded(&mut self, b: &ExpandedBlock, released: &mut Vec<Block>) {
         debug_assert_eq!(b.index, self.cutter.index, "blocks in order");
         if let Some(last) = b.segments.last() {
-            self.cutter.at = last.path.end_point();
-            self.cutter.next_id = last.id.wrapping_add(1);
+            self.cutter.cut.follow(last);
         }
         self.cutter.index += 1;
         self.smooth(&b.segments, released);
@@ -462,105 +556,164 @@ impl Pipeline {
     }
 }
 
-fn expand_block(
-    input: &InputBlock,
-    at: Vec3,
-    max_ctrl: usize,
-    id: &mut u32,
-) -> Result<Vec<Block>, BlockErrorKind> {
-    if !(input.feed.is_finite() && input.feed > 0.0) {
-        return Err(BlockErrorKind::Feed(input.feed));
-    }
-    let feed = input.feed / SECONDS_PER_MINUTE;
-    let mrr = match input.mrr {
-        None => None,
-        Some(m) => {
-            if !(m.tool_radius.is_finite() && m.tool_radius > 0.0) {
-                return Err(BlockErrorKind::Mrr("tool_radius"));
+/// Samples per block at which [`joints_after`] follows the joints.
+pub const JOINT_WALK_SAMPLES: f64 = 64.0;
+
+/// Moves the machine's joints `q` from the start of `block` to its end: its
+/// orientation walked along it (the inverse nearest the last sample, as
+/// the planner walks a block), or, for a three-axis block, its end as
+/// X Y Z with the rotary axes kept. A block the machine cannot follow
+/// (which the planner refuses) leaves the joints where they were walked to.
+pub fn joints_after(
+    block: &Block,
+    machine: Option<&interp_core::kinematics::Machine>,
+    q: &mut [f64; 6],
+) {
+    let end = block.path.end_point();
+    match &block.orientation {
+        None => q[..3].copy_from_slice(&[end.x, end.y, end.z]),
+        Some(o) => {
+            let length = block.path.length();
+            let hs = length / JOINT_WALK_SAMPLES;
+            if !(hs > 0.0 && hs.is_finite()) {
+                return;
             }
-            if !(m.depth_of_cut.is_finite() && m.depth_of_cut >= 0.0) {
-                return Err(BlockErrorKind::Mrr("depth_of_cut"));
-            }
-            let dir = match m.tool_side {
-                ToolSideSpec::Direction(v)
-                | ToolSideSpec::LeftOfPath(v)
-                | ToolSideSpec::RightOfPath(v) => v3(v),
-            };
-            if !(dir.iter().all(|c| c.is_finite()) && dir.norm() > 0.0) {
-                return Err(BlockErrorKind::Mrr("tool_side"));
-            }
-            Some(MrrParams::from(m))
-        }
-    };
-    let block = |id: u32, path: Path| Block {
-        id,
-        path,
-        feed,
-        mrr,
-        blending: input.blending.into(),
-        orientation: None,
-    };
-    let check_start = |start: Vec3| {
-        let gap = (start - at).norm();
-        if gap <= JOIN_TOLERANCE {
-            Ok(())
-        } else {
-            Err(BlockErrorKind::Discontinuous {
-                start: a3(start),
-                previous_end: a3(at),
-                gap,
-            })
-        }
-    };
-    let mut out = Vec::new();
-    match &input.path {
-        PathSpec::Line { end } => {
-            let l = Line::new(at, v3(*end)).map_err(BlockErrorKind::Path)?;
-            out.push(block(*id, Path::Line(l)));
-            *id += 1;
-        }
-        PathSpec::Arc {
-            end,
-            centre,
-            axis,
-            clockwise,
-            turns,
-        } => {
-            let axis = if *clockwise { -v3(*axis) } else { v3(*axis) };
-            let a = Arc::from_centre(at, v3(*end), v3(*centre), axis, *turns)
-                .map_err(BlockErrorKind::Path)?;
-            out.push(block(*id, Path::Arc(a)));
-            *id += 1;
-        }
-        PathSpec::Nurbs {
-            degree,
-            points,
-            weights,
-            knots,
-        } => {
-            let ones;
-            let w: &[f64] = match weights {
-                Some(w) => w,
-                None => {
-                    ones = vec![1.0; points.len()];
-                    &ones
-                }
-            };
-            let mut first = true;
-            split_program_curve(*degree, points, w, knots, max_ctrl, |n| {
-                if first {
-                    first = false;
-                    check_start(n.start_point())?;
-                }
-                out.push(block(*id, Path::Nurbs(n)));
-                *id += 1;
-                Ok(())
-            })
-            .map_err(|e| match e {
-                SplitError::Invalid(n) => BlockErrorKind::Nurbs(n),
-                SplitError::Sink(k) => k,
-            })?;
+            let _ = interp_core::fiveaxis::walk_joints(machine, o, &block.path, 0.0, length, hs, q);
         }
     }
-    Ok(out)
+}
+
+impl InputBlock {
+    /// The block of a move (`gcode::Move`, field for field).
+    pub fn from_move(m: &Move<'_>) -> Self {
+        InputBlock {
+            source_line: Some(m.first_line),
+            feed: m.feed,
+            mrr: m.mrr.map(MrrSpec::from),
+            blending: m.blending.into(),
+            start: m.start,
+            orientation: m.orientation.map(OrientationSpec::from),
+            path: match m.path {
+                MovePath::Line { end } => PathSpec::Line { end },
+                MovePath::Arc {
+                    end,
+                    centre,
+                    axis,
+                    clockwise,
+                    turns,
+                } => PathSpec::Arc {
+                    end,
+                    centre,
+                    axis,
+                    clockwise,
+                    turns,
+                },
+                MovePath::Nurbs {
+                    degree,
+                    points,
+                    weights,
+                    knots,
+                } => PathSpec::Nurbs {
+                    degree,
+                    points: points.to_vec(),
+                    weights: weights.map(<[f64]>::to_vec),
+                    knots: knots.to_vec(),
+                },
+            },
+        }
+    }
+
+    /// The move this block is, for `gcode::Cutter` (its MRR parameters checked).
+    pub fn as_move(&self) -> Result<Move<'_>, BlockErrorKind> {
+        let mrr = match self.mrr {
+            None => None,
+            Some(m) => {
+                if !(m.tool_radius.is_finite() && m.tool_radius > 0.0) {
+                    return Err(BlockErrorKind::Mrr("tool_radius"));
+                }
+                if !(m.depth_of_cut.is_finite() && m.depth_of_cut >= 0.0) {
+                    return Err(BlockErrorKind::Mrr("depth_of_cut"));
+                }
+                let dir = match m.tool_side {
+                    ToolSideSpec::Direction(v)
+                    | ToolSideSpec::LeftOfPath(v)
+                    | ToolSideSpec::RightOfPath(v) => v,
+                };
+                let norm = interp_core::Vec3::from(dir).norm();
+                if !(dir.iter().all(|c| c.is_finite()) && norm > 0.0) {
+                    return Err(BlockErrorKind::Mrr("tool_side"));
+                }
+                Some(MrrParams::from(m))
+            }
+        };
+        let line = self.source_line.unwrap_or(0);
+        Ok(Move {
+            line,
+            first_line: line,
+            feed: self.feed,
+            blending: self.blending.into(),
+            start: self.start,
+            path: match &self.path {
+                PathSpec::Line { end } => MovePath::Line { end: *end },
+                PathSpec::Arc {
+                    end,
+                    centre,
+                    axis,
+                    clockwise,
+                    turns,
+                } => MovePath::Arc {
+                    end: *end,
+                    centre: *centre,
+                    axis: *axis,
+                    clockwise: *clockwise,
+                    turns: *turns,
+                },
+                PathSpec::Nurbs {
+                    degree,
+                    points,
+                    weights,
+                    knots,
+                } => MovePath::Nurbs {
+                    degree: *degree,
+                    points,
+                    weights: weights.as_deref(),
+                    knots,
+                },
+            },
+            orientation: self.orientation.map(gcode::MoveOrientation::from),
+            mrr,
+        })
+    }
+}
+
+impl Program {
+    /// A G-code program in the JSON block form: its moves
+    /// (`gcode::Program::for_each_move`, the one conversion), from the
+    /// machine's joints `start` (those it was parsed from). The first move
+    /// keeps its start (a first move under tool-centre-point control starts
+    /// at the tool tip, not at the program's X Y Z).
+    pub fn from_gcode(
+        g: &gcode::Program,
+        opts: &gcode::CoreOptions,
+        start: [f64; 6],
+    ) -> Result<Self, gcode::ConvertError> {
+        let mut blocks = Vec::new();
+        g.for_each_move(opts, |m| {
+            blocks.push(InputBlock::from_move(m));
+            Ok::<(), core::convert::Infallible>(())
+        })
+        .map_err(|e| match e {
+            gcode::ConvertOrSinkError::Convert(c) => c,
+            gcode::ConvertOrSinkError::Sink(never) => match never {},
+        })?;
+        let [x, y, z, a, b, c] = start;
+        Ok(Program {
+            start: Some([x, y, z]),
+            rotary: start[3..]
+                .iter()
+                .any(|v| v.to_bits() != 0)
+                .then_some([a, b, c]),
+            blocks,
+        })
+    }
 }

@@ -6,6 +6,7 @@
 //! our code. Field names are snake_case; lengths in mm, times in s, speeds in
 //! mm/s unless a field says otherwise.
 
+use interp_core::kinematics::Machine;
 use interp_core::{InterpConfig, RunState, Setpoint};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
@@ -145,6 +146,8 @@ pub struct BlockMsg {
 ///
 /// The one place where `interp_core::Setpoint` maps to the channel: if the
 /// core's setpoint gains a field, add it here and in the two conversions.
+/// `tip` and `tool_axis` are derived from the joints (the setpoint's axes)
+/// and the run's machine ([`SetpointMsg::with_pose`]).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct SetpointMsg {
     /// Tick count since start, from 1, gapless.
@@ -174,6 +177,14 @@ pub struct SetpointMsg {
     /// Interpolator state after this tick.
     #[schemars(with = "RunStateName")]
     pub state: RunState,
+    /// The tool tip in the workpiece frame, mm: the machine's forward
+    /// transform of the joints (absent when the run has no machine).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tip: Option<[f64; 3]>,
+    /// The unit tool axis in the workpiece frame, from the tip into the
+    /// spindle (absent when the run has no machine).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tool_axis: Option<[f64; 3]>,
 }
 
 /// The names `RunState` serialises to (for the schema only).
@@ -205,11 +216,34 @@ impl From<&Setpoint> for SetpointMsg {
             s: sp.s,
             block_id: sp.block_id,
             state: sp.state,
+            tip: None,
+            tool_axis: None,
         }
     }
 }
 
+/// The machine of a run's configuration, whose forward transform gives each
+/// setpoint's tool tip and tool axis (`None`: no machine, or one refused).
+pub fn run_machine(config: &ConfigMsg) -> Option<Machine> {
+    config
+        .interp
+        .machine
+        .and_then(|spec| Machine::new(spec).ok())
+}
+
 impl SetpointMsg {
+    /// The message of `sp` with its tool tip and tool axis when there is a
+    /// `machine` ([`run_machine`]).
+    pub fn with_pose(sp: &Setpoint, machine: Option<&Machine>) -> Self {
+        let mut m = SetpointMsg::from(sp);
+        if let Some(machine) = machine {
+            let pose = machine.forward(&sp.axes);
+            m.tip = Some([pose.tip.x, pose.tip.y, pose.tip.z]);
+            m.tool_axis = Some([pose.axis.x, pose.axis.y, pose.axis.z]);
+        }
+        m
+    }
+
     /// Back to the core's setpoint.
     pub fn to_setpoint(&self) -> Setpoint {
         Setpoint {

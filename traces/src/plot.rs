@@ -344,6 +344,7 @@ fn figures(trace: &Trace, samples: &[Sample], summary: &Summary) -> (Vec<Figure>
         kind: Kind::Path,
         series: vec![series("path", BLUE_, path(0, 2))],
     });
+    five_axis_figures(trace, &mut figs, &mut notes);
     let late: Vec<f64> = trace
         .loop_timing
         .iter()
@@ -383,6 +384,85 @@ fn figures(trace: &Trace, samples: &[Sample], summary: &Summary) -> (Vec<Figure>
         });
     }
     (figs, notes)
+}
+
+/// How far up the tool axis the second line of the tool-tip figure runs, mm.
+pub const TOOL_AXIS_MARK_MM: f64 = 10.0;
+
+/// The tool tip and tool axis in the workpiece frame (the setpoints' `tip`
+/// and `tool_axis`, recorded when the run has a machine), and the rotary
+/// joints when they move.
+fn five_axis_figures(trace: &Trace, figs: &mut Vec<Figure>, notes: &mut Vec<String>) {
+    let sps = &trace.setpoints;
+    let posed: Vec<(f64, [f64; 3], [f64; 3])> = sps
+        .iter()
+        .filter_map(|s| Some((s.time, s.tip?, s.tool_axis?)))
+        .collect();
+    if posed.is_empty() {
+        notes.push(
+            "tool_tip, tool_axis: the run has no machine (no tool tip or axis recorded), no plots"
+                .to_owned(),
+        );
+    } else {
+        let up = |(_, p, a): &(f64, [f64; 3], [f64; 3])| {
+            (
+                p[0] + a[0] * TOOL_AXIS_MARK_MM,
+                p[1] + a[1] * TOOL_AXIS_MARK_MM,
+            )
+        };
+        figs.push(Figure {
+            file: "tool_tip_xy",
+            title: format!(
+                "Tool tip and a point {TOOL_AXIS_MARK_MM} mm up the tool axis, workpiece frame, XY"
+            ),
+            x_label: "x [mm]",
+            y_label: "y [mm]",
+            kind: Kind::Path,
+            series: vec![
+                series(
+                    "tool tip",
+                    BLUE_,
+                    stride(posed.iter().map(|(_, p, _)| (p[0], p[1])).collect()),
+                ),
+                series(
+                    &format!("{TOOL_AXIS_MARK_MM} mm up the tool axis"),
+                    ORANGE_,
+                    stride(posed.iter().map(up).collect()),
+                ),
+            ],
+        });
+        let component = |k: usize| thin(posed.iter().map(|(t, _, a)| (*t, a[k])).collect());
+        figs.push(Figure {
+            file: "tool_axis",
+            title: "Tool axis in the workpiece frame".into(),
+            x_label: "time [s]",
+            y_label: "unit vector component",
+            kind: Kind::Lines,
+            series: vec![
+                series("i", BLUE_, component(0)),
+                series("j", ORANGE_, component(1)),
+                series("k", GREEN_, component(2)),
+            ],
+        });
+    }
+    let first = sps.first().map(|s| [s.a, s.b, s.c]);
+    if sps.iter().any(|s| Some([s.a, s.b, s.c]) != first) {
+        let joint = |f: fn(&crate::messages::SetpointMsg) -> f64| {
+            thin(sps.iter().map(|s| (s.time, f(s))).collect())
+        };
+        figs.push(Figure {
+            file: "rotary_joints",
+            title: "Rotary joints".into(),
+            x_label: "time [s]",
+            y_label: "degrees",
+            kind: Kind::Lines,
+            series: vec![
+                series("A", BLUE_, joint(|s| s.a)),
+                series("B", ORANGE_, joint(|s| s.b)),
+                series("C", GREEN_, joint(|s| s.c)),
+            ],
+        });
+    }
 }
 
 /// What [`plot_trace`] wrote.

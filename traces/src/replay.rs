@@ -172,6 +172,7 @@ fn replay_with(trace: &Trace, truncated: bool) -> Result<ReplayReport, ReplayErr
         return replay_schedule(trace);
     }
     let (config, program) = program_of(trace)?;
+    let machine = crate::messages::run_machine(&config);
     let recorded = &trace.setpoints;
     let last_time = recorded.last().map_or(0.0, |s| s.time);
     let max_time = last_time + REPLAY_TIME_MARGIN_S;
@@ -182,7 +183,7 @@ fn replay_with(trace: &Trace, truncated: bool) -> Result<ReplayReport, ReplayErr
     let res = sim::run(&config, &program, max_time, |item| -> Result<(), Stop> {
         match item {
             SimItem::Tick { setpoint, .. } => {
-                let replayed = SetpointMsg::from(setpoint);
+                let replayed = SetpointMsg::with_pose(setpoint, machine.as_ref());
                 match recorded.get(next) {
                     Some(r) if r.seq == replayed.seq => {
                         next += 1;
@@ -291,6 +292,7 @@ fn follow_schedule(
             config.segment_queue
         )));
     }
+    let machine = crate::messages::run_machine(&config);
     let mut ip: interp_run::Run = interp_run::Run::new(config.interp, config.start)
         .map_err(|e| ReplayError::Sim(format!("config: {e:?}")))?;
     let mut events = trace.events.iter().filter(|e| {
@@ -309,6 +311,9 @@ fn follow_schedule(
     let mut pending: std::collections::VecDeque<Block> = Default::default();
     // The current program's pipeline, and whether its end was applied.
     let mut pipe: Option<(Pipeline, bool)> = None;
+    // Whether the last segment pushed was under tool-centre-point control
+    // (the frame of the queue's end).
+    let mut queue_tcp = false;
     let mut used_blocks = 0usize;
     let mut compared = 0u64;
     let mut missing = 0u64;
@@ -374,14 +379,15 @@ fn follow_schedule(
                                     // where the machine stopped (the planner
                                     // moves there at its first push).
                                     let st = ip.executor().status();
-                                    let tail = if st.idle_empty {
-                                        st.point
+                                    let (tail, tcp) = if st.idle_empty {
+                                        (st.point, false)
                                     } else {
                                         let t = ip.driver().planner().tail();
-                                        [t.x, t.y, t.z]
+                                        ([t.x, t.y, t.z], queue_tcp)
                                     };
                                     let p = Pipeline::new(
                                         tail,
+                                        tcp,
                                         id,
                                         config.max_ctrl_per_block,
                                         &config.interp,
@@ -402,6 +408,7 @@ fn follow_schedule(
                             .ok_or_else(|| bad(e, "no segment".into()))?;
                         ip.push(&seg)
                             .map_err(|err| bad(e, format!("segment {id}: {err}")))?;
+                        queue_tcp = seg.is_tcp();
                     }
                     EventKind::Hold => ip.feed_hold(),
                     EventKind::Resume => ip.resume(),
@@ -427,7 +434,7 @@ fn follow_schedule(
                 continue;
             }
             compared += 1;
-            if let Some(m) = first_difference(rec, &SetpointMsg::from(&sp)) {
+            if let Some(m) = first_difference(rec, &SetpointMsg::with_pose(&sp, machine.as_ref())) {
                 return Err(ReplayError::Mismatch(m));
             }
         }

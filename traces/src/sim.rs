@@ -31,8 +31,10 @@ pub const FIRST_BLOCK_ID: u32 = 1;
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, rename_all = "kebab-case", deny_unknown_fields)]
 pub struct SimSettings {
-    /// Control points per segment when long NURBS are split. Default 20
-    /// (as `interpd demo`); at most `interp_core::nurbs::MAX_CTRL`.
+    /// Control points per segment when long NURBS are split. Default
+    /// `interp_core::nurbs::MAX_CTRL` (32, the most), as `interpd serve`
+    /// and `gcode::Program::to_core_blocks` split them, so the same program
+    /// gives the same segments everywhere.
     pub max_ctrl_per_block: usize,
     /// The run is abandoned after this much machine time, s. Default 3600.
     pub max_machine_time: f64,
@@ -41,7 +43,7 @@ pub struct SimSettings {
 impl Default for SimSettings {
     fn default() -> Self {
         SimSettings {
-            max_ctrl_per_block: 20,
+            max_ctrl_per_block: interp_core::nurbs::MAX_CTRL,
             max_machine_time: 3600.0,
         }
     }
@@ -119,7 +121,7 @@ pub struct SimOutcome {
 /// `G64 P` stage of a [`Pipeline`], exactly as [`run`] pushes them (for
 /// analysis and replay).
 pub fn smoothed_segments(expanded: &Expanded, cfg: &InterpConfig) -> Result<Vec<Block>, String> {
-    let mut pipeline = Pipeline::new(expanded.start, FIRST_BLOCK_ID, usize::MAX, cfg)
+    let mut pipeline = Pipeline::new(expanded.start, false, FIRST_BLOCK_ID, usize::MAX, cfg)
         .map_err(|e| e.to_string())?;
     let mut out = Vec::new();
     for eb in &expanded.blocks {
@@ -137,14 +139,13 @@ pub fn config_for(
     writer: &str,
     source: &str,
 ) -> ConfigMsg {
-    let [x, y, z] = program.start_point();
     ConfigMsg {
         format_version: FORMAT_VERSION,
         writer: writer.to_owned(),
         source: source.to_owned(),
         realtime: false,
         interp,
-        start: [x, y, z, 0.0, 0.0, 0.0],
+        start: program.start_joints(),
         max_ctrl_per_block: settings.max_ctrl_per_block,
         segment_queue: DEFAULT_QUEUE,
     }
@@ -205,6 +206,7 @@ pub fn run<E>(
     // control plane sends them.
     let mut pipeline = Pipeline::new(
         expanded.start,
+        false,
         FIRST_BLOCK_ID,
         config.max_ctrl_per_block,
         &config.interp,

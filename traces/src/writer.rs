@@ -97,6 +97,8 @@ pub struct TraceWriter<W: Write + Seek> {
     seq: [u32; Channel::ALL.len()],
     buf: Vec<u8>,
     counts: WriteCounts,
+    /// The run's machine, from its config: setpoints get their tool tip and axis.
+    machine: Option<interp_core::kinematics::Machine>,
 }
 
 impl<W: Write + Seek> std::fmt::Debug for TraceWriter<W> {
@@ -144,6 +146,7 @@ impl<W: Write + Seek> TraceWriter<W> {
             seq: [0; Channel::ALL.len()],
             buf: Vec::with_capacity(1024),
             counts: WriteCounts::default(),
+            machine: None,
         })
     }
 
@@ -166,8 +169,10 @@ impl<W: Write + Seek> TraceWriter<W> {
         Ok(())
     }
 
-    /// The configuration (write it first).
+    /// The configuration (write it first). With a machine in it, every
+    /// setpoint after it records its tool tip and tool axis.
     pub fn config(&mut self, msg: &ConfigMsg) -> Result<(), WriteError> {
+        self.machine = crate::messages::run_machine(msg);
         self.put(Channel::Config, 0.0, msg)?;
         self.counts.config += 1;
         Ok(())
@@ -182,7 +187,8 @@ impl<W: Write + Seek> TraceWriter<W> {
 
     /// A setpoint, logged at its machine time.
     pub fn setpoint(&mut self, sp: &Setpoint) -> Result<(), WriteError> {
-        self.put(Channel::Setpoints, sp.time, &SetpointMsg::from(sp))?;
+        let msg = SetpointMsg::with_pose(sp, self.machine.as_ref());
+        self.put(Channel::Setpoints, sp.time, &msg)?;
         self.counts.setpoints += 1;
         Ok(())
     }

@@ -101,7 +101,12 @@ fn keys_match_schema(ch: Channel, value: serde_json::Value) {
 
 #[test]
 fn schemas_describe_exactly_the_fields_written() {
-    let sp = SetpointMsg::from(&Setpoint::default());
+    // With a machine's tool tip and axis, every field is written.
+    let sp = SetpointMsg {
+        tip: Some([1.0, 2.0, 3.0]),
+        tool_axis: Some([0.0, 0.0, 1.0]),
+        ..SetpointMsg::from(&Setpoint::default())
+    };
     keys_match_schema(Channel::Setpoints, serde_json::to_value(sp).expect("json"));
     let t = LoopTimingMsg {
         wake_lateness_ns: Some(3),

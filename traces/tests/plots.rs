@@ -89,3 +89,61 @@ fn every_figure_is_written_as_png_and_svg() {
     assert!(r.files.iter().any(|p| p.ends_with("wake_lateness.png")));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A five-axis run (G43.5 on a C,A table, the tool leaning 5°): every
+/// setpoint records the tool tip and tool axis, the analysis measures the
+/// path on the tip (the joints' X Y Z are tens of mm off it), and the plots
+/// draw tip, axis and rotary joints.
+#[test]
+fn a_five_axis_trace_records_the_tool_tip_and_axis_and_plots_them() {
+    let machine: interp_core::kinematics::MachineSpec = serde_json::from_str(
+        r#"{"chain": "W/caxyBz/T", "tool-length": 100, "rotary-centres": [[0, 0, -50], [0, 0, 0], [0, 0, 0]],
+            "rotary-ranges": [{"min": -110, "max": 110}, {"min": 0, "max": 0}, {"min": null, "max": null}]}"#,
+    )
+    .expect("machine");
+    let interp = interp_core::InterpConfig {
+        machine: Some(machine),
+        ..Default::default()
+    };
+    let g = gcode::parse(
+        "G21 G90 G61\nG43.5 H1\nG1 X0 Y0 Z-95 I0 J-0.087156 K0.996195 F6000\n\
+         G1 X5 Y0 Z-95\nG1 X5 Y5 Z-95 I0 J0 K1\nG49\nG1 X0 Y0 Z0\n",
+    )
+    .expect("parses");
+    let program = Program::from_gcode(&g, &gcode::CoreOptions::for_config(&interp), [0.0; 6])
+        .expect("converts");
+    let config = sim::config_for(&program, interp, &SimSettings::default(), "t", "five");
+    let mut w = TraceWriter::new(Cursor::new(Vec::new()), TraceCompression::Zstd).expect("writer");
+    sim::record(&config, &program, 3600.0, &mut w, |_| {}).expect("simulates");
+    let t = Trace::from_bytes(&w.finish().expect("finish").0.into_inner()).expect("reads");
+    let m = interp_core::kinematics::Machine::new(machine).expect("machine");
+    assert!(t.setpoints.iter().all(|s| {
+        let pose = m.forward(&s.to_setpoint().axes);
+        s.tip == Some([pose.tip.x, pose.tip.y, pose.tip.z])
+            && s.tool_axis == Some([pose.axis.x, pose.axis.y, pose.axis.z])
+    }));
+    // The joints' X Y Z are far from the tip (the tool is 100 mm long).
+    assert!(
+        t.setpoints
+            .iter()
+            .any(|s| (s.z - s.tip.unwrap()[2]).abs() > 50.0)
+    );
+    let (summary, samples) = analyse(&t).expect("analyses");
+    assert!(
+        summary.max_chord_error_mm < summary.chord_tolerance_mm,
+        "{summary}"
+    );
+    let dir = std::env::temp_dir().join(format!("interpd-plots-five-{}", std::process::id()));
+    let r = plot_trace(&t, &samples, &summary, &dir).expect("plots");
+    for stem in ["tool_tip_xy", "tool_axis", "rotary_joints"] {
+        assert!(
+            r.files.iter().any(|p| p.ends_with(format!("{stem}.png"))),
+            "{stem}: {:?}",
+            r.files
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    // A three-axis trace has no tip: no such plots, and a note says why.
+    let three = trace();
+    assert!(three.setpoints.iter().all(|s| s.tip.is_none()));
+}

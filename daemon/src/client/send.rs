@@ -57,12 +57,16 @@ enum Expect {
 
 /// The program's request lines: the file as the program loader reads it
 /// ([`crate::program::load`], as `interpd simulate` does), G-code converted
-/// from `start` (where the program will start) with rapids at `rapid_speed`
-/// (the machine's path-speed limit).
-pub fn program_lines(path: &Path, start: [f64; 3], rapid_speed: f64) -> Result<Vec<String>> {
+/// from the joints `start` (where the program will start) for the server's
+/// machine as its status reports it (rapids at its path-speed limit, its
+/// five-axis machine).
+pub fn program_lines(path: &Path, start: [f64; 6], server: &StatusReply) -> Result<Vec<String>> {
     let opts = crate::program::LoadOptions {
         start: Some(start),
-        rapid_speed,
+        core: gcode::CoreOptions {
+            rapid_speed: server.max_path_speed,
+            machine: server.machine,
+        },
     };
     let program = crate::program::load(path, &opts)?;
     Ok(program
@@ -71,6 +75,11 @@ pub fn program_lines(path: &Path, start: [f64; 3], rapid_speed: f64) -> Result<V
         .map(crate::protocol::block_json)
         .collect())
 }
+
+/// Turns the program into request lines, given the joints where it starts
+/// (the `begin` reply) and the server's status (its path-speed limit and
+/// machine): [`program_lines`] for a file.
+pub type Loader<'a> = dyn Fn([f64; 6], &StatusReply) -> Result<Vec<String>> + 'a;
 
 /// Sends `start` on a connection of its own (authenticated like the stream).
 async fn start_aside(args: &SendOptions) -> Result<()> {
@@ -179,7 +188,7 @@ fn bar(done: usize, total: usize) -> String {
 /// that program to its end. Returns how it ended and the final status line (JSON).
 pub async fn stream<S: AsyncRead + AsyncWrite + Unpin>(
     io: S,
-    load: &dyn Fn([f64; 3], f64) -> Result<Vec<String>>,
+    load: &Loader<'_>,
     args: &SendOptions,
 ) -> Result<(Outcome, String)> {
     let (rd, mut wr) = tokio::io::split(io);
@@ -214,7 +223,7 @@ pub async fn stream<S: AsyncRead + AsyncWrite + Unpin>(
     let Reply::Status(st) = next_reply(&mut rd).await? else {
         bail!("no status from the server");
     };
-    let lines = load(at, st.max_path_speed)?;
+    let lines = load(at, &st)?;
     if lines.is_empty() {
         bail!("{} has no blocks", args.program.display());
     }

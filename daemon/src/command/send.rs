@@ -10,7 +10,9 @@ pub fn run(args: &SendOptions) -> Result<()> {
     let rt = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()?;
-    let load = |start: [f64; 3], rapid: f64| program_lines(&args.program, start, rapid);
+    let load = |start: [f64; 6], server: &interpd::service::control::StatusReply| {
+        program_lines(&args.program, start, server)
+    };
     let (code, status) = rt.block_on(async {
         match &args.socket {
             Some(p) => {

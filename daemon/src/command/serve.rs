@@ -1,19 +1,13 @@
 //! `interpd serve`: starts the service, prints where it listens, waits for
 //! SIGINT/SIGTERM and prints the summary.
 
-use anyhow::{Result, bail};
-use interp_core::InterpConfig;
+use anyhow::Result;
 use interpd::service::histogram::Percentiles;
 use interpd::service::serve::{ServeOptions, ServeSummary, start};
 
 /// `interpd serve`.
 pub fn run(args: &ServeOptions) -> Result<()> {
-    if let Some(p) = &args.position
-        && p.iter().any(|c| !c.is_finite())
-    {
-        bail!("--position must be finite");
-    }
-    let svc = start(args, InterpConfig::default(), true, None)?;
+    let svc = start(args, args.interp_config()?, true, None)?;
     println!("interpd: listening on tcp {}", svc.addr);
     if let Some(p) = &svc.socket {
         println!("interpd: listening on unix {}", p.display());

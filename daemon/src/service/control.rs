@@ -49,6 +49,8 @@ pub struct Control {
     pub max_feed_override: f64,
     /// The machine's path-speed limit, mm/s (what a rapid runs at).
     pub max_path_speed: f64,
+    /// The five-axis machine of the configuration, if any (the status reports it).
+    pub machine: Option<interp_core::kinematics::MachineSpec>,
     /// Token every connection must present first (`None`: no authentication).
     pub token: Option<String>,
     /// Incremented by every abort: a stream waiting on a full queue drops its block.
@@ -140,6 +142,15 @@ pub struct Stream {
     /// End of the last segment queued (after an abort: where the machine
     /// stopped).
     pub queued_to: [f64; 3],
+    /// Whether `queued_to` is the tool tip (the last segment queued was under
+    /// tool-centre-point control).
+    pub queued_tcp: bool,
+    /// The machine's joints at the end of the queue (after an abort: where
+    /// it stopped), where the next program starts.
+    pub queued_joints: [f64; 6],
+    /// The five-axis machine of `interp` (the joints of the queue's end are
+    /// followed through its inverse).
+    pub machine: Option<interp_core::kinematics::Machine>,
     /// End of the last accepted block (`None`: where the machine is).
     pub tail: Option<[f64; 3]>,
     /// Id of the next interpolator segment (from 1 in each program).
@@ -208,6 +219,9 @@ pub struct StatusReply {
     pub feed_override: f64,
     /// The machine's path-speed limit, mm/s (rapids run at it).
     pub max_path_speed: f64,
+    /// The five-axis machine (clients convert G-code for it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub machine: Option<interp_core::kinematics::MachineSpec>,
     /// Segments queued in the interpolator.
     pub queued_segments: u32,
     /// Protocol blocks accepted.
@@ -340,8 +354,10 @@ impl Control {
         }
         if s.tail.is_none() && self.status.published.load(Ordering::Acquire) > 0 {
             // Where the machine is (at rest: start, or after an abort), bit
-            // for bit as the interpolator's queue end.
+            // for bit as the interpolator's queue end, in its own X Y Z.
             s.queued_to = self.status.position();
+            s.queued_joints = self.status.axes();
+            s.queued_tcp = false;
         }
         s.program = program;
         s.next_id = 1;
@@ -394,6 +410,7 @@ impl Control {
             s: f(&s.s),
             feed_override: f(&s.feed_override),
             max_path_speed: self.max_path_speed,
+            machine: self.machine,
             queued_segments: s.queued_segments.load(Ordering::Acquire),
             blocks_accepted: self.blocks_accepted.load(Ordering::Acquire),
             pieces_pushed: s.blocks_pushed.load(Ordering::Acquire),
@@ -439,7 +456,7 @@ impl Control {
         self.follow(&mut s, program);
         Ok(Reply::Begin {
             program,
-            at: self.next_start(&s),
+            at: s.queued_joints,
         })
     }
 
@@ -580,6 +597,7 @@ impl Control {
             Some(p) => p,
             None => traces::Pipeline::new(
                 self.next_start(&s),
+                s.queued_tcp,
                 first,
                 crate::protocol::PIECE_CTRL,
                 &s.interp,
@@ -647,6 +665,8 @@ impl Control {
                 }
             }
             s.queued_to = [end.x, end.y, end.z];
+            s.queued_tcp = piece.is_tcp();
+            traces::blocks::joints_after(&piece, s.machine.as_ref(), &mut s.queued_joints);
             s.next_id = id.wrapping_add(1);
         }
         Ok(())

@@ -157,8 +157,8 @@ pub struct RtStatus {
     pub ticks: AtomicU64,
     /// Block id of the last setpoint.
     pub block_id: AtomicU32,
-    /// Last X Y Z (f64 bits).
-    pub position: [AtomicU64; 3],
+    /// Last joints X Y Z A B C (f64 bits).
+    pub position: [AtomicU64; 6],
     /// Last feed (f64 bits), mm/s.
     pub feed: AtomicU64,
     /// Last arc length (f64 bits), mm.
@@ -204,6 +204,10 @@ impl RtStatus {
     /// Last X Y Z.
     pub fn position(&self) -> [f64; 3] {
         [0, 1, 2].map(|i| f64::from_bits(self.position[i].load(Ordering::Acquire)))
+    }
+    /// Last joints X Y Z A B C.
+    pub fn axes(&self) -> [f64; 6] {
+        [0, 1, 2, 3, 4, 5].map(|i| f64::from_bits(self.position[i].load(Ordering::Acquire)))
     }
 }
 
@@ -762,7 +766,7 @@ impl Loop {
         let s = &self.status;
         s.ticks.store(sp.seq, Ordering::Release);
         s.block_id.store(sp.block_id, Ordering::Release);
-        for i in 0..3 {
+        for i in 0..6 {
             s.position[i].store(sp.axes[i].to_bits(), Ordering::Release);
         }
         s.feed.store(sp.feed.to_bits(), Ordering::Release);

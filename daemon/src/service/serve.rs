@@ -24,6 +24,12 @@ pub type TickSink = Box<dyn FnMut(&RtRecord) + Send>;
 
 /// Default TCP port of the control plane.
 pub const DEFAULT_PORT: u16 = 47_110;
+/// Stack of the control-plane thread: a program's pipeline builds its
+/// `G64 P` stage (`interp_core::Smoother`, 420 KB, fixed capacity) on it
+/// before boxing it, which an unoptimised build copies several times (2 MiB,
+/// the default, overflowed in `cargo run` builds). Only pages touched are
+/// committed.
+const CONTROL_STACK_BYTES: usize = 16 << 20;
 /// The recorder drains its queue this often.
 const RECORDER_POLL: Duration = Duration::from_millis(5);
 
@@ -48,8 +54,15 @@ pub struct ServeOptions {
     pub service: String,
     /// The first program moves without waiting for `start`.
     pub autostart: bool,
-    /// Start position X Y Z, mm.
+    /// Start position X Y Z (mm) and optionally A B C (degrees, default 0).
     pub position: Option<Vec<f64>>,
+    /// TOML configuration: the `[interp]` table (`InterpConfig`, the
+    /// five-axis machine as `[interp.machine]`).
+    pub config: Option<PathBuf>,
+    /// Override any `[interp]` key (repeatable), as `simulate --set`.
+    pub set: Vec<String>,
+    /// The five-axis machine (TOML, `docs/five-axis.md`), over `[interp.machine]`.
+    pub machine: Option<PathBuf>,
     /// Record the run to this MCAP trace (config, blocks, setpoints, loop
     /// timing, events) through the `traces` recorder; `interpd replay` of it
     /// reproduces the setpoints of the first program bit for bit when that
@@ -73,10 +86,43 @@ impl ServeOptions {
             service: service.to_owned(),
             autostart: false,
             position: None,
+            config: None,
+            set: Vec::new(),
+            machine: None,
             record: None,
             json: false,
         }
     }
+
+    /// The interpolator's configuration: `--config` and `--set` over the
+    /// defaults ([`crate::config`]), checked; the period is `--period-us`'s.
+    pub fn interp_config(&self) -> Result<InterpConfig> {
+        let mut cfg = crate::config::interp_config("serve", self.config.as_deref(), &self.set)?;
+        if let Some(path) = &self.machine {
+            cfg.machine = Some(crate::config::read_machine(path)?);
+        }
+        let cfg = InterpConfig {
+            period: f64::from(self.rt.period_us) * 1e-6,
+            ..cfg
+        };
+        cfg.validate()
+            .map_err(anyhow::Error::msg)
+            .context("checking the configuration")?;
+        Ok(cfg)
+    }
+}
+
+/// The joints the machine starts at: `--position X Y Z [A B C]`, or the origin.
+fn start_position(p: Option<&[f64]>) -> Result<[f64; 6]> {
+    let mut q = [0.0; 6];
+    match p {
+        None => {}
+        Some(p) if (p.len() == 3 || p.len() == 6) && p.iter().all(|c| c.is_finite()) => {
+            q[..p.len()].copy_from_slice(p);
+        }
+        Some(p) => bail!("--position takes X Y Z or X Y Z A B C, finite numbers; got {p:?}"),
+    }
+    Ok(q)
 }
 
 /// What `serve` reports when it stops.
@@ -237,8 +283,7 @@ pub fn start(
         period: f64::from(args.rt.period_us) * 1e-6,
         ..cfg
     };
-    let pos = args.position.clone().unwrap_or_else(|| vec![0.0; 3]);
-    let position = [pos[0], pos[1], pos[2], 0.0, 0.0, 0.0];
+    let position = start_position(args.position.as_deref())?;
     let cleaned = remove_dead_nodes();
     if cleaned > 0 {
         eprintln!("interpd: removed the iceoryx2 resources of {cleaned} dead node(s)");
@@ -281,6 +326,13 @@ pub fn start(
         stream: tokio::sync::Mutex::new(Stream {
             segments: rt.segments,
             queued_to: [position[0], position[1], position[2]],
+            queued_tcp: false,
+            queued_joints: position,
+            machine: cfg
+                .machine
+                .map(interp_core::kinematics::Machine::new)
+                .transpose()
+                .map_err(|e| anyhow!("the machine: {e}"))?,
             tail: None,
             next_id: 1,
             index: 0,
@@ -295,6 +347,7 @@ pub fn start(
         period: Duration::from_micros(u64::from(args.rt.period_us)),
         max_feed_override: cfg.max_feed_override,
         max_path_speed: cfg.max_path_speed,
+        machine: cfg.machine,
         token: args.token.clone(),
         abort_epoch: AtomicU64::new(0),
         blocks_accepted: AtomicU64::new(0),
@@ -341,6 +394,7 @@ pub fn start(
     let record_path = args.record.clone();
     let thread = std::thread::Builder::new()
         .name("interpd-control".into())
+        .stack_size(CONTROL_STACK_BYTES)
         .spawn(move || -> Result<ServeSummary> {
             runtime.block_on(async {
                 let accept_tcp = {

@@ -219,7 +219,8 @@ pub fn run(args: &DemoOptions, direct: &Summary) -> Result<ServiceRun> {
             let s = tokio::net::TcpStream::connect(addr)
                 .await
                 .with_context(|| format!("connecting to the service at {addr}"))?;
-            let load = |_: [f64; 3], _: f64| Ok(vec![line.clone()]);
+            let load =
+                |_: [f64; 6], _: &crate::service::control::StatusReply| Ok(vec![line.clone()]);
             crate::client::send::stream(s, &load, &send_args).await
         });
     let sub = subscriber

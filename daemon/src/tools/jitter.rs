@@ -220,7 +220,8 @@ pub fn main(args: &JitterOptions) -> Result<()> {
             .block_on(async {
                 let s = tokio::net::TcpStream::connect(addr).await?;
                 // Aborted at shutdown: the outcome does not matter here.
-                let load = |_: [f64; 3], _: f64| Ok(lines.clone());
+                let load =
+                    |_: [f64; 6], _: &crate::service::control::StatusReply| Ok(lines.clone());
                 let _ = crate::client::send::stream(s, &load, &send_args).await;
                 Ok(())
             })

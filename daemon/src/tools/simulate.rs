@@ -6,15 +6,18 @@
 //!
 //! Configuration, lowest precedence first: `InterpConfig::default()` and
 //! `SimSettings::default()`, the TOML file of `--config` (tables `[interp]`
-//! and `[simulate]`, kebab-case keys as the structs serialise), every
-//! `--set KEY=VALUE` (any `[interp]` key, TOML value syntax), then the named
-//! flags. Unknown keys are refused with their name.
+//! and `[simulate]`, kebab-case keys as the structs serialise; the machine
+//! of a five-axis program is `[interp.machine]`), every `--set KEY=VALUE`
+//! (any `[interp]` key, TOML value syntax), then the named flags
+//! ([`crate::config`]). Unknown keys are refused with their name.
 
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
+
+use crate::config;
 use interp_core::InterpConfig;
 use traces::analysis::{Analyzer, Summary};
 use traces::sim::{self, SimItem, SimSettings};
@@ -33,6 +36,8 @@ pub struct SimulateOptions {
     pub json: bool,
     /// Override any `[interp]` key, e.g. `--set planning-margin=0.05` (repeatable).
     pub set: Vec<String>,
+    /// The five-axis machine (TOML, `docs/five-axis.md`), over `[interp.machine]`.
+    pub machine: Option<PathBuf>,
     /// Interpolation period, µs (`interp.period`; default 1000).
     pub period_us: Option<f64>,
     /// Chord tolerance, mm (`interp.chord-tolerance`; default 0.001).
@@ -41,7 +46,7 @@ pub struct SimulateOptions {
     pub max_speed: Option<f64>,
     /// Tangential acceleration limit, mm/s² (`interp.max-path-accel`; default 2000).
     pub max_accel: Option<f64>,
-    /// Control points per segment when long NURBS are split (`simulate.max-ctrl-per-block`; default 20).
+    /// Control points per segment when long NURBS are split (`simulate.max-ctrl-per-block`; default 32, as `serve`).
     pub max_ctrl_per_block: Option<usize>,
     /// Chunk compression of the trace: zstd (default), lz4 or none.
     pub compression: TraceCompression,
@@ -56,54 +61,14 @@ pub struct Resolved {
     pub settings: SimSettings,
 }
 
-fn table_of<T: serde::Serialize>(v: &T) -> Result<toml::Table> {
-    toml::Table::try_from(v).context("serialising the default configuration")
-}
-
-/// Lays `over` on `base`, refusing keys `base` does not have.
-fn merge(base: &mut toml::Table, over: &toml::Table, section: &str, origin: &str) -> Result<()> {
-    for (k, v) in over {
-        if !base.contains_key(k) {
-            let known: Vec<&str> = base.keys().map(String::as_str).collect();
-            bail!(
-                "{origin}: unknown key `{section}.{k}` (known: {})",
-                known.join(", ")
-            );
-        }
-        base.insert(k.clone(), v.clone());
-    }
-    Ok(())
-}
-
 /// Defaults, then `--config`, then `--set`, then flags.
 pub fn resolve(args: &SimulateOptions) -> Result<Resolved> {
-    let mut interp = table_of(&InterpConfig::default())?;
-    let mut simulate = table_of(&SimSettings::default())?;
-    if let Some(path) = &args.config {
-        let origin = path.display().to_string();
-        let text = std::fs::read_to_string(path).with_context(|| format!("reading {origin}"))?;
-        let file: toml::Table =
-            toml::from_str(&text).with_context(|| format!("parsing {origin} as TOML"))?;
-        for (k, v) in &file {
-            let (target, name) = match k.as_str() {
-                "interp" => (&mut interp, "interp"),
-                "simulate" => (&mut simulate, "simulate"),
-                _ => bail!("{origin}: unknown table `{k}` (known: interp, simulate)"),
-            };
-            let Some(t) = v.as_table() else {
-                bail!("{origin}: `{k}` must be a table");
-            };
-            merge(target, t, name, &origin)?;
-        }
-    }
-    for s in &args.set {
-        let Some((k, v)) = s.split_once('=') else {
-            bail!("--set {s}: expected KEY=VALUE");
-        };
-        let doc: toml::Table = toml::from_str(&format!("{} = {}", k.trim(), v.trim()))
-            .with_context(|| format!("--set {s}: VALUE must be a TOML value"))?;
-        merge(&mut interp, &doc, "interp", &format!("--set {s}"))?;
-    }
+    let mut tables = [
+        ("interp", config::table_of(&InterpConfig::default())?),
+        ("simulate", config::table_of(&SimSettings::default())?),
+    ];
+    config::layer("simulate", args.config.as_deref(), &args.set, &mut tables)?;
+    let [(_, interp), (_, simulate)] = tables;
     let mut cfg: InterpConfig = interp
         .try_into()
         .context("the [interp] configuration does not fit InterpConfig")?;
@@ -124,6 +89,9 @@ pub fn resolve(args: &SimulateOptions) -> Result<Resolved> {
     }
     if let Some(n) = args.max_ctrl_per_block {
         settings.max_ctrl_per_block = n;
+    }
+    if let Some(path) = &args.machine {
+        cfg.machine = Some(config::read_machine(path)?);
     }
     cfg.validate()
         .map_err(anyhow::Error::msg)
@@ -153,7 +121,7 @@ pub fn run(args: &SimulateOptions) -> Result<Summary> {
         &args.program,
         &crate::program::LoadOptions {
             start: None,
-            rapid_speed: r.interp.max_path_speed,
+            core: gcode::CoreOptions::for_config(&r.interp),
         },
     )?;
     let source = args.program.display().to_string();
@@ -193,4 +161,31 @@ pub fn run(args: &SimulateOptions) -> Result<Summary> {
         }
     }
     Ok(analyzer.summary())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `simulate` cuts NURBS as the service does (one program, the same
+    /// segments): the default pieces are the service's.
+    #[test]
+    fn simulate_splits_nurbs_as_serve_does_by_default() {
+        let args = SimulateOptions {
+            program: PathBuf::from("unused.ngc"),
+            config: None,
+            out: None,
+            json: false,
+            set: Vec::new(),
+            machine: None,
+            period_us: None,
+            chord_tolerance_mm: None,
+            max_speed: None,
+            max_accel: None,
+            max_ctrl_per_block: None,
+            compression: TraceCompression::default(),
+        };
+        let r = resolve(&args).unwrap();
+        assert_eq!(r.settings.max_ctrl_per_block, crate::protocol::PIECE_CTRL);
+    }
 }

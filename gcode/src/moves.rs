@@ -1,0 +1,342 @@
+//! Moves ready for the interpolator, and the one way they become
+//! interp-core blocks.
+//!
+//! [`Program::for_each_move`](crate::Program::for_each_move) decides
+//! everything a G-code program leaves open (rapid speed, feed units, G93,
+//! moves of zero length, the path control mode, where a move starts after
+//! tool-centre-point control goes on or off, rotary positions turned into
+//! tool axes) and hands out [`Move`]s; the `traces` JSON block form is a
+//! [`Move`] field for field. A [`Cutter`] turns moves, in order, into
+//! interp-core blocks: `to_core_blocks`, `interpd simulate`, the service's
+//! control plane and `interpd replay` all cut with it, so one program gives
+//! the same blocks everywhere.
+
+use interp_core::fiveaxis::{Orientation as CoreOrientation, OrientationError};
+use interp_core::interp::JOIN_TOLERANCE;
+use interp_core::nurbs::{SplitError, split_program_curve};
+use interp_core::path::{Arc, Blending, Block, Line, MrrParams, Path, PathError};
+use interp_core::{Curve, NurbsError, Vec3};
+
+/// Seconds per minute: feeds are per minute, interp-core's per second.
+pub const SECONDS_PER_MINUTE: f64 = 60.0;
+
+/// A move as the interpolator takes it: the conversion's decisions made.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Move<'a> {
+    /// Source line of the program block (the line errors name; a NURBS's
+    /// last line).
+    pub line: u32,
+    /// Source line where the move begins (a NURBS's first line).
+    pub first_line: u32,
+    /// Feed, mm/min: G94's F, G93's F times the move's length, rapids at the
+    /// rapid speed × 60.
+    pub feed: f64,
+    /// How the path may pass the move's end (the path control mode).
+    pub blending: Blending,
+    /// Where the move starts when it is not where the last one ended: the
+    /// first move of a program, and the first after tool-centre-point
+    /// control goes on or off (the machine's pose seen in the new frame).
+    /// `None`: where the last move ended.
+    pub start: Option<[f64; 3]>,
+    /// The geometry.
+    pub path: MovePath<'a>,
+    /// Rotary axes or tool axis along the move (`None`: a three-axis move).
+    pub orientation: Option<MoveOrientation>,
+    /// Constant-MRR law parameters (not in G-code; the JSON block form has them).
+    pub mrr: Option<MrrParams>,
+}
+
+/// The geometry of a [`Move`], from where it starts.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MovePath<'a> {
+    /// Straight line to `end`.
+    Line {
+        /// End point, mm.
+        end: [f64; 3],
+    },
+    /// Circular (or helical) arc to `end` about `centre`.
+    Arc {
+        /// End point, mm.
+        end: [f64; 3],
+        /// Centre, mm (its component along `axis` is ignored).
+        centre: [f64; 3],
+        /// Normal of the arc's plane (G17: +Z).
+        axis: [f64; 3],
+        /// Clockwise about `axis` (G2).
+        clockwise: bool,
+        /// Extra full turns.
+        turns: u32,
+    },
+    /// Rational NURBS, exactly as written; its first control point is where
+    /// it starts.
+    Nurbs {
+        /// Degree.
+        degree: usize,
+        /// Control points, mm.
+        points: &'a [[f64; 3]],
+        /// One positive weight per control point (`None`: all 1).
+        weights: Option<&'a [f64]>,
+        /// `points.len() + degree + 1` knots, clamped.
+        knots: &'a [f64],
+    },
+}
+
+/// What a [`Move`] does beside its path.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MoveOrientation {
+    /// Tool-centre-point control off: A B C (degrees) go from `start` to
+    /// `end` as plain axes with X Y Z.
+    Axes {
+        /// A B C where the move starts.
+        start: [f64; 3],
+        /// A B C where it ends.
+        end: [f64; 3],
+    },
+    /// Tool-centre-point control on: the path is the tool tip in the
+    /// workpiece frame and the tool axis turns from `start` to `end` on the
+    /// great circle (any length; normalised when cut).
+    ToolAxis {
+        /// Tool axis where the move starts.
+        start: [f64; 3],
+        /// Tool axis where it ends.
+        end: [f64; 3],
+    },
+}
+
+impl MoveOrientation {
+    /// Under tool-centre-point control (the path is the tool tip)?
+    pub fn is_tcp(&self) -> bool {
+        matches!(self, MoveOrientation::ToolAxis { .. })
+    }
+}
+
+impl Move<'_> {
+    /// Under tool-centre-point control (the path is the tool tip)?
+    pub fn is_tcp(&self) -> bool {
+        self.orientation.is_some_and(|o| o.is_tcp())
+    }
+}
+
+/// Why a [`Move`] could not be cut into blocks.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum CutError {
+    /// The feed is not a positive finite number of mm/min.
+    #[error("feed must be a positive number of mm/min, got {0}")]
+    Feed(f64),
+    /// The line or arc is invalid.
+    #[error("{0}")]
+    Path(PathError),
+    /// The NURBS is invalid.
+    #[error("invalid NURBS: {0}")]
+    Nurbs(NurbsError),
+    /// The move does not start where the last one ends.
+    #[error(
+        "starts at {start:?}, but the previous block ends at {previous_end:?} ({gap:e} mm apart)"
+    )]
+    Discontinuous {
+        /// Its start, mm.
+        start: [f64; 3],
+        /// The previous end, mm.
+        previous_end: [f64; 3],
+        /// Distance, mm.
+        gap: f64,
+    },
+    /// The move changes frame (tool-centre-point control on or off) but
+    /// does not say where it starts.
+    #[error(
+        "the first block after tool-centre-point control goes on or off must give its start (where the machine stands, seen in the new frame)"
+    )]
+    FrameStart,
+    /// The rotary positions or tool axis are refused.
+    #[error("{0}")]
+    Orientation(OrientationError),
+}
+
+fn v3(p: [f64; 3]) -> Vec3 {
+    Vec3::new(p[0], p[1], p[2])
+}
+
+fn a3(p: Vec3) -> [f64; 3] {
+    [p.x, p.y, p.z]
+}
+
+/// Cuts a program's moves, in order, into interp-core blocks: each from the
+/// end of the one before (or, where the frame changes, from the start the
+/// move gives), feeds in mm/s, NURBS longer than `max_ctrl` control points
+/// split into pieces that are the same curve, ids counted up.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Cutter {
+    at: Vec3,
+    tcp: bool,
+    next_id: u32,
+    max_ctrl: usize,
+}
+
+impl Cutter {
+    /// A program that starts at `start` (mm; the tool tip when `tcp`, else
+    /// the machine's X Y Z), with block ids from `first_id` and NURBS pieces
+    /// of at most `max_ctrl` control points.
+    pub fn new(start: [f64; 3], tcp: bool, first_id: u32, max_ctrl: usize) -> Self {
+        Cutter {
+            at: v3(start),
+            tcp,
+            next_id: first_id,
+            max_ctrl,
+        }
+    }
+
+    /// Where the next move starts (the end of the last one), mm.
+    pub fn tail(&self) -> [f64; 3] {
+        a3(self.at)
+    }
+
+    /// Whether the tail is the tool tip (tool-centre-point control).
+    pub fn is_tcp(&self) -> bool {
+        self.tcp
+    }
+
+    /// The id the next block gets.
+    pub fn next_id(&self) -> u32 {
+        self.next_id
+    }
+
+    /// Moves on past `last`, a block cut before (the last of a move's blocks).
+    pub fn follow(&mut self, last: &Block) {
+        self.at = last.path.end_point();
+        self.tcp = last.is_tcp();
+        self.next_id = last.id.wrapping_add(1);
+    }
+
+    /// The blocks of the next move. A refused move changes nothing.
+    pub fn cut(&mut self, m: &Move<'_>) -> Result<Vec<Block>, CutError> {
+        if !(m.feed.is_finite() && m.feed > 0.0) {
+            return Err(CutError::Feed(m.feed));
+        }
+        let feed = m.feed / SECONDS_PER_MINUTE;
+        let tcp = m.is_tcp();
+        let start = if tcp != self.tcp {
+            v3(m.start.ok_or(CutError::FrameStart)?)
+        } else {
+            if let Some(s) = m.start {
+                check_start(v3(s), self.at)?;
+            }
+            self.at
+        };
+        let mut id = self.next_id;
+        let mut block = |path: Path| {
+            let b = Block {
+                id,
+                path,
+                feed,
+                mrr: m.mrr,
+                blending: m.blending,
+                orientation: None,
+            };
+            id = id.wrapping_add(1);
+            b
+        };
+        let mut out = Vec::new();
+        match m.path {
+            MovePath::Line { end } => {
+                let l = Line::new(start, v3(end)).map_err(CutError::Path)?;
+                out.push(block(Path::Line(l)));
+            }
+            MovePath::Arc {
+                end,
+                centre,
+                axis,
+                clockwise,
+                turns,
+            } => {
+                let axis = if clockwise { -v3(axis) } else { v3(axis) };
+                let a = Arc::from_centre(start, v3(end), v3(centre), axis, turns)
+                    .map_err(CutError::Path)?;
+                out.push(block(Path::Arc(a)));
+            }
+            MovePath::Nurbs {
+                degree,
+                points,
+                weights,
+                knots,
+            } => {
+                let ones;
+                let w: &[f64] = match weights {
+                    Some(w) => w,
+                    None => {
+                        ones = vec![1.0; points.len()];
+                        &ones
+                    }
+                };
+                let mut first = true;
+                split_program_curve(degree, points, w, knots, self.max_ctrl, |n| {
+                    if first {
+                        first = false;
+                        check_start(n.start_point(), start)?;
+                    }
+                    out.push(block(Path::Nurbs(n)));
+                    Ok(())
+                })
+                .map_err(|e| match e {
+                    SplitError::Invalid(n) => CutError::Nurbs(n),
+                    SplitError::Sink(k) => k,
+                })?;
+            }
+        }
+        if let (Some(o), Some(first), Some(last)) = (m.orientation, out.first(), out.last()) {
+            // One orientation over the whole move: a split NURBS keeps its
+            // parameter, so every piece evaluates it at its own `u`.
+            let core = match o {
+                MoveOrientation::Axes { start, end } => {
+                    CoreOrientation::axes(&first.path, start, end)
+                }
+                MoveOrientation::ToolAxis { start, end } => {
+                    CoreOrientation::tool_axis(&first.path, v3(start), v3(end))
+                }
+            }
+            .map_err(CutError::Orientation)?;
+            let core = with_end_parameter(core, last.path.u_end());
+            for b in &mut out {
+                b.orientation = Some(core);
+            }
+        }
+        if let Some(last) = out.last() {
+            self.follow(last);
+        }
+        Ok(out)
+    }
+}
+
+/// `o` over a parameter range that ends at `u1`.
+fn with_end_parameter(o: CoreOrientation, u1: f64) -> CoreOrientation {
+    match o {
+        CoreOrientation::Axes { start, end, u0, .. } => {
+            CoreOrientation::Axes { start, end, u0, u1 }
+        }
+        CoreOrientation::ToolAxis {
+            start,
+            w,
+            theta,
+            u0,
+            ..
+        } => CoreOrientation::ToolAxis {
+            start,
+            w,
+            theta,
+            u0,
+            u1,
+        },
+    }
+}
+
+fn check_start(start: Vec3, at: Vec3) -> Result<(), CutError> {
+    let gap = (start - at).norm();
+    if gap <= JOIN_TOLERANCE {
+        Ok(())
+    } else {
+        Err(CutError::Discontinuous {
+            start: a3(start),
+            previous_end: a3(at),
+            gap,
+        })
+    }
+}
