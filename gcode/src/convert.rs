@@ -7,7 +7,9 @@ use interp_core::path::{Arc, Blending, Block, Line, Path, PathError};
 use interp_core::kinematics::{Joints, Machine, MachineSpec, ToolPose};
 
 use crate::error::{ConvertError, FiveAxisReason};
-use crate::moves::{CutError, Cutter, Move, MoveOrientation, MovePath, SECONDS_PER_MINUTE};
+use crate::moves::{
+    CutError, Cutter, Move, MoveOrientation, MovePath, SECONDS_PER_MINUTE, joints_after,
+};
 use crate::program::{BlockKind, Feed, Orientation, PathControl, Program, Rotary};
 
 /// The interp-core blending mode of a path control mode: G61.1 exact stop,
@@ -120,7 +122,8 @@ impl Program {
     ///   the I J K are the tool axis ([`MoveOrientation::ToolAxis`]). The
     ///   first move after TCP goes on or off starts where the machine
     ///   stands, seen in its frame (the tool tip of its joints, or their
-    ///   X Y Z; the joints are followed through the inverse transform), and
+    ///   X Y Z; the joints are walked along each move as the planner walks
+    ///   them, [`joints_after`]), and
     ///   says so in [`Move::start`], as the first move does. What cannot be
     ///   converted yet is refused naming the line
     ///   ([`ConvertError::FiveAxisMove`]).
@@ -293,8 +296,28 @@ impl Program {
                 orientation: pose.orientation(orientation).map_err(five_err)?,
                 mrr: None,
             };
+            let before = pose.joints;
+            // The end within reach (refused naming the line), ...
             pose.after(programmed_end, orientation, tcp)
                 .map_err(five_err)?;
+            // ... and the joints there as the machine gets to them: walked
+            // along the move as the planner walks it (the inverse nearest
+            // the last sample), so that the next move's rotary axes and
+            // frame start where the machine's are.
+            if mv.orientation.is_some()
+                && let Ok(blocks) = Cutter::new(start, tcp, 1, MAX_CTRL).cut(&mv)
+            {
+                let mut q = before.unwrap_or_default();
+                // (A move the machine cannot follow keeps the joints of its
+                // end: the planner refuses it anyway.)
+                if blocks
+                    .iter()
+                    .try_for_each(|b| joints_after(b, pose.machine.as_ref(), &mut q))
+                    .is_ok()
+                {
+                    pose.joints = Some(q);
+                }
+            }
             emitted_tcp = Some(tcp);
             sink(&mv).map_err(ConvertOrSinkError::Sink)?;
         }

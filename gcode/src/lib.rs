@@ -24,7 +24,10 @@ pub use convert::{ConvertOrSinkError, CoreOptions, core_blending};
 pub use emit::{EMIT_HEADER, emit};
 pub use error::{ConvertError, FiveAxisReason, ParseError, ParseErrorKind};
 pub use expr::{MAX_EXPRESSION_DEPTH, NEAR_INT_TOL, PARAMETER_COUNT};
-pub use moves::{CutError, Cutter, Move, MoveOrientation, MovePath, SECONDS_PER_MINUTE};
+pub use moves::{
+    CutError, Cutter, JOINT_WALK_MIN_SAMPLES, JOINT_WALK_STEP, Move, MoveOrientation, MovePath,
+    SECONDS_PER_MINUTE, joints_after,
+};
 pub use parser::{
     ARC_R_TINY, CENTER_ARC_RADIUS_TOLERANCE_INCH, CENTER_ARC_RADIUS_TOLERANCE_MM,
     G5_2_DEFAULT_ORDER, RADIUS_TOLERANCE_INCH, SPIRAL_ABS_HARD_FACTOR, SPIRAL_RELATIVE_TOLERANCE,

@@ -11,8 +11,11 @@
 //! control plane and `interpd replay` all cut with it, so one program gives
 //! the same blocks everywhere.
 
-use interp_core::fiveaxis::{Orientation as CoreOrientation, OrientationError};
+use interp_core::fiveaxis::{
+    JointError, Orientation as CoreOrientation, OrientationError, walk_joints,
+};
 use interp_core::interp::JOIN_TOLERANCE;
+use interp_core::kinematics::{Joints, Machine};
 use interp_core::nurbs::{SplitError, split_program_curve};
 use interp_core::path::{Arc, Blending, Block, Line, MrrParams, Path, PathError};
 use interp_core::{Curve, NurbsError, Vec3};
@@ -338,5 +341,36 @@ fn check_start(start: Vec3, at: Vec3) -> Result<(), CutError> {
             previous_end: a3(at),
             gap,
         })
+    }
+}
+
+/// Largest arc-length step at which [`joints_after`] follows the joints, mm.
+pub const JOINT_WALK_STEP: f64 = 0.25;
+/// Fewest samples [`joints_after`] takes along a block.
+pub const JOINT_WALK_MIN_SAMPLES: f64 = 16.0;
+
+/// Moves the machine's joints `q` from the start of `block` to its end: its
+/// orientation walked along it (`interp_core::fiveaxis::walk_joints`, the
+/// inverse nearest the last sample, as the planner walks a block: so the
+/// branch and the turns of each rotary joint are the machine's), or, for a
+/// three-axis block, its end as X Y Z with the rotary axes kept. A block
+/// the machine cannot follow (which the planner refuses too) is an error,
+/// and the joints are left where the walk got to.
+pub fn joints_after(
+    block: &Block,
+    machine: Option<&Machine>,
+    q: &mut Joints,
+) -> Result<(), JointError> {
+    let end = block.path.end_point();
+    match &block.orientation {
+        None => {
+            q[..3].copy_from_slice(&[end.x, end.y, end.z]);
+            Ok(())
+        }
+        Some(o) => {
+            let length = block.path.length();
+            let hs = JOINT_WALK_STEP.min(length / JOINT_WALK_MIN_SAMPLES);
+            walk_joints(machine, o, &block.path, 0.0, length, hs, q)
+        }
     }
 }

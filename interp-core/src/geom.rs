@@ -175,3 +175,35 @@ pub fn invert_arc_length(
     }
     (u, rules)
 }
+
+#[cfg(test)]
+mod golden_section_tests {
+    use super::*;
+
+    /// A parabola's minimum to the bracket's width; the maximum of a sine
+    /// through `-f`.
+    #[test]
+    fn finds_the_minimum_of_a_unimodal_function() {
+        let (x, v) = golden_section_argmin(|x| (x - 0.3) * (x - 0.3) + 2.0, -1.0, 2.0, 200, 1e-12);
+        assert!((x - 0.3).abs() < 1e-6 && (v - 2.0).abs() < 1e-12, "{x} {v}");
+        let top = -golden_section_min(|x| -libm::sin(x), 0.0, 3.0, 200, 1e-12);
+        assert!((top - 1.0).abs() < 1e-12, "{top}");
+    }
+
+    /// Ties: an equal value never replaces the best, so a flat function
+    /// keeps the first interior point (`b − 0.618…·(b − a)`); and a NaN never
+    /// wins over a number.
+    #[test]
+    fn ties_keep_the_first_point_seen_and_nan_never_wins() {
+        let (x, v) = golden_section_argmin(|_| 1.5, 2.0, 4.0, 50, 0.0);
+        assert_eq!((x, v), (4.0 - 0.618_033_988_749_894_9 * 2.0, 1.5));
+        // Flat on [0, 0.5], rising after: the best is on the flat, the first
+        // point seen there.
+        let f = |x: f64| if x <= 0.5 { 0.0 } else { x - 0.5 };
+        let (x, v) = golden_section_argmin(f, 0.0, 1.0, 60, 0.0);
+        assert_eq!((x, v), (1.0 - 0.618_033_988_749_894_9, 0.0));
+        let (x, v) =
+            golden_section_argmin(|x| if x < 0.5 { f64::NAN } else { x }, 0.0, 1.0, 60, 1e-12);
+        assert!(!v.is_nan() && x >= 0.5 && (v - 0.5).abs() < 1e-9, "{x} {v}");
+    }
+}

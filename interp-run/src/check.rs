@@ -1,13 +1,18 @@
 //! The setpoint checker: every setpoint against the ones before it, by
 //! finite differences as a drive sees its position commands (speed, chord
-//! speed, acceleration, path jerk, per-axis velocity, acceleration and jerk,
-//! gapless `seq`, finite values, no fault), the end of the run (`done`,
-//! exactly at the program's end), with a digest of every field's bits.
+//! speed, acceleration, path jerk, per-joint velocity, acceleration and jerk
+//! of X Y Z and of the rotary joints A B C, gapless `seq`, finite values, no
+//! fault), the end of the run (`done`, exactly at the program's end), with a
+//! digest of every field's bits. For a five-axis machine
+//! ([`Checker::five_axis`]) the path of a block under tool-centre-point
+//! control is the tool tip in the workpiece frame (the forward transform of
+//! the joints), which the speed and chord checks measure.
 //! `interpd demo` runs it on its direct loop and on the setpoints the
 //! service publishes, `interpd jitter`'s subscriber on every published tick,
 //! and the workspace tests on their runs; `docs/daemon.md` gives the checks
 //! and their slack.
 
+use interp_core::kinematics::{Joints, Machine};
 use interp_core::{InterpConfig, RunState, Setpoint, Vec3};
 use serde::{Deserialize, Serialize};
 
@@ -46,11 +51,14 @@ pub struct Violations {
     pub over_accel: u64,
     /// Ticks whose path jerk |Δ³s|/Ts³ exceeds `max_path_jerk` (+1 ppm).
     pub over_jerk: u64,
-    /// Ticks where some axis's |Δp|/Ts exceeds its `axis_max_velocity` (+1 ppm).
+    /// Ticks where some joint's |Δq|/Ts exceeds its limit (+1 ppm):
+    /// `axis_max_velocity` for X Y Z, `rotary_max_velocity` for A B C.
     pub over_axis_velocity: u64,
-    /// Ticks where some axis's |Δ²p|/Ts² exceeds its `axis_max_accel` (+1 ppm).
+    /// Ticks where some joint's |Δ²q|/Ts² exceeds its limit (+1 ppm):
+    /// `axis_max_accel`, `rotary_max_accel`.
     pub over_axis_accel: u64,
-    /// Ticks where some axis's |Δ³p|/Ts³ exceeds its `axis_max_jerk` (+1 ppm).
+    /// Ticks where some joint's |Δ³q|/Ts³ exceeds its limit (+1 ppm):
+    /// `axis_max_jerk`, `rotary_max_jerk`.
     pub over_axis_jerk: u64,
     /// Setpoints in the `Fault` state.
     pub faults: u64,
@@ -116,6 +124,12 @@ pub struct Limits {
     pub axis_accel_mm_s2: [f64; 3],
     /// `axis_max_jerk` X Y Z, mm/s³.
     pub axis_jerk_mm_s3: [f64; 3],
+    /// `rotary_max_velocity` A B C, deg/s.
+    pub rotary_velocity_deg_s: [f64; 3],
+    /// `rotary_max_accel` A B C, deg/s².
+    pub rotary_accel_deg_s2: [f64; 3],
+    /// `rotary_max_jerk` A B C, deg/s³.
+    pub rotary_jerk_deg_s3: [f64; 3],
 }
 
 impl Limits {
@@ -128,6 +142,26 @@ impl Limits {
             axis_velocity_mm_s: cfg.axis_max_velocity,
             axis_accel_mm_s2: cfg.axis_max_accel,
             axis_jerk_mm_s3: cfg.axis_max_jerk,
+            rotary_velocity_deg_s: cfg.rotary_max_velocity,
+            rotary_accel_deg_s2: cfg.rotary_max_accel,
+            rotary_jerk_deg_s3: cfg.rotary_max_jerk,
+        }
+    }
+
+    /// Velocity, acceleration and jerk limits of joint `j` (X Y Z A B C).
+    fn joint(&self, j: usize) -> (f64, f64, f64) {
+        if j < 3 {
+            (
+                self.axis_velocity_mm_s[j],
+                self.axis_accel_mm_s2[j],
+                self.axis_jerk_mm_s3[j],
+            )
+        } else {
+            (
+                self.rotary_velocity_deg_s[j - 3],
+                self.rotary_accel_deg_s2[j - 3],
+                self.rotary_jerk_deg_s3[j - 3],
+            )
         }
     }
 }
@@ -143,6 +177,12 @@ pub struct Measured {
     pub axis_accel_mm_s2: [f64; 3],
     /// Largest |Δ³p|/Ts³ per axis, mm/s³.
     pub axis_jerk_mm_s3: [f64; 3],
+    /// Largest |Δq|/Ts per rotary joint A B C, deg/s.
+    pub rotary_velocity_deg_s: [f64; 3],
+    /// Largest |Δ²q|/Ts² per rotary joint, deg/s².
+    pub rotary_accel_deg_s2: [f64; 3],
+    /// Largest |Δ³q|/Ts³ per rotary joint, deg/s³.
+    pub rotary_jerk_deg_s3: [f64; 3],
 }
 
 /// Checks each setpoint against the previous ones and keeps the running
@@ -156,10 +196,15 @@ pub struct Measured {
 pub struct Checker {
     ts: f64,
     limits: Limits,
+    /// The five-axis machine: the path under tool-centre-point control is
+    /// the tool tip of the joints.
+    machine: Option<Machine>,
     prev_seq: u64,
     prev_feed: f64,
-    /// The last three points, newest first.
-    prev_points: [[f64; 3]; 3],
+    /// The last three setpoints' joints, newest first.
+    prev_joints: [Joints; 3],
+    /// The path point of the last setpoint checked (the run's end).
+    last_point: [f64; 3],
     /// The last three arc lengths, newest first.
     prev_s: [f64; 3],
     /// Largest commanded feed, mm/s.
@@ -210,14 +255,32 @@ pub fn digest_setpoint(mut h: u64, sp: &Setpoint) -> u64 {
 
 impl Checker {
     /// A checker for a period of `ts` s, with the machine at rest at `start`
-    /// before the first setpoint.
+    /// (X Y Z, the rotary joints at 0) before the first setpoint.
     pub fn new(ts: f64, limits: Limits, start: [f64; 3]) -> Self {
+        Self::at_joints(
+            ts,
+            limits,
+            None,
+            [start[0], start[1], start[2], 0.0, 0.0, 0.0],
+        )
+    }
+
+    /// A checker for a five-axis `machine` at rest at the joints `start`
+    /// before the first setpoint: blocks under tool-centre-point control
+    /// are checked with [`Checker::check_in_frame`].
+    pub fn five_axis(ts: f64, limits: Limits, machine: Machine, start: Joints) -> Self {
+        Self::at_joints(ts, limits, Some(machine), start)
+    }
+
+    fn at_joints(ts: f64, limits: Limits, machine: Option<Machine>, start: Joints) -> Self {
         Checker {
             ts,
             limits,
+            machine,
             prev_seq: 0,
             prev_feed: 0.0, // the machine starts at rest
-            prev_points: [start; 3],
+            prev_joints: [start; 3],
+            last_point: [start[0], start[1], start[2]],
             prev_s: [0.0; 3],
             max_feed: 0.0,
             max_chord_speed: 0.0,
@@ -226,17 +289,43 @@ impl Checker {
             digest: FNV_OFFSET,
             violations: Violations::default(),
             last: Setpoint {
-                axes: [start[0], start[1], start[2], 0.0, 0.0, 0.0],
+                axes: start,
                 ..Setpoint::default()
             },
         }
     }
 
-    /// Checks the next setpoint (allocates nothing).
+    /// The point on the path of joints `q`: the tool tip in the workpiece
+    /// frame under tool-centre-point control (`tcp`, with a machine), else
+    /// X Y Z.
+    fn path_point(&self, q: &Joints, tcp: bool) -> [f64; 3] {
+        match (&self.machine, tcp) {
+            (Some(m), true) => {
+                let p = m.forward(q).tip;
+                [p.x, p.y, p.z]
+            }
+            _ => [q[0], q[1], q[2]],
+        }
+    }
+
+    /// Checks the next setpoint, its path X Y Z of the machine (allocates nothing).
     #[inline]
     pub fn check(&mut self, sp: &Setpoint) {
+        self.check_in_frame(sp, false);
+    }
+
+    /// Checks the next setpoint on a block under tool-centre-point control
+    /// (`tcp`: its path is the tool tip, with [`Checker::five_axis`]'s
+    /// machine) or not; the previous setpoints are seen in the same frame
+    /// (allocates nothing).
+    #[inline]
+    pub fn check_in_frame(&mut self, sp: &Setpoint, tcp: bool) {
         let ts = self.ts;
         let lim = self.limits;
+        let [q1, q2, q3] = self.prev_joints;
+        let q = sp.axes;
+        let p = self.path_point(&q, tcp);
+        let p1 = self.path_point(&q1, tcp);
         let v = &mut self.violations;
         let mut bad = false;
         if sp.seq != self.prev_seq.wrapping_add(1) {
@@ -251,8 +340,6 @@ impl Checker {
             v.non_finite += 1;
             bad = true;
         }
-        let p = [sp.axes[0], sp.axes[1], sp.axes[2]];
-        let [p1, p2, p3] = self.prev_points;
         let chord = Vec3::from(p) - Vec3::from(p1);
         let chord_speed = chord.norm() / ts;
         let limit = lim.feed_mm_s + SPEED_TOL;
@@ -260,13 +347,16 @@ impl Checker {
             v.over_speed += 1;
             bad = true;
         }
-        let scale = p
-            .iter()
-            .chain(p1.iter())
-            .chain(p2.iter())
-            .chain(p3.iter())
-            .fold(0.0f64, |m, c| m.max(c.abs()));
-        let ulp = f64::EPSILON * scale;
+        // Round-off of the linear and of the rotary joints' differences.
+        let scale = |range: core::ops::Range<usize>| {
+            [&q, &q1, &q2, &q3]
+                .iter()
+                .flat_map(|x| x[range.clone()].iter())
+                .chain(p.iter().chain(p1.iter()))
+                .fold(0.0f64, |m, c| m.max(c.abs()))
+        };
+        let ulp = f64::EPSILON * scale(0..3);
+        let ulp_rotary = f64::EPSILON * scale(3..6);
         let round_off = CHORD_ULPS * ulp / ts;
         if !(chord_speed <= limit + lim.feed_mm_s * CHORD_REL_TOL + round_off) {
             v.over_chord_speed += 1;
@@ -289,20 +379,35 @@ impl Checker {
             v.over_jerk += 1;
             bad = true;
         }
-        // Per axis, as a drive sees its own position commands.
+        // Per joint, as a drive sees its own position commands.
         let (mut over_v, mut over_a, mut over_j) = (false, false, false);
         let m = &mut self.measured;
         m.path_jerk_mm_s3 = m.path_jerk_mm_s3.max(jerk);
-        for k in 0..3 {
-            let vel = (p[k] - p1[k]).abs() / ts;
-            let acc = ((p[k] - 2.0 * p1[k]) + p2[k]).abs() / (ts * ts);
-            let jrk = ((p[k] - 3.0 * p1[k]) + (3.0 * p2[k] - p3[k])).abs() / ts3;
-            over_v |= !within(vel, lim.axis_velocity_mm_s[k], DIFF_ULPS * ulp / ts);
-            over_a |= !within(acc, lim.axis_accel_mm_s2[k], DIFF_ULPS * ulp / (ts * ts));
-            over_j |= !within(jrk, lim.axis_jerk_mm_s3[k], DIFF_ULPS * ulp / ts3);
-            m.axis_velocity_mm_s[k] = m.axis_velocity_mm_s[k].max(vel);
-            m.axis_accel_mm_s2[k] = m.axis_accel_mm_s2[k].max(acc);
-            m.axis_jerk_mm_s3[k] = m.axis_jerk_mm_s3[k].max(jrk);
+        for k in 0..6 {
+            let vel = (q[k] - q1[k]).abs() / ts;
+            let acc = ((q[k] - 2.0 * q1[k]) + q2[k]).abs() / (ts * ts);
+            let jrk = ((q[k] - 3.0 * q1[k]) + (3.0 * q2[k] - q3[k])).abs() / ts3;
+            let (vl, al, jl) = lim.joint(k);
+            let u = if k < 3 { ulp } else { ulp_rotary };
+            over_v |= !within(vel, vl, DIFF_ULPS * u / ts);
+            over_a |= !within(acc, al, DIFF_ULPS * u / (ts * ts));
+            over_j |= !within(jrk, jl, DIFF_ULPS * u / ts3);
+            let (mv, ma, mj) = if k < 3 {
+                (
+                    &mut m.axis_velocity_mm_s[k],
+                    &mut m.axis_accel_mm_s2[k],
+                    &mut m.axis_jerk_mm_s3[k],
+                )
+            } else {
+                (
+                    &mut m.rotary_velocity_deg_s[k - 3],
+                    &mut m.rotary_accel_deg_s2[k - 3],
+                    &mut m.rotary_jerk_deg_s3[k - 3],
+                )
+            };
+            *mv = mv.max(vel);
+            *ma = ma.max(acc);
+            *mj = mj.max(jrk);
         }
         v.over_axis_velocity += u64::from(over_v);
         v.over_axis_accel += u64::from(over_a);
@@ -321,20 +426,23 @@ impl Checker {
         self.digest = digest_setpoint(self.digest, sp);
         self.prev_seq = sp.seq;
         self.prev_feed = sp.feed;
-        self.prev_points = [p, p1, p2];
+        self.prev_joints = [q, q1, q2];
+        self.last_point = p;
         self.prev_s = [sp.s, s1, s2];
         self.last = *sp;
     }
 
     /// The end of the run: the last setpoint must be `done` and, when
-    /// `end` is given, exactly there (X Y Z). Returns the violations.
+    /// `end` is given, exactly there (its path point: X Y Z, or the tool
+    /// tip under tool-centre-point control). Returns the violations.
     pub fn finish(&mut self, end: Option<[f64; 3]>) -> Violations {
         let last = self.last;
+        let last_point = self.last_point;
         let v = &mut self.violations;
         if last.state != RunState::Done {
             v.not_done = 1;
         }
-        if end.is_some_and(|e| [last.axes[0], last.axes[1], last.axes[2]] != e) {
+        if end.is_some_and(|e| last_point != e) {
             v.end_mismatch = 1;
         }
         if v.total() > 0 && v.first_seq.is_none() {
@@ -542,5 +650,93 @@ mod tests {
             (v.over_speed, v.over_chord_speed, v.over_accel),
             (10, 10, 0)
         );
+    }
+
+    /// The rotary joints have their own limits: C turning on a
+    /// jerk-limited ramp within them passes, beyond its jerk limit fails,
+    /// and what it did is measured per joint.
+    #[test]
+    fn rotary_joints_are_checked_against_their_own_limits() {
+        let lim = limits(100.0);
+        let run = |jerk: f64| {
+            // 15 ticks at the jerk: the acceleration stays below 1800 deg/s².
+            let sps: Vec<Setpoint> = ramp(1e-3, jerk, 15, 10, [1.0, 0.0, 0.0])
+                .into_iter()
+                .map(|mut sp| {
+                    // The ramp on C alone (degrees), X Y Z at rest.
+                    sp.axes = [0.0, 0.0, 0.0, 0.0, 0.0, sp.axes[0]];
+                    sp.feed = 0.0;
+                    sp.s = 0.0;
+                    sp
+                })
+                .collect();
+            check_all(lim, &sps)
+        };
+        let ok = run(0.9 * lim.rotary_jerk_deg_s3[2]);
+        assert_eq!(ok.violations, Violations::default());
+        let m = ok.measured;
+        assert!(
+            (m.rotary_jerk_deg_s3[2] / (0.9 * lim.rotary_jerk_deg_s3[2]) - 1.0).abs() < 1e-6,
+            "{m:?}"
+        );
+        assert_eq!(
+            (m.rotary_jerk_deg_s3[0], m.axis_velocity_mm_s[0]),
+            (0.0, 0.0)
+        );
+        let v = run(1.1 * lim.rotary_jerk_deg_s3[2]).violations;
+        assert_eq!((v.over_axis_jerk, v.first_seq), (15, Some(1)), "{v:?}");
+        assert_eq!(v.total(), 15, "{v:?}");
+    }
+
+    /// Under tool-centre-point control the path is the tool tip: the table
+    /// of a C,A machine turning under a tool tip that stands still in the
+    /// workpiece frame moves X and Y, but commands no path speed.
+    #[test]
+    fn under_tcp_the_speed_checks_measure_the_tool_tip() {
+        use interp_core::kinematics::{MachineSpec, ToolPose};
+        let spec = MachineSpec {
+            tool_length: 50.0,
+            ..MachineSpec::new("W/caxyBz/T".parse().expect("chain"))
+        };
+        let m = Machine::new(spec).expect("machine");
+        let tip = Vec3::new(10.0, 0.0, 0.0);
+        let tilt = 20f64.to_radians();
+        let pose = |az: f64| ToolPose {
+            tip,
+            axis: Vec3::new(
+                tilt.sin() * az.to_radians().cos(),
+                tilt.sin() * az.to_radians().sin(),
+                tilt.cos(),
+            ),
+        };
+        let mut q = m.inverse(&pose(0.0), &[0.0; 6]).expect("reach").joints;
+        let start = q;
+        // The axis' azimuth on a jerk-limited ramp (degrees), the tip still.
+        let sps: Vec<Setpoint> = ramp(1e-3, 20_000.0, 20, 10, [1.0, 0.0, 0.0])
+            .into_iter()
+            .map(|mut sp| {
+                q = m.inverse(&pose(sp.axes[0]), &q).expect("reach").joints;
+                sp.axes = q;
+                sp.feed = 0.0;
+                sp.s = 0.0;
+                sp
+            })
+            .collect();
+        assert!((sps[29].axes[0] - start[0]).abs() > 1e-3, "X moves");
+        // A feed limit of 0.1 mm/s: X Y move faster, the tip does not.
+        let lim = Limits {
+            feed_mm_s: 0.1,
+            ..limits(100.0)
+        };
+        let mut tcp = Checker::five_axis(1e-3, lim, m, start);
+        let mut xyz = Checker::five_axis(1e-3, lim, m, start);
+        for sp in &sps {
+            tcp.check_in_frame(sp, true);
+            xyz.check_in_frame(sp, false);
+        }
+        assert_eq!(tcp.violations, Violations::default());
+        assert!(tcp.max_chord_speed < 1e-6, "{}", tcp.max_chord_speed);
+        assert!(xyz.violations.over_chord_speed > 0, "{:?}", xyz.violations);
+        assert!(tcp.measured.rotary_velocity_deg_s[2] > 1.0);
     }
 }

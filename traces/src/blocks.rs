@@ -556,33 +556,6 @@ impl Pipeline {
     }
 }
 
-/// Samples per block at which [`joints_after`] follows the joints.
-pub const JOINT_WALK_SAMPLES: f64 = 64.0;
-
-/// Moves the machine's joints `q` from the start of `block` to its end: its
-/// orientation walked along it (the inverse nearest the last sample, as
-/// the planner walks a block), or, for a three-axis block, its end as
-/// X Y Z with the rotary axes kept. A block the machine cannot follow
-/// (which the planner refuses) leaves the joints where they were walked to.
-pub fn joints_after(
-    block: &Block,
-    machine: Option<&interp_core::kinematics::Machine>,
-    q: &mut [f64; 6],
-) {
-    let end = block.path.end_point();
-    match &block.orientation {
-        None => q[..3].copy_from_slice(&[end.x, end.y, end.z]),
-        Some(o) => {
-            let length = block.path.length();
-            let hs = length / JOINT_WALK_SAMPLES;
-            if !(hs > 0.0 && hs.is_finite()) {
-                return;
-            }
-            let _ = interp_core::fiveaxis::walk_joints(machine, o, &block.path, 0.0, length, hs, q);
-        }
-    }
-}
-
 impl InputBlock {
     /// The block of a move (`gcode::Move`, field for field).
     pub fn from_move(m: &Move<'_>) -> Self {
@@ -715,5 +688,67 @@ impl Program {
                 .then_some([a, b, c]),
             blocks,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The joints `gcode::joints_after` follows to the end of a program (where the
+    /// next program's `begin` says it starts) are where the machine stands
+    /// when it has run: a tool axis turning on a C,A table, ending under
+    /// tool-centre-point control, or after it with a plain rotary move.
+    #[test]
+    fn joints_after_a_program_are_where_the_machine_stands_at_its_end() {
+        let machine: interp_core::kinematics::MachineSpec = serde_json::from_str(
+            r#"{"chain": "W/caxyBz/T", "tool-length": 100, "rotary-centres": [[0, 0, -50], [0, 0, 0], [0, 0, 0]]}"#,
+        )
+        .expect("machine");
+        let cfg = InterpConfig {
+            machine: Some(machine),
+            ..InterpConfig::default()
+        };
+        let m = interp_core::kinematics::Machine::new(machine).expect("machine");
+        let tcp = "G21 G90 G61\nG0 Z10 C-90\nG43.5 H1\nG1 X20 Y0 Z-90 I-0.5 J0 K0.866025 F3000\n\
+                   G1 X20 Y20 Z-90 I0.3 J0.4 K0.866025\n";
+        for (text, abc) in [
+            (tcp.to_owned(), None),
+            (
+                format!("{tcp}G49\nG1 X0 Y0 Z0 A10 C20\n"),
+                Some([10.0, 0.0, 20.0]),
+            ),
+        ] {
+            let g = gcode::parse(&text).expect("parses");
+            let program = Program::from_gcode(&g, &gcode::CoreOptions::for_config(&cfg), [0.0; 6])
+                .expect("converts");
+            let mut run: interp_run::Run = interp_run::Run::new(cfg, [0.0; 6]).expect("run");
+            let mut q = [0.0; 6];
+            let mut last = interp_core::Setpoint::default();
+            for b in program.expand(32, 1).expect("expands").segments() {
+                run.push_waiting(b, |sp, _| {
+                    last = *sp;
+                    Ok::<(), ()>(())
+                })
+                .expect("pushed");
+                gcode::joints_after(b, Some(&m), &mut q).expect("within reach");
+            }
+            run.run_to_end(|sp, _| {
+                last = *sp;
+                Ok::<(), ()>(())
+            })
+            .expect("runs");
+            assert_eq!(last.state, interp_core::RunState::Done);
+            for j in 0..6 {
+                assert!((q[j] - last.axes[j]).abs() < 1e-9, "{q:?} {:?}", last.axes);
+            }
+            if let Some(abc) = abc {
+                assert_eq!([q[3], q[4], q[5]], abc);
+            } else {
+                // Under TCP the tool axis leans 30° (A, to the program's 6 digits) and C
+                // turned past −180.
+                assert!((q[3] - 30.0).abs() < 1e-4 && q[5] < -180.0, "{q:?}");
+            }
+        }
     }
 }

@@ -666,7 +666,9 @@ impl Control {
             }
             s.queued_to = [end.x, end.y, end.z];
             s.queued_tcp = piece.is_tcp();
-            traces::blocks::joints_after(&piece, s.machine.as_ref(), &mut s.queued_joints);
+            // (A piece the machine cannot follow is refused by the planner,
+            // which reports it; the joints stay where the walk got to.)
+            let _ = gcode::joints_after(&piece, s.machine.as_ref(), &mut s.queued_joints);
             s.next_id = id.wrapping_add(1);
         }
         Ok(())

@@ -10,6 +10,8 @@
 //! convex in `t` and `h` is convex and increasing, so that function is convex
 //! and a golden-section search finds its minimum.
 
+use interp_core::geom::golden_section_argmin;
+
 use crate::cutter::Cutter;
 use crate::mesh::P3;
 
@@ -178,33 +180,13 @@ fn ball_bottom(r: f64, a: &P3, b: &P3, x: f64, y: f64) -> SweptBottom {
     best
 }
 
-/// Minimum of a convex function on `[lo, hi]`, also comparing the ends (the
-/// minimum of a flat cutter's sweep is often at an end).
+/// Minimum of a convex function on `[lo, hi]`: the one golden-section
+/// search (`interp_core::geom::golden_section_argmin`, to 4 ulps of the unit
+/// parameter), then the ends, which win only when strictly lower (the
+/// minimum of a flat cutter's sweep is often at an end). On a flat bottom
+/// (ties) the first point the search saw is kept.
 fn golden_min(f: impl Fn(f64) -> f64, lo: f64, hi: f64) -> (f64, f64) {
-    const INV_PHI: f64 = 0.618_033_988_749_894_9;
-    let (mut a, mut b) = (lo, hi);
-    let mut c = b - INV_PHI * (b - a);
-    let mut d = a + INV_PHI * (b - a);
-    let (mut fc, mut fd) = (f(c), f(d));
-    for _ in 0..GOLDEN_STEPS {
-        if b - a <= f64::EPSILON * 4.0 {
-            break;
-        }
-        if fc <= fd {
-            b = d;
-            d = c;
-            fd = fc;
-            c = b - INV_PHI * (b - a);
-            fc = f(c);
-        } else {
-            a = c;
-            c = d;
-            fc = fd;
-            d = a + INV_PHI * (b - a);
-            fd = f(d);
-        }
-    }
-    let mut best = if fc <= fd { (c, fc) } else { (d, fd) };
+    let mut best = golden_section_argmin(&f, lo, hi, GOLDEN_STEPS, f64::EPSILON * 4.0);
     for t in [lo, hi] {
         let v = f(t);
         if v < best.1 {
@@ -269,6 +251,32 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A bull cutter moving level has a flat bottom (its flat disc) over a
+    /// range of `t`: the search's ties keep the first point it saw there,
+    /// which is on the flat (the exact height), and a lower end still wins.
+    #[test]
+    fn level_bull_sweep_ties_keep_a_point_on_the_flat() {
+        let bull = Cutter::Bull {
+            diameter: 10.0,
+            corner_radius: 2.0,
+        };
+        let (a, b) = (P3::new(0.0, 0.0, 1.0), P3::new(20.0, 0.0, 1.0));
+        // 2 mm off the path: within the flat (radius 3) for t in [0.138, 0.362].
+        let s = swept_bottom(&bull, &a, &b, 5.0, 2.0).unwrap();
+        assert_eq!(s.z, 1.0);
+        let along = (0.0..=1.0).contains(&s.t) && (20.0 * s.t - 5.0).hypot(2.0) <= 3.0;
+        assert!(along, "t = {}", s.t);
+        // 4 mm past the end only the end's torus reaches the point: t = 1,
+        // the ends compared after the search.
+        let s = swept_bottom(&bull, &a, &b, 24.0, 0.0).unwrap();
+        assert_eq!(s.t, 1.0);
+        assert!((s.z - (3.0 - 3f64.sqrt())).abs() < 1e-12, "{}", s.z);
+        // The search's tie rule: of equal values the first seen stays.
+        let (t, v) = golden_min(|_| 3.0, 0.0, 1.0);
+        assert_eq!(v, 3.0);
+        assert_eq!(t, 1.0 - 0.618_033_988_749_894_9);
     }
 
     #[test]
