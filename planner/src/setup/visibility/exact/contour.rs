@@ -95,8 +95,8 @@ struct Edge {
     t2: u32,
     /// The ends of the edge (corners `k`, `k + 1` of `t`), the third
     /// corner of `t` and that of `t2` (the first end when there is none),
-    /// copied here so that the walk reads them in order.
-    corners: [V3; 4],
+    /// as indices into [`ContourTree::points`].
+    corners: [u32; 4],
 }
 
 /// A bounding volume hierarchy over the mesh's edges, each bounding the
@@ -106,6 +106,8 @@ struct Edge {
 pub(in crate::setup::visibility) struct ContourTree {
     nodes: Vec<Node>,
     edges: Vec<Edge>,
+    /// The mesh's vertices (a compact copy the walk reads).
+    points: Vec<V3>,
 }
 
 /// Whether a subtree may hold a contour edge.
@@ -139,19 +141,14 @@ impl ContourTree {
                     other[(corner + 1) % 3] == tri[(k + 1) % 3] && other[(corner + 2) % 3] == tri[k]
                 };
                 let far = if t2 == NONE {
-                    c[k].coords
+                    tri[k]
                 } else {
-                    mesh.vertices[mesh.triangles[t2 as usize][corner] as usize].coords
+                    mesh.triangles[t2 as usize][corner]
                 };
                 edges.push(Edge {
                     t: t as u32,
                     t2,
-                    corners: [
-                        c[k].coords,
-                        c[(k + 1) % 3].coords,
-                        c[(k + 2) % 3].coords,
-                        far,
-                    ],
+                    corners: [tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3], far],
                 });
                 plain.push(consistent);
                 mids.push(mid);
@@ -161,6 +158,7 @@ impl ContourTree {
         let mut tree = Self {
             nodes: Vec::with_capacity(2 * edges.len() / LEAF_EDGES + 1),
             edges: Vec::with_capacity(edges.len()),
+            points: mesh.vertices.iter().map(|v| v.coords).collect(),
         };
         if !edges.is_empty() {
             let ctx = Build {
@@ -1035,7 +1033,7 @@ impl Exact<'_> {
             i = node.end as usize;
             for e in &tree.edges[node.first as usize..node.first as usize + node.count as usize] {
                 let (t, t2) = (e.t as usize, e.t2);
-                let [ca, cb, c1, c2] = &e.corners;
+                let [ca, cb, c1, c2] = e.corners.map(|v| &tree.points[v as usize]);
                 // Occluders have a corner in front (checked here before the
                 // cached test that also wants a cone).
                 let ends = n.dot(ca) > level || n.dot(cb) > level;
