@@ -79,7 +79,9 @@ pub struct SetupConfig {
     /// Cells of a coarse sphere whose nearest cells are evaluated first to
     /// seed the lower bounds of the search; 0 (or a sphere with at most 4×
     /// as many cells) evaluates every cell exactly. The answer does not
-    /// depend on it, only the time. Default 320.
+    /// depend on it, only the time. Default 20 (the icosahedron's faces):
+    /// the search then evaluates the cells near the best first, and every
+    /// sphere size measured ran fastest with it (BENCHMARKS.md).
     pub probe_cells: usize,
     /// Setups whose area is within what `equivalent_cells` cell spacings
     /// more on both range sums of the best would add are reported as
@@ -94,7 +96,7 @@ impl Default for SetupConfig {
             grazing_margin_deg: 0.0,
             exact_cells: true,
             fit_tolerance_deg: 1e-9,
-            probe_cells: 320,
+            probe_cells: 20,
             equivalent_cells: 1.0,
         }
     }

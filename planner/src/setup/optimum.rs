@@ -101,7 +101,11 @@ struct Work {
     rect: RectScratch,
     md: Vec<V3>,
     cells: Vec<u32>,
+    sorted: Vec<u32>,
     bounds: Vec<f64>,
+    /// `seen[k] == generation`: class `k` is in the bound's subset.
+    seen: Vec<u32>,
+    generation: u32,
 }
 
 /// What the search needs to know about the problem.
@@ -190,32 +194,88 @@ impl Problem<'_> {
         }
     }
 
-    /// The classes `subset` only (their boundaries in `boundaries`): lower
-    /// bounds of the keys.
+    /// Lower bounds of the keys of cell `i` from the classes that bind at
+    /// the sources `near` (nearest first), their boundaries built on first
+    /// use: the classes of one source after the other, until the bound
+    /// rules the cell out for good (`out`) or every source is in. With all
+    /// of them the bound is that of their union; stopping early only ever
+    /// leaves a cell ruled out that the whole union rules out too.
     fn bound(
         &self,
         i: usize,
-        subset: &[u32],
-        boundaries: &[Option<Boundary>],
+        near: &[usize],
+        exact: &[Option<Evaluation>],
+        boundaries: &Boundaries,
+        out: &dyn Fn(&Bounds) -> bool,
         w: &mut Work,
-    ) -> (Key, Option<Key>) {
+    ) -> Bounds {
         let dirs = self.sphere.cells();
         let p = &dirs[i];
         w.cells.clear();
-        for &k in subset {
-            if !self.map.visible(self.classes.reps[k as usize], i) {
-                let b = boundaries[k as usize]
-                    .as_ref()
-                    .expect("built before bounding");
-                w.cells.push(b.nearest(p, dirs, &mut w.bounds));
+        w.generation = w.generation.wrapping_add(1);
+        if w.generation == 0 || w.seen.len() != self.classes.classes {
+            w.seen.clear();
+            w.seen.resize(self.classes.classes, 0);
+            w.generation = 1;
+        }
+        let mut result = ((0.0, 0.0), Some((0.0, 0.0)));
+        for (n, &s) in near.iter().enumerate() {
+            let before = w.cells.len();
+            let binding = &exact[s].as_ref().expect("sources are evaluated").binding;
+            for &k in binding {
+                if w.seen[k as usize] == w.generation {
+                    continue;
+                }
+                w.seen[k as usize] = w.generation;
+                if !self.map.visible(self.classes.reps[k as usize], i) {
+                    let b = boundaries.get(k, self);
+                    w.cells.push(b.nearest(p, dirs, &mut w.bounds));
+                }
+            }
+            if w.cells.len() == before && n > 0 {
+                // No new MD point: the same bound.
+                continue;
+            }
+            w.sorted.clear();
+            w.sorted.extend_from_slice(&w.cells);
+            w.sorted.sort_unstable();
+            w.sorted.dedup();
+            w.md.clear();
+            w.md.extend(w.sorted.iter().map(|&c| dirs[c as usize]));
+            let solved = self.solve(p, w);
+            result = (solved.best_lower, solved.fit_lower);
+            if out(&result) {
+                break;
             }
         }
-        w.cells.sort_unstable();
-        w.cells.dedup();
-        w.md.clear();
-        w.md.extend(w.cells.iter().map(|&c| dirs[c as usize]));
-        let s = self.solve(p, w);
-        (s.best_lower, s.fit_lower)
+        result
+    }
+}
+
+/// Lower bounds of a cell's keys: the least key, and the least that fits
+/// (`None`: nothing fits).
+type Bounds = (Key, Option<Key>);
+
+/// The boundaries of the classes' cones, each built the first time a
+/// bound needs it (by whichever thread gets there first).
+struct Boundaries {
+    cells: Vec<std::sync::OnceLock<Boundary>>,
+    built: AtomicUsize,
+}
+
+impl Boundaries {
+    fn new(classes: usize) -> Self {
+        Self {
+            cells: (0..classes).map(|_| std::sync::OnceLock::new()).collect(),
+            built: AtomicUsize::new(0),
+        }
+    }
+
+    fn get(&self, k: u32, prob: &Problem) -> &Boundary {
+        self.cells[k as usize].get_or_init(|| {
+            self.built.fetch_add(1, Ordering::Relaxed);
+            Boundary::new(prob.map, prob.classes.reps[k as usize], prob.sphere)
+        })
     }
 }
 
@@ -328,7 +388,7 @@ pub(super) fn search(
     let mut lower: Vec<(Key, Option<Key>)> = vec![((0.0, 0.0), Some((0.0, 0.0))); m];
     let mut reach: Vec<f64> = vec![2.0; m];
     let mut sources: Vec<usize> = Vec::new();
-    let mut boundaries: Vec<Option<Boundary>> = (0..prob.classes.classes).map(|_| None).collect();
+    let boundaries = Boundaries::new(prob.classes.classes);
     // Every cell evaluated at once: no bounds, so no binding classes.
     let everything = prob.probe_cells == 0 || prob.probe_cells * 4 >= m;
     let evaluate = |i: usize, w: &mut Work| prob.evaluate(i, w, !everything);
@@ -378,33 +438,23 @@ pub(super) fn search(
     };
     // The classes a cell's bound uses: those binding at its nearest
     // sources; and the cosine of the angle to the farthest of them.
-    let subset_of =
-        |i: usize, sources: &[usize], exact: &[Option<Evaluation>]| -> (Vec<u32>, f64) {
-            let mut near: Vec<(f64, usize)> = sources
-                .iter()
-                .map(|&s| (dirs[s].dot(&dirs[i]), s))
-                .collect();
-            let k = NEAREST_SOURCES.min(near.len());
-            if k < near.len() {
-                near.select_nth_unstable_by(k, |a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
-            }
-            near.truncate(k);
-            let far = near.iter().map(|x| x.0).fold(1.0, f64::min);
-            let mut classes: Vec<u32> = near
-                .iter()
-                .flat_map(|&(_, s)| {
-                    exact[s]
-                        .as_ref()
-                        .expect("sources are evaluated")
-                        .binding
-                        .iter()
-                        .copied()
-                })
-                .collect();
-            classes.sort_unstable();
-            classes.dedup();
-            (classes, far)
-        };
+    // The sources whose binding classes bound a cell (nearest first), and
+    // the cosine of the angle to the farthest of them.
+    let sources_of = |i: usize, sources: &[usize]| -> (Vec<usize>, f64) {
+        let mut near: Vec<(f64, usize)> = sources
+            .iter()
+            .map(|&s| (dirs[s].dot(&dirs[i]), s))
+            .collect();
+        let order = |a: &(f64, usize), b: &(f64, usize)| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1));
+        let k = NEAREST_SOURCES.min(near.len());
+        if k < near.len() {
+            near.select_nth_unstable_by(k, order);
+        }
+        near.truncate(k);
+        near.sort_unstable_by(order);
+        let far = near.iter().map(|x| x.0).fold(1.0, f64::min);
+        (near.into_iter().map(|x| x.1).collect(), far)
+    };
     // Whether a cell is ruled out for the objective shown with equivalents
     // (`wide`) or only for the optimum.
     let thresholds = |exact: &[Option<Evaluation>], mar_wide: bool| {
@@ -448,43 +498,40 @@ pub(super) fn search(
             // Re-bound the open cells a new source is near.
             let rebound: Vec<usize> = cand.iter().copied().filter(|&i| stale[i]).collect();
             if !rebound.is_empty() {
-                let subsets: Vec<(Vec<u32>, f64)> = rebound
-                    .par_iter()
-                    .map(|&i| subset_of(i, &sources, &exact))
-                    .collect();
-                let mut need: Vec<u32> = subsets
-                    .iter()
-                    .flat_map(|s| s.0.iter().copied())
-                    .filter(|&k| boundaries[k as usize].is_none())
-                    .collect();
-                need.sort_unstable();
-                need.dedup();
-                let built: Vec<Boundary> = need
-                    .par_iter()
-                    .map(|&k| Boundary::new(prob.map, prob.classes.reps[k as usize], prob.sphere))
-                    .collect();
-                if trace {
-                    eprintln!(
-                        "  built {} boundaries, subsets avg {:.1} classes",
-                        built.len(),
-                        subsets.iter().map(|s| s.0.len()).sum::<usize>() as f64
-                            / subsets.len() as f64
-                    );
-                }
-                for (k, b) in need.into_iter().zip(built) {
-                    boundaries[k as usize] = Some(b);
-                }
-                let f =
-                    |n: usize, w: &mut Work| prob.bound(rebound[n], &subsets[n].0, &boundaries, w);
+                let before = boundaries.built.load(Ordering::Relaxed);
+                // Ruled out whatever the final thresholds: above the best
+                // (plus the equivalence tolerance) for both objectives.
+                let out = |l: &Bounds| {
+                    let mar_out =
+                        t.0.is_some_and(|k| l.0.0 > k.0 + tolerance(k, prob.equivalent));
+                    let fit_out = match (l.1, t.1) {
+                        (None, _) => true,
+                        (Some(_), None) => false,
+                        (Some(f), Some(k)) => f.0 > k.0 + tolerance(k, prob.equivalent),
+                    };
+                    mar_out && fit_out
+                };
+                let f = |n: usize, w: &mut Work| {
+                    let i = rebound[n];
+                    let (near, far) = sources_of(i, &sources);
+                    (prob.bound(i, &near, &exact, &boundaries, &out, w), far)
+                };
                 let idx: Vec<usize> = (0..rebound.len()).collect();
-                for (n, l) in par_map(&idx, &f, Phase::Search, progress)
+                for (n, (l, far)) in par_map(&idx, &f, Phase::Search, progress)
                     .into_iter()
                     .enumerate()
                 {
                     let i = rebound[n];
                     lower[i] = l;
-                    reach[i] = subsets[n].1;
+                    reach[i] = far;
                     stale[i] = false;
+                }
+                if trace {
+                    eprintln!(
+                        "  bounded {} cells, built {} boundaries",
+                        rebound.len(),
+                        boundaries.built.load(Ordering::Relaxed) - before
+                    );
                 }
                 cand.retain(|&i| open(i, &lower, &t));
                 if cand.is_empty() {

@@ -14,9 +14,9 @@ use super::visibility::VisibilityMap;
 type V3 = Vector3<f64>;
 
 /// Patches with identical point visibility cones, and the map turned
-/// cell-major over those classes: `row(c)` has bit `k` set when cell `c` is in
-/// the cone of class `k`. Identical cones share their MD point, so the
-/// search runs over classes, not triangles.
+/// class-major over the cells: `column(w)[c]` has bit `k` set when cell `c`
+/// is in the cone of class `64·w + k`. Identical cones share their MD
+/// point, so the search runs over classes, not triangles.
 #[derive(Debug, Clone)]
 pub struct PvcClasses {
     /// Class of each patch (`None` when its cone is empty: no direction
@@ -27,8 +27,38 @@ pub struct PvcClasses {
     /// A patch of each class (its cone is the class's).
     pub reps: Vec<usize>,
     words: usize,
-    rows: Vec<u64>,
+    /// `words` columns of `cells` words each.
+    columns: Vec<u64>,
     cells: usize,
+}
+
+/// A fast hash of a row of the map (the classes are then checked bit for
+/// bit).
+fn row_hash(row: &[u64]) -> u64 {
+    const K: u64 = 0x9E37_79B9_7F4A_7C15;
+    row.iter().fold(row.len() as u64, |h, &w| {
+        (h.rotate_left(23) ^ w).wrapping_mul(K)
+    })
+}
+
+/// The 64×64 bit matrix `m` transposed: bit `j` of `m[i]` becomes bit `i`
+/// of `m[j]`.
+fn transpose64(m: &mut [u64; 64]) {
+    let mut width = 32;
+    let mut mask: u64 = 0x0000_0000_FFFF_FFFF;
+    while width != 0 {
+        let mut k = 0;
+        while k < 64 {
+            for i in k..k + width {
+                let t = ((m[i] >> width) ^ m[i + width]) & mask;
+                m[i] ^= t << width;
+                m[i + width] ^= t;
+            }
+            k += 2 * width;
+        }
+        width >>= 1;
+        mask ^= mask << width;
+    }
 }
 
 impl PvcClasses {
@@ -40,20 +70,29 @@ impl PvcClasses {
     /// about the same step of the MD walk ([`md_cells`]) share words of the
     /// bitsets and those words retire early.
     pub fn new(map: &VisibilityMap, cells: &[V3]) -> Self {
-        let mut index: HashMap<&[u64], u32> = HashMap::new();
+        let hashes: Vec<u64> = (0..map.patches())
+            .into_par_iter()
+            .map(|j| row_hash(map.pvc(j)))
+            .collect();
+        // Classes in the order of their first patch.
+        let mut index: HashMap<u64, Vec<u32>> = HashMap::new();
         let mut reps: Vec<usize> = Vec::new();
         let mut first_class = Vec::with_capacity(map.patches());
-        for j in 0..map.patches() {
+        for (j, &h) in hashes.iter().enumerate() {
             let pvc = map.pvc(j);
             if pvc.iter().all(|w| *w == 0) {
                 first_class.push(None);
                 continue;
             }
-            let next = reps.len() as u32;
-            let k = *index.entry(pvc).or_insert_with(|| {
-                reps.push(j);
-                next
-            });
+            let same = index.entry(h).or_default();
+            let k = match same.iter().find(|&&k| map.pvc(reps[k as usize]) == pvc) {
+                Some(&k) => k,
+                None => {
+                    reps.push(j);
+                    same.push((reps.len() - 1) as u32);
+                    (reps.len() - 1) as u32
+                }
+            };
             first_class.push(Some(k));
         }
         let classes = reps.len();
@@ -88,53 +127,67 @@ impl PvcClasses {
             .iter()
             .map(|c| c.map(|k| renumber[k as usize]))
             .collect();
+        let reps: Vec<usize> = order.iter().map(|&old| reps[old as usize]).collect();
+        // Each column: 64 classes' rows, transposed 64 cells at a time.
         let words = classes.div_ceil(64);
-        let mut rows = vec![0u64; words * map.cells()];
-        for (k, &old) in order.iter().enumerate() {
-            for (w, bits) in map.pvc(reps[old as usize]).iter().enumerate() {
-                let mut bits = *bits;
-                while bits != 0 {
-                    let c = w * 64 + bits.trailing_zeros() as usize;
-                    bits &= bits - 1;
-                    rows[c * words + k / 64] |= 1 << (k % 64);
+        let m = map.cells();
+        let mut columns = vec![0u64; words * m];
+        columns
+            .par_chunks_mut(m)
+            .enumerate()
+            .for_each(|(w, column)| {
+                let mut block = [0u64; 64];
+                for cw in 0..m.div_ceil(64) {
+                    for (i, b) in block.iter_mut().enumerate() {
+                        let k = w * 64 + i;
+                        *b = if k < classes { map.pvc(reps[k])[cw] } else { 0 };
+                    }
+                    transpose64(&mut block);
+                    let n = (m - cw * 64).min(64);
+                    column[cw * 64..cw * 64 + n].copy_from_slice(&block[..n]);
                 }
-            }
-        }
+            });
         Self {
             class_of,
             classes,
-            reps: order.iter().map(|&old| reps[old as usize]).collect(),
+            reps,
             words,
-            rows,
-            cells: map.cells(),
+            columns,
+            cells: m,
         }
     }
 
-    fn row(&self, cell: usize) -> &[u64] {
-        &self.rows[cell * self.words..(cell + 1) * self.words]
+    /// Bits of classes `64·w ..` per cell.
+    fn column(&self, w: usize) -> &[u64] {
+        &self.columns[w * self.cells..(w + 1) * self.cells]
+    }
+
+    /// Bits of the classes `64·w ..` that exist.
+    fn full(&self, w: usize) -> u64 {
+        if w + 1 == self.words && !self.classes.is_multiple_of(64) {
+            (1u64 << (self.classes % 64)) - 1
+        } else {
+            u64::MAX
+        }
     }
 
     /// The cells in every class's cone: the tool axes that reach all
     /// reachable patches without rotary motion (Group II empty).
     pub fn common_cells(&self) -> Vec<usize> {
-        let full = |w: usize| {
-            if w + 1 == self.words && !self.classes.is_multiple_of(64) {
-                (1u64 << (self.classes % 64)) - 1
-            } else {
-                u64::MAX
+        let mut all = vec![true; self.cells];
+        for w in 0..self.words {
+            let full = self.full(w);
+            for (ok, &x) in all.iter_mut().zip(self.column(w)) {
+                *ok &= x == full;
             }
-        };
-        (0..self.cells)
-            .filter(|&c| self.row(c).iter().enumerate().all(|(w, &x)| x == full(w)))
-            .collect()
+        }
+        (0..self.cells).filter(|&c| all[c]).collect()
     }
 }
 
 /// Reusable memory of one search thread.
 #[derive(Debug, Default)]
 pub struct Scratch {
-    unassigned: Vec<u64>,
-    active: Vec<usize>,
     order: Vec<u32>,
     keys: Vec<f64>,
     /// Bucket of each cell, and where each bucket starts in `order`.
@@ -145,6 +198,8 @@ pub struct Scratch {
     pub md: Vec<u32>,
     /// For each of `md`, one class whose MD point it is.
     pub md_class: Vec<u32>,
+    /// Per step of the walk, the least class first reached there.
+    step_first: Vec<u32>,
 }
 
 /// Most buckets of the counting sort of cells by distance from the
@@ -166,55 +221,52 @@ pub fn md_cells(
     candidate: usize,
     scratch: &mut Scratch,
 ) -> usize {
-    let words = classes.words;
     scratch.md.clear();
     scratch.md_class.clear();
-    scratch.unassigned.clear();
-    scratch.unassigned.resize(words, u64::MAX);
-    if !classes.classes.is_multiple_of(64) {
-        scratch.unassigned[words - 1] = (1u64 << (classes.classes % 64)) - 1;
-    }
-    scratch.active.clear();
-    scratch.active.extend(0..words);
-    let mut remaining = classes.classes;
     order_by_angle(cells, candidate, scratch);
-    let mut group_ii = 0;
-    // Buckets are put in exact order only when the walk reaches them: it
-    // usually stops well before the far side of the sphere.
-    let mut sorted_to = 0;
-    for step in 0..scratch.order.len() {
-        if step == sorted_to as usize {
-            sorted_to = sort_bucket_at(step, scratch);
-        }
-        let c = scratch.order[step];
-        let row = classes.row(c as usize);
-        let mut hit = 0usize;
-        let mut first = u32::MAX;
-        let mut k = 0;
-        while k < scratch.active.len() {
-            let w = scratch.active[k];
-            let x = scratch.unassigned[w] & row[w];
+    // Per step of the walk: the least class first reached there, and how
+    // many. Each word of classes walks on its own until all of its classes
+    // are reached (its column stays in cache); buckets are put in exact
+    // order only when some word reaches them, and the walk usually stops
+    // well before the far side of the sphere.
+    scratch.step_first.clear();
+    scratch.step_first.resize(cells.len(), u32::MAX);
+    let mut sorted_to = 0usize;
+    let mut last = 0;
+    let mut group_ii = classes.classes;
+    for w in 0..classes.words {
+        let column = classes.column(w);
+        let mut unassigned = classes.full(w);
+        let mut step = 0;
+        while unassigned != 0 {
+            if step == sorted_to {
+                sorted_to = sort_bucket_at(step, scratch) as usize;
+            }
+            let x = unassigned & column[scratch.order[step] as usize];
             if x != 0 {
-                hit += x.count_ones() as usize;
-                first = first.min((w * 64) as u32 + x.trailing_zeros());
-                scratch.unassigned[w] &= !x;
+                unassigned &= !x;
+                let first = &mut scratch.step_first[step];
+                *first = (*first).min((w * 64) as u32 + x.trailing_zeros());
+                if step == 0 {
+                    group_ii -= x.count_ones() as usize;
+                }
             }
-            if scratch.unassigned[w] == 0 {
-                scratch.active.swap_remove(k);
-            } else {
-                k += 1;
-            }
+            step += 1;
         }
-        remaining -= hit;
-        if step == 0 {
-            debug_assert_eq!(c as usize, candidate);
-            group_ii = remaining;
-        } else if hit > 0 {
-            scratch.md.push(c);
+        last = last.max(step);
+    }
+
+    debug_assert!(
+        scratch
+            .order
+            .first()
+            .is_none_or(|&c| c as usize == candidate)
+    );
+    for step in 1..last {
+        let first = scratch.step_first[step];
+        if first != u32::MAX {
+            scratch.md.push(scratch.order[step]);
             scratch.md_class.push(first);
-        }
-        if remaining == 0 {
-            break;
         }
     }
     group_ii
@@ -385,5 +437,94 @@ pub(super) fn split_theta(theta: f64, m: &AxisRanges) -> (f64, f64) {
         (theta * m.theta_l / total, theta * m.theta_s / total)
     } else {
         (theta, 0.0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::{TriMesh, WeldOptions};
+    use crate::setup::samples::{rotated, teapot, z_to};
+    use crate::setup::sphere::GeodesicSphere;
+    use crate::setup::visibility::{VisibilityOptions, compute};
+
+    #[test]
+    fn transpose64_moves_bit_j_of_row_i_to_bit_i_of_row_j() {
+        let mut state = 0x2545_F491_4F6C_DD1Du64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        for _ in 0..8 {
+            let m: [u64; 64] = std::array::from_fn(|_| next());
+            let mut t = m;
+            transpose64(&mut t);
+            for i in 0..64 {
+                for j in 0..64 {
+                    assert_eq!(m[i] >> j & 1, t[j] >> i & 1, "bit ({i}, {j})");
+                }
+            }
+        }
+    }
+
+    /// The MD walk (one word of classes at a time, over the class-major
+    /// columns) against the definition: each class not holding the
+    /// candidate has its MD point at the first cell of its cone in the
+    /// order of [`nearer`]; the walk lists each such cell once, in that
+    /// order, with the least class whose MD point it is.
+    #[test]
+    fn md_cells_are_the_nearest_cells_of_each_cone() {
+        let tilt = z_to(&V3::new(0.3, -0.2, 0.9).normalize());
+        let mesh = TriMesh::from_triangles(
+            &rotated(&teapot(10, 12, 5, 6), &tilt),
+            WeldOptions::default(),
+        )
+        .expect("valid sample");
+        let sphere = GeodesicSphere::with_frequency(6);
+        let map = compute(&mesh, &sphere, VisibilityOptions::default(), &|_, _| {});
+        let classes = PvcClasses::new(&map, sphere.cells());
+        assert!(classes.classes > 64, "several words of classes");
+        let dirs = sphere.cells();
+        let mut scratch = Scratch::default();
+        let mut points = 0;
+        for candidate in (0..sphere.len()).step_by(7) {
+            let p = dirs[candidate];
+            let group_ii = md_cells(&classes, dirs, candidate, &mut scratch);
+            let mut expected: Vec<(u32, u32)> = Vec::new();
+            let mut outside = 0;
+            for (k, &rep) in classes.reps.iter().enumerate() {
+                if map.visible(rep, candidate) {
+                    continue;
+                }
+                outside += 1;
+                let md = (0..sphere.len() as u32)
+                    .filter(|&c| map.visible(rep, c as usize))
+                    .reduce(|a, b| if nearer(&p, dirs, b, a) { b } else { a })
+                    .expect("a class's cone is not empty");
+                match expected.iter_mut().find(|e| e.0 == md) {
+                    Some(e) => e.1 = e.1.min(k as u32),
+                    None => expected.push((md, k as u32)),
+                }
+            }
+            expected.sort_by(|a, b| {
+                if nearer(&p, dirs, a.0, b.0) {
+                    std::cmp::Ordering::Less
+                } else {
+                    std::cmp::Ordering::Greater
+                }
+            });
+            let got: Vec<(u32, u32)> = scratch
+                .md
+                .iter()
+                .copied()
+                .zip(scratch.md_class.iter().copied())
+                .collect();
+            assert_eq!(group_ii, outside, "candidate {candidate}");
+            assert_eq!(got, expected, "candidate {candidate}");
+            points += got.len();
+        }
+        assert!(points > 1000, "{points} MD points");
     }
 }

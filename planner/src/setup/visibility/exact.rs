@@ -41,6 +41,10 @@ use nalgebra::{Point3, Vector3};
 use super::{CAP_MARGIN, CellGrid, RayCaster, is_open};
 use crate::setup::sphere::{CellChunks, GeodesicSphere};
 
+mod contour;
+
+pub(super) use contour::ContourTree;
+
 type V3 = Vector3<f64>;
 
 /// A visible piece of a cell thinner than this (radians) may be missed: the
@@ -407,6 +411,42 @@ pub(super) struct ExactScratch {
     face_hint: usize,
     /// Stack of the ray tests.
     rays: Vec<usize>,
+    /// `occ_stamp[t] == generation`: `occ[t]` says whether triangle `t` is
+    /// an occluder of the patch (the contour method).
+    occ_stamp: Vec<u32>,
+    occ: Vec<bool>,
+    /// The contour method's cells: centres in front, cells of runs closed
+    /// by a flood, cells across the horizon with a point of them in front,
+    /// the flood's stack, and boundary cells left to rays.
+    front: Vec<u64>,
+    todo: Vec<u64>,
+    band_at: Vec<(u32, V3)>,
+    dfs: Vec<u32>,
+    pending: Vec<u32>,
+    /// The contour's arcs, the (cell, arc) pairs of the cells they cross,
+    /// and the arc being marked ([`NONE`]: none).
+    arcs: Vec<contour::Arc>,
+    arc_of: Vec<(u32, u32)>,
+    recording: u32,
+    /// Per cell: the patch it was last seen for and its state in the count
+    /// propagation; its point of known count; the propagation's queue; the
+    /// cells of runs known open.
+    settled: Vec<(u32, contour::Settled)>,
+    refs: Vec<(V3, i32)>,
+    queue: Vec<u32>,
+    known_open: Vec<u64>,
+    /// Non-boundary cells next to a counted one that no count reached.
+    unsure: Vec<u32>,
+    /// The arcs of the cell being visited.
+    ids: Vec<u32>,
+    /// Boundary cells the contour method decided by counts, and by rays
+    /// (for the tests and the docs' figures).
+    pub(super) counted: usize,
+    pub(super) by_rays: usize,
+    /// Whether the contour method lists the highest point of each band
+    /// cell it opens in `witnesses` (the tests check them; others only
+    /// count them).
+    pub(super) keep_witnesses: bool,
 }
 
 impl ExactScratch {
@@ -423,12 +463,22 @@ impl ExactScratch {
             self.flooded.clear();
             self.flooded.resize(triangles, 0);
             self.flood_generation = 0;
+            self.occ_stamp.clear();
+            self.occ_stamp.resize(triangles, 0);
+            self.occ.clear();
+            self.occ.resize(triangles, false);
+            self.settled.iter_mut().for_each(|s| s.0 = 0);
             self.generation = 1;
         }
         if self.blocker.len() != cells {
             self.blocker.clear();
             self.blocker.resize(cells, NONE);
+            self.settled.clear();
+            self.settled.resize(cells, (0, contour::Settled::No));
+            self.refs.clear();
+            self.refs.resize(cells, (V3::zeros(), 0));
         }
+        self.recording = NONE;
         self.cones.clear();
         self.processed = 0;
         self.skipped.clear();
@@ -440,6 +490,8 @@ impl ExactScratch {
         self.list.clear();
         self.witnesses.clear();
         self.certified = 0;
+        self.counted = 0;
+        self.by_rays = 0;
     }
 
     /// The rasteriser met a triangle in front of the patch.
@@ -476,6 +528,9 @@ impl ExactScratch {
     }
 
     fn mark(&mut self, cell: usize) {
+        if self.recording != NONE {
+            self.arc_of.push((cell as u32, self.recording));
+        }
         let (w, b) = (cell / 64, cell % 64);
         if self.candidate[w] >> b & 1 == 0 {
             self.candidate[w] |= 1 << b;
@@ -553,7 +608,7 @@ impl Exact<'_> {
                     m.dot(&cone.dirs[(k + 2) % 3]) * m.dot(&c2) >= 0.0
                 };
                 if outline {
-                    self.mark_arc(a.normalize(), b.normalize(), n, row, w);
+                    self.mark_arc(a.normalize(), b.normalize(), n, |c| !is_open(row, c), w);
                 }
             }
         }
@@ -567,11 +622,19 @@ impl Exact<'_> {
         }
         // 2. Candidates the occluding surface covers whole, proved without
         // the hierarchy; the rest against every occluder that meets them.
-        let mut added = if self.flood {
+        let added = if self.flood {
             self.certify(p, row, w)
         } else {
             0
         };
+        added + self.decide(p, row, w)
+    }
+
+    /// Tests the candidates left in `w.list` exactly against every occluder
+    /// that may meet them (the gather); opens those some direction of which
+    /// reaches the patch and returns how many.
+    fn decide(&self, p: &PatchFrame, row: &mut [u64], w: &mut ExactScratch) -> u32 {
+        let mut added = 0;
         self.gather(p, w);
         w.list.sort_unstable();
         w.pairs.sort_unstable();
@@ -598,9 +661,16 @@ impl Exact<'_> {
         added
     }
 
-    /// Marks the blocked cells the arc from `ua` to `ub` crosses (its part
-    /// in front of the plane with normal `n`).
-    fn mark_arc(&self, mut ua: V3, mut ub: V3, n: &V3, row: &[u64], w: &mut ExactScratch) {
+    /// Marks the cells the arc from `ua` to `ub` crosses (its part in front
+    /// of the plane with normal `n`) that `wanted` accepts.
+    fn mark_arc(
+        &self,
+        mut ua: V3,
+        mut ub: V3,
+        n: &V3,
+        wanted: impl Fn(usize) -> bool,
+        w: &mut ExactScratch,
+    ) {
         // Clip to the front half: the crossing of the arc with the plane.
         let (da, db) = (ua.dot(n), ub.dot(n));
         if da < 0.0 {
@@ -612,7 +682,7 @@ impl Exact<'_> {
         if let Some(c) = self.sphere.locate(&ua, &mut w.face_hint)
             && self.sphere.locate(&ub, &mut w.face_hint) == Some(c)
         {
-            if !is_open(row, c) {
+            if wanted(c) {
                 w.mark(c);
             }
             return;
@@ -645,7 +715,7 @@ impl Exact<'_> {
             let pm = pa.cross(&pb);
             let grid = self.grid;
             grid.any_in_cap(&centre, r.cos().max(0.0), r.sin(), |i, _| {
-                if !is_open(row, i) && self.arc_meets_cell(&pa, &pb, &pm, i) {
+                if wanted(i) && self.arc_meets_cell(&pa, &pb, &pm, i) {
                     w.mark(i);
                 }
                 false

@@ -1,0 +1,1136 @@
+//! The exact map from the occluders' contour (the default of `compute`).
+//!
+//! A direction `d` in front of the patch (`d·n > min_dot`) reaches it when
+//! no occluder's cone holds it; the occluders are the triangles with a
+//! corner in front of the patch's plane and a cone ([`Cone::new`]), as for
+//! the rasteriser and the exact test. The number of cones holding `d` (its
+//! **count**) changes only across the **contour**: the arcs of the
+//! occluders' edges whose neighbour across is missing, is no occluder, or
+//! lies on the same side of the edge seen from the patch (a silhouette).
+//! Across any other edge one cone ends where the other begins. Per patch:
+//!
+//! 1. **Contour.** The edges are found through a hierarchy over the mesh's
+//!    edges ([`ContourTree`]): a subtree behind the patch's plane holds no
+//!    occluder, and one whose triangles are all occluders facing the patch
+//!    the same way (bounded by a cone of normals and a sphere, with a
+//!    margin that keeps the signs of the edge tests certain), with no
+//!    border and no edge of inconsistent orientation, holds no contour.
+//!    Each contour arc (clipped to the front half) carries its weight: how
+//!    many cones a path enters when it crosses it.
+//! 2. **Boundary cells**: the cells the arcs cross. No arc meets any other
+//!    cell, so over a run of such cells (joined across edges with a point
+//!    in front) the count is one number; every cell starts open.
+//! 3. **Counts.** One any-hit ray at a point of a run next to a boundary
+//!    cell gives count 0 on their shared edge when the run is open; from
+//!    there counts are carried across boundary cells by adding the weights
+//!    of the arcs a path crosses. A boundary cell is open when some point of
+//!    it has count 0: the point it was reached at, nine test points, or a
+//!    point just off each piece of arc inside it on the side of fewer cones
+//!    (a part of count 0 lies on that side of every piece around it). A run
+//!    next to a point of positive count is closed by a flood.
+//! 4. **The rest** — cells where a path passes within round-off of an arc's
+//!    end or circle, cells no count reached and the runs next to them — are
+//!    settled by rays, as the exact pass settles its candidates (a ray, the
+//!    flood certificate, the nine points, then the gather and the exact
+//!    cell test). A patch whose counts disagree (round-off) is mapped by
+//!    the rasteriser and the exact pass instead.
+//!
+//! The map is that of the rasteriser followed by the exact pass (every cell
+//! some direction of which reaches the patch); the test
+//! `contour_map_equals_the_rasterised_exact_map` compares them bit for bit.
+//! The cost is the contour, a few hundred edges on a fine part, instead of
+//! every occluder in front.
+
+use bvh::bvh::BvhNode;
+use nalgebra::Vector3;
+
+use super::{Curve, Exact, ExactScratch, NONE, PatchFrame};
+use crate::mesh::TriMesh;
+use crate::setup::visibility::{RayCaster, hits_triangle, is_open};
+
+type V3 = Vector3<f64>;
+
+/// Edges per leaf of [`ContourTree`].
+const LEAF_EDGES: usize = 4;
+
+/// One node of [`ContourTree`], bounding the triangles of its edges.
+#[derive(Debug, Clone, Copy)]
+struct Node {
+    /// Box of the corners.
+    lo: V3,
+    hi: V3,
+    /// Cone of the triangles' unit normals: axis, cosine and sine of its
+    /// half-angle (`cos_a ≤ 0`: 90° or more, of no use).
+    axis: V3,
+    cos_a: f64,
+    sin_a: f64,
+    /// The corners along `axis` (least, most); their largest distance from
+    /// the line along `axis` through `mid` (a point of it); and the
+    /// bounding sphere (centre `mid`, radius `radius`).
+    along: (f64, f64),
+    across: f64,
+    mid: V3,
+    /// `axis·mid`.
+    axis_mid: f64,
+    radius: f64,
+    /// Smallest twice-area of a triangle.
+    min_area2: f64,
+    /// Index of the first node after this subtree (pre-order).
+    end: u32,
+    /// A leaf's edges `edges[first..first + count]` (count 0: inner node,
+    /// its children at `i + 1` and after that child's subtree).
+    first: u32,
+    count: u8,
+    /// Every edge has a triangle on each side, run the opposite ways: with
+    /// all triangles occluders facing the patch one way, none is contour.
+    plain: bool,
+}
+
+/// One undirected edge: triangle `t`, its edge `k` (corner `k` to `k + 1`),
+/// the triangle across (`NONE` at a border) and that one's corner off the
+/// edge.
+#[derive(Debug, Clone, Copy)]
+struct Edge {
+    t: u32,
+    t2: u32,
+    /// The ends of the edge (corners `k`, `k + 1` of `t`), the third
+    /// corner of `t` and that of `t2` (the first end when there is none),
+    /// as indices into [`ContourTree::points`].
+    corners: [u32; 4],
+}
+
+/// A bounding volume hierarchy over the mesh's edges, each bounding the
+/// one or two triangles on it, stored in pre-order with skip links so that
+/// the walk of [`Exact::mark_contour`] reads it front to back.
+#[derive(Debug)]
+pub(in crate::setup::visibility) struct ContourTree {
+    nodes: Vec<Node>,
+    edges: Vec<Edge>,
+    /// The mesh's vertices (a compact copy the walk reads).
+    points: Vec<V3>,
+}
+
+/// Whether a subtree may hold a contour edge.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Facing {
+    /// Some triangle may be an occluder facing the other way from another.
+    Mixed,
+    /// Every triangle is an occluder, all facing the patch one way.
+    Uniform,
+}
+
+impl ContourTree {
+    /// Builds the hierarchy over the edges of `mesh` (adjacency from
+    /// `caster`): median splits of the edges' midpoints along the box's
+    /// longest side, [`LEAF_EDGES`] edges per leaf.
+    pub(in crate::setup::visibility) fn new(mesh: &TriMesh, caster: &RayCaster) -> Self {
+        let mut edges = Vec::new();
+        let mut plain = Vec::new();
+        let mut mids = Vec::new();
+        for (t, tri) in mesh.triangles.iter().enumerate() {
+            for k in 0..3 {
+                let (t2, corner) = caster.across(t, k);
+                if t2 != NONE && (t2 as usize) < t {
+                    continue;
+                }
+                let c = mesh.corners(t);
+                let mid = (c[k].coords + c[(k + 1) % 3].coords) * 0.5;
+                // Opposite directions along the shared edge.
+                let consistent = t2 != NONE && {
+                    let other = mesh.triangles[t2 as usize];
+                    other[(corner + 1) % 3] == tri[(k + 1) % 3] && other[(corner + 2) % 3] == tri[k]
+                };
+                let far = if t2 == NONE {
+                    tri[k]
+                } else {
+                    mesh.triangles[t2 as usize][corner]
+                };
+                edges.push(Edge {
+                    t: t as u32,
+                    t2,
+                    corners: [tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3], far],
+                });
+                plain.push(consistent);
+                mids.push(mid);
+            }
+        }
+        let mut order: Vec<u32> = (0..edges.len() as u32).collect();
+        let mut tree = Self {
+            nodes: Vec::with_capacity(2 * edges.len() / LEAF_EDGES + 1),
+            edges: Vec::with_capacity(edges.len()),
+            points: mesh.vertices.iter().map(|v| v.coords).collect(),
+        };
+        if !edges.is_empty() {
+            let ctx = Build {
+                mesh,
+                edges: &edges,
+                plain: &plain,
+                mids: &mids,
+            };
+            ctx.node(&mut order, &mut tree);
+        }
+        tree
+    }
+}
+
+/// What building [`ContourTree`] reads.
+struct Build<'a> {
+    mesh: &'a TriMesh,
+    edges: &'a [Edge],
+    plain: &'a [bool],
+    mids: &'a [V3],
+}
+
+impl Build<'_> {
+    /// The triangles of edge `e`.
+    fn triangles(&self, e: u32) -> impl Iterator<Item = usize> + '_ {
+        let e = self.edges[e as usize];
+        std::iter::once(e.t as usize).chain((e.t2 != NONE).then_some(e.t2 as usize))
+    }
+
+    /// Appends the subtree over `set` to `tree` (pre-order); returns its
+    /// index.
+    fn node(&self, set: &mut [u32], tree: &mut ContourTree) -> usize {
+        let mesh = self.mesh;
+        let (mut lo, mut hi) = (V3::repeat(f64::INFINITY), V3::repeat(f64::NEG_INFINITY));
+        let mut sum = V3::zeros();
+        let mut min_area2 = f64::INFINITY;
+        let mut plain = true;
+        for &e in set.iter() {
+            plain &= self.plain[e as usize];
+            for t in self.triangles(e) {
+                for c in mesh.corners(t) {
+                    lo = lo.inf(&c.coords);
+                    hi = hi.sup(&c.coords);
+                }
+                sum += mesh.normals[t];
+                let c = mesh.corners(t);
+                min_area2 = min_area2.min((c[1] - c[0]).cross(&(c[2] - c[0])).norm());
+            }
+        }
+        let mid = (lo + hi) * 0.5;
+        let (axis, cos_a, sin_a) = if sum.norm() < 1e-9 {
+            (V3::z(), -1.0, 0.0)
+        } else {
+            let axis = sum.normalize();
+            let mut cos_a: f64 = 1.0;
+            for &e in set.iter() {
+                for t in self.triangles(e) {
+                    cos_a = cos_a.min(axis.dot(&mesh.normals[t]));
+                }
+            }
+            // Widened a little for round-off.
+            let half = cos_a.clamp(-1.0, 1.0).acos() + 1e-12;
+            (axis, half.cos(), half.sin())
+        };
+        let (mut below, mut above, mut across) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
+        for &e in set.iter() {
+            for t in self.triangles(e) {
+                for c in mesh.corners(t) {
+                    let h = axis.dot(&c.coords);
+                    let off = c.coords - mid;
+                    below = below.min(h);
+                    above = above.max(h);
+                    across = across.max((off - axis * axis.dot(&off)).norm());
+                }
+            }
+        }
+        let index = tree.nodes.len();
+        tree.nodes.push(Node {
+            lo,
+            hi,
+            axis,
+            cos_a,
+            sin_a,
+            along: (below, above),
+            across,
+            mid,
+            axis_mid: axis.dot(&mid),
+            radius: (hi - lo).norm() * 0.5,
+            min_area2,
+            end: 0,
+            first: 0,
+            count: 0,
+            plain,
+        });
+        if set.len() <= LEAF_EDGES {
+            let node = &mut tree.nodes[index];
+            node.first = tree.edges.len() as u32;
+            node.count = set.len() as u8;
+            tree.edges
+                .extend(set.iter().map(|&e| self.edges[e as usize]));
+        } else {
+            // Median split of the midpoints along the box's longest side.
+            let extent = hi - lo;
+            let axis = extent.imax();
+            let half = set.len() / 2;
+            set.select_nth_unstable_by(half, |&a, &b| {
+                self.mids[a as usize][axis].total_cmp(&self.mids[b as usize][axis])
+            });
+            let (left, right) = set.split_at_mut(half);
+            self.node(left, tree);
+            self.node(right, tree);
+        }
+        tree.nodes[index].end = tree.nodes.len() as u32;
+        index
+    }
+}
+
+impl ContourTree {
+    /// Whether every triangle of node `i` is an occluder facing the patch
+    /// the same way, with a margin that keeps the edge tests' signs and
+    /// [`Cone::new`] certain; `None` when the node lies behind the plane.
+    fn facing(&self, i: usize, p: &PatchFrame, level: f64, t_min: f64) -> Option<Facing> {
+        // Well above the round-off of n·x, well below t_min.
+        let slack = t_min * 1e-3;
+        let b = &self.nodes[i];
+        let n = p.normal;
+        // Bounds of n·x over the corners: from the box, and from the
+        // extent along the axis of the normals (much tighter than the box
+        // for a curved piece of surface).
+        let corner = |hi: bool| {
+            let mut sum = 0.0;
+            for k in 0..3 {
+                let up = (n[k] > 0.0) == hi;
+                sum += n[k] * if up { b.hi[k] } else { b.lo[k] };
+            }
+            sum
+        };
+        // n = na·axis + perp: n·x = na·(axis·x) + perp·x, and perp·x is
+        // perp·mid within |perp|·across.
+        let na = n.dot(&b.axis);
+        let base = n.dot(&b.mid) - na * b.axis_mid;
+        let spread = (1.0 - na * na).max(0.0).sqrt() * b.across;
+        let (h_far, h_near) = if na >= 0.0 {
+            (b.along.1, b.along.0)
+        } else {
+            (b.along.0, b.along.1)
+        };
+        let far = na * h_far + base + spread;
+        if far <= level - slack || corner(true) <= level - slack {
+            return None;
+        }
+        if !b.plain || b.cos_a <= 0.0 || b.min_area2 <= 0.0 {
+            return Some(Facing::Mixed);
+        }
+        let near = corner(false).max(na * h_near + base - spread);
+        if near <= level + slack {
+            return Some(Facing::Mixed);
+        }
+        let u = p.origin.coords - b.mid;
+        let dist = u.norm();
+        if dist <= b.radius {
+            return Some(Facing::Mixed);
+        }
+        // Each triangle's n̂·(o − x) is at least |u|·cos(β + α) − R (β the
+        // angle from the cone's axis to u), and at most the opposite.
+        let cos_b = b.axis.dot(&u) / dist;
+        let sin_b = (1.0 - cos_b * cos_b).max(0.0).sqrt();
+        let front = dist * (cos_b * b.cos_a - sin_b * b.sin_a) - b.radius;
+        let back = dist * (-cos_b * b.cos_a - sin_b * b.sin_a) - b.radius;
+        // The edge tests' products and the cone's distance test carry
+        // round-off of about ε·|corner − o|³; each triangle's n̂·(o − x) times
+        // its twice-area must stay well above it.
+        let reach = dist + b.radius;
+        let margin = 2.0 * t_min + 64.0 * f64::EPSILON * reach * reach * reach / b.min_area2;
+        if front > margin || back > margin {
+            Some(Facing::Uniform)
+        } else {
+            Some(Facing::Mixed)
+        }
+    }
+}
+
+impl RayCaster {
+    /// An occluder of the patch (see the module doc) that the ray
+    /// `origin + t·dir`, `t > t_min`, meets, if any; `occluder(t)` says
+    /// whether triangle `t` is one. Boxes behind the patch's plane hold
+    /// none and are not entered.
+    fn first_occluder(
+        &self,
+        p: &PatchFrame,
+        dir: &V3,
+        mut occluder: impl FnMut(usize) -> bool,
+        stack: &mut Vec<usize>,
+    ) -> Option<usize> {
+        if self.bvh.nodes.is_empty() {
+            return None;
+        }
+        let (origin, n) = (p.origin, p.normal);
+        let level = n.dot(&origin.coords) + self.t_min;
+        let inv = dir.map(|c| 1.0 / c);
+        let enter = |b: &bvh::aabb::Aabb<f64, 3>| {
+            let mut far = 0.0;
+            for k in 0..3 {
+                far += n[k] * if n[k] > 0.0 { b.max[k] } else { b.min[k] };
+            }
+            far > level && super::super::hits_box(origin, dir, &inv, b)
+        };
+        stack.clear();
+        stack.push(0);
+        while let Some(index) = stack.pop() {
+            match &self.bvh.nodes[index] {
+                BvhNode::Leaf { shape_index, .. } => {
+                    let t = *shape_index;
+                    if hits_triangle(origin, dir, &self.shapes[t].corners, self.t_min)
+                        && occluder(t)
+                    {
+                        return Some(t);
+                    }
+                }
+                BvhNode::Node {
+                    child_l_index,
+                    child_l_aabb,
+                    child_r_index,
+                    child_r_aabb,
+                    ..
+                } => {
+                    if enter(child_l_aabb) {
+                        stack.push(*child_l_index);
+                    }
+                    if enter(child_r_aabb) {
+                        stack.push(*child_r_index);
+                    }
+                }
+            }
+        }
+        None
+    }
+}
+
+impl ExactScratch {
+    /// Whether triangle `t` is an occluder of the patch: not the patch,
+    /// a corner in front of its plane, and a cone. Computed once per patch.
+    fn occluder(&mut self, caster: &RayCaster, p: &PatchFrame, level: f64, t: usize) -> bool {
+        if self.occ_stamp[t] == self.generation {
+            return self.occ[t];
+        }
+        let tri = &caster.shapes[t].corners;
+        let yes = t != p.skip
+            && tri.iter().any(|c| p.normal.dot(&c.coords) > level)
+            && super::blocks(p.origin, tri, caster.t_min);
+        self.occ_stamp[t] = self.generation;
+        self.occ[t] = yes;
+        yes
+    }
+}
+
+/// The point of the great-circle arc from `u` to `v` (unit, less than π
+/// apart) with the largest `d·n`, and that value.
+fn arc_max_dot(u: &V3, v: &V3, n: &V3) -> (f64, V3) {
+    let mut best = if u.dot(n) >= v.dot(n) {
+        (u.dot(n), *u)
+    } else {
+        (v.dot(n), *v)
+    };
+    let m = u.cross(v);
+    let norm = m.norm();
+    if norm > 0.0 {
+        let e = m / norm;
+        let q = n - e * e.dot(n);
+        let len = q.norm();
+        if len > 0.0 {
+            let x = q / len;
+            if u.cross(&x).dot(&e) >= 0.0 && x.cross(v).dot(&e) >= 0.0 && x.dot(n) > best.0 {
+                best = (x.dot(n), x);
+            }
+        }
+    }
+    best
+}
+
+/// Sign tests closer to zero than this (on unit vectors) are not trusted:
+/// the count is then not propagated through the cell.
+const SIDE_TOL: f64 = 1e-12;
+
+/// One contour arc seen from the patch: its ends (clipped to the front
+/// half), the unit normal of its great circle, and how many cones a path
+/// enters when it crosses from `d·m < 0` to `d·m > 0`.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Arc {
+    u: V3,
+    v: V3,
+    m: V3,
+    weight: i32,
+}
+
+/// What crossing a set of arcs along a path does to the count.
+enum Crossing {
+    /// The count changes by this much.
+    By(i32),
+    /// Too close to an arc's end or circle to tell.
+    Unsure,
+}
+
+/// The count change from `r` to `x` (a short path) across the arcs `ids`
+/// of `arcs`.
+fn crossings(r: &V3, x: &V3, ids: &[u32], arcs: &[Arc]) -> Crossing {
+    let path = r.cross(x);
+    let len = path.norm();
+    if len == 0.0 {
+        return Crossing::By(0);
+    }
+    let path = path / len;
+    let mut delta = 0;
+    for &id in ids {
+        let a = &arcs[id as usize];
+        let (sr, sx) = (a.m.dot(r), a.m.dot(x));
+        // An end of the path on the arc's circle: no crossing when that end
+        // is clearly off the arc itself.
+        let beside =
+            |q: &V3| a.u.cross(q).dot(&a.m) < -SIDE_TOL || q.cross(&a.v).dot(&a.m) < -SIDE_TOL;
+        if sr.abs() < SIDE_TOL || sx.abs() < SIDE_TOL {
+            let clear = (sr.abs() >= SIDE_TOL || beside(r)) && (sx.abs() >= SIDE_TOL || beside(x));
+            if clear {
+                continue;
+            }
+            return Crossing::Unsure;
+        }
+        if (sr > 0.0) == (sx > 0.0) {
+            continue;
+        }
+        let (su, sv) = (path.dot(&a.u), path.dot(&a.v));
+        if su.abs() < SIDE_TOL || sv.abs() < SIDE_TOL {
+            return Crossing::Unsure;
+        }
+        if (su > 0.0) == (sv > 0.0) {
+            continue;
+        }
+        // The two circles meet at ±q: the crossing counts when it is the
+        // point on both short arcs.
+        let q = path.cross(&a.m);
+        let (qa, qb) = (q.dot(&(a.u + a.v)), q.dot(&(r + x)));
+        if qa.abs() < SIDE_TOL || qb.abs() < SIDE_TOL {
+            return Crossing::Unsure;
+        }
+        if (qa > 0.0) == (qb > 0.0) {
+            delta += if sr < 0.0 { a.weight } else { -a.weight };
+        }
+    }
+    Crossing::By(delta)
+}
+
+/// The state of a boundary cell in the count propagation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Settled {
+    /// Not reached yet.
+    No,
+    /// Holds a point of known count (`ExactScratch::refs`), queued.
+    Reached,
+    /// Decided (open or closed).
+    Done,
+    /// The count could not be followed through it: settled by rays.
+    Rays,
+}
+
+impl Exact<'_> {
+    /// The row of the patch `p` by the contour method (module doc): `row`
+    /// holds on entry the cells whose centre is in front (`d·n >
+    /// min_dot`), `w.band` the cells within a cell radius behind the
+    /// horizon; on return the cells some direction of which reaches the
+    /// patch. Returns how many were decided by a direction other than their
+    /// centre (listed in `w.witnesses`), or `None` when the counts met
+    /// disagree (round-off): the caller then maps the patch the other way.
+    pub(in crate::setup::visibility) fn by_contour(
+        &self,
+        tree: &ContourTree,
+        p: &PatchFrame,
+        row: &mut [u64],
+        w: &mut ExactScratch,
+    ) -> Option<u32> {
+        let caster = self.caster;
+        let n = p.normal;
+        let level = n.dot(&p.origin.coords) + caster.t_min;
+        // Cells with a part in front: centres in front (`front`), and cells
+        // across the horizon with their highest point (`band_at`).
+        w.front.clear();
+        w.front.extend_from_slice(row);
+        w.band_at.clear();
+        for k in 0..w.band.len() {
+            let c = w.band[k];
+            // A point of the cell in front: a corner, or (when the horizon
+            // cuts an edge twice) the highest point.
+            let corners = &self.cells.corners[c as usize];
+            let at = match corners.iter().find(|x| x.dot(n) > p.min_dot) {
+                Some(x) => Some(*x),
+                None => {
+                    let (top, at) = self.cells.max_dot(c as usize, n);
+                    (top > p.min_dot).then_some(at)
+                }
+            };
+            if let Some(at) = at {
+                w.band_at.push((c, at));
+                row[c as usize / 64] |= 1 << (c % 64);
+            }
+        }
+        // 1–2. The contour, and the boundary cells it crosses.
+        w.arcs.clear();
+        w.arc_of.clear();
+        self.mark_contour(tree, p, level, w);
+        let mut added = 0;
+        if w.list.is_empty() {
+            // No contour in front: one count everywhere.
+            let seed = (0..row.len()).find(|&k| row[k] != 0);
+            if let Some(k) = seed {
+                let c = k * 64 + row[k].trailing_zeros() as usize;
+                let x = self.part_point(c, w);
+                if self.reaches(p, level, &x, w) {
+                    for k in 0..w.band_at.len() {
+                        let c = w.band_at[k].0;
+                        self.witness_top(c as usize, p, w);
+                        added += 1;
+                    }
+                } else {
+                    row.iter_mut().for_each(|x| *x = 0);
+                }
+            }
+            return Some(added);
+        }
+        w.arc_of.sort_unstable();
+        w.arc_of.dedup();
+        // Every cell with a part in front starts open; the boundary cells
+        // are decided one by one, the runs of the others that the counts
+        // show covered are closed by a flood.
+        let words = row.len();
+        w.todo.clear();
+        w.todo.resize(words, 0);
+        w.known_open.clear();
+        w.known_open.resize(words, 0);
+        for k in 0..w.list.len() {
+            let c = w.list[k] as usize;
+            row[c / 64] &= !(1 << (c % 64));
+            w.settled[c] = (w.generation, Settled::No);
+        }
+        w.queue.clear();
+        w.pending.clear();
+        w.unsure.clear();
+        for k in 0..w.list.len() {
+            let b = w.list[k] as usize;
+            if self.settled(b, w) != Settled::No || !self.has_part(b, w) {
+                continue;
+            }
+            // A seed: a point of known count on an edge shared with a cell
+            // of a run, found by one ray into that run.
+            let corners = self.cells.corners[b];
+            for (j, &c) in self.sphere.across(b).iter().enumerate() {
+                let c = c as usize;
+                if is_open(&w.candidate, c) || !self.has_part(c, w) || is_open(&w.todo, c) {
+                    continue;
+                }
+                let (top, q) = arc_max_dot(&corners[(j + 1) % 3], &corners[(j + 2) % 3], n);
+                if top <= p.min_dot {
+                    continue;
+                }
+                let x = self.part_point(c, w);
+                if self.reaches(p, level, &x, w) {
+                    w.known_open[c / 64] |= 1 << (c % 64);
+                    self.reach(b, q, 0, w);
+                    break;
+                }
+                if !self.flood_closed(c, p, row, w) {
+                    return None;
+                }
+            }
+            while let Some(b) = w.queue.pop() {
+                added += self.visit(b as usize, p, row, w)?;
+            }
+        }
+        // Cells of runs no count reached: by a ray each, with their run.
+        for k in 0..w.unsure.len() {
+            let c = w.unsure[k] as usize;
+            if is_open(&w.todo, c) || is_open(&w.known_open, c) {
+                continue;
+            }
+            let x = self.part_point(c, w);
+            if self.reaches(p, level, &x, w) {
+                w.known_open[c / 64] |= 1 << (c % 64);
+            } else if !self.flood_closed(c, p, row, w) {
+                return None;
+            }
+        }
+        // The cells the counts did not reach: by rays, and so are the runs
+        // next to them.
+        for k in 0..w.list.len() {
+            let b = w.list[k] as usize;
+            let s = self.settled(b, w);
+            if !(s == Settled::No || s == Settled::Rays) || !self.has_part(b, w) {
+                continue;
+            }
+            w.pending.push(b as u32);
+            let corners = self.cells.corners[b];
+            for (j, &c) in self.sphere.across(b).iter().enumerate() {
+                let c = c as usize;
+                if is_open(&w.candidate, c)
+                    || !self.has_part(c, w)
+                    || is_open(&w.todo, c)
+                    || is_open(&w.known_open, c)
+                {
+                    continue;
+                }
+                if arc_max_dot(&corners[(j + 1) % 3], &corners[(j + 2) % 3], n).0 <= p.min_dot {
+                    continue;
+                }
+                let x = self.part_point(c, w);
+                if self.reaches(p, level, &x, w) {
+                    w.known_open[c / 64] |= 1 << (c % 64);
+                } else if !self.flood_closed(c, p, row, w) {
+                    return None;
+                }
+            }
+        }
+        w.by_rays = w.pending.len();
+        added += self.settle(p, level, row, w);
+        added += self.decide(p, row, w);
+        // The cells across the horizon left open are shown by their highest
+        // point.
+        for k in 0..w.band_at.len() {
+            let c = w.band_at[k].0 as usize;
+            if is_open(row, c) && !is_open(&w.candidate, c) {
+                self.witness_top(c, p, w);
+                added += 1;
+            }
+        }
+        Some(added)
+    }
+
+    /// Lists the highest point of band cell `c` as its witness, when the
+    /// witnesses are kept (the tests').
+    fn witness_top(&self, c: usize, p: &PatchFrame, w: &mut ExactScratch) {
+        if w.keep_witnesses {
+            let (_, at) = self.cells.max_dot(c, p.normal);
+            w.witnesses.push((c as u32, at));
+        }
+    }
+
+    /// Whether cell `c` has a part in front of the patch.
+    fn has_part(&self, c: usize, w: &ExactScratch) -> bool {
+        is_open(&w.front, c) || w.band_at.binary_search_by_key(&(c as u32), |e| e.0).is_ok()
+    }
+
+    /// A point of cell `c` in front: its centre, or the highest point of a
+    /// cell across the horizon.
+    fn part_point(&self, c: usize, w: &ExactScratch) -> V3 {
+        if is_open(&w.front, c) {
+            return self.cells.dirs[c];
+        }
+        match w.band_at.binary_search_by_key(&(c as u32), |e| e.0) {
+            Ok(k) => w.band_at[k].1,
+            Err(_) => self.cells.dirs[c],
+        }
+    }
+
+    fn settled(&self, b: usize, w: &ExactScratch) -> Settled {
+        let (g, s) = w.settled[b];
+        if g == w.generation { s } else { Settled::No }
+    }
+
+    /// Gives boundary cell `b` the point `r` of count `count` and queues it.
+    fn reach(&self, b: usize, r: V3, count: i32, w: &mut ExactScratch) {
+        w.settled[b] = (w.generation, Settled::Reached);
+        w.refs[b] = (r, count);
+        w.queue.push(b as u32);
+    }
+
+    /// The arcs crossing boundary cell `b` (indices into `w.arcs`).
+    fn arcs_of(b: usize, w: &ExactScratch) -> std::ops::Range<usize> {
+        let b = b as u32;
+        let lo = w.arc_of.partition_point(|e| e.0 < b);
+        let hi = w.arc_of.partition_point(|e| e.0 <= b);
+        lo..hi
+    }
+
+    /// Closes the run of non-boundary cells from `c` (covered: its count is
+    /// positive); false when it meets a cell known open (round-off).
+    fn flood_closed(
+        &self,
+        c: usize,
+        p: &PatchFrame,
+        row: &mut [u64],
+        w: &mut ExactScratch,
+    ) -> bool {
+        let n = p.normal;
+        w.todo[c / 64] |= 1 << (c % 64);
+        w.dfs.clear();
+        w.dfs.push(c as u32);
+        while let Some(c) = w.dfs.pop() {
+            let c = c as usize;
+            if is_open(&w.known_open, c) {
+                return false;
+            }
+            row[c / 64] &= !(1 << (c % 64));
+            let front_c = is_open(&w.front, c);
+            let corners = self.cells.corners[c];
+            for (k, &nb) in self.sphere.across(c).iter().enumerate() {
+                let nb = nb as usize;
+                if is_open(&w.todo, nb) || is_open(&w.candidate, nb) || !self.has_part(nb, w) {
+                    continue;
+                }
+                // Joined when the shared edge has a point in front.
+                let joined = (front_c && is_open(&w.front, nb))
+                    || arc_max_dot(&corners[(k + 1) % 3], &corners[(k + 2) % 3], n).0 > p.min_dot;
+                if joined {
+                    w.todo[nb / 64] |= 1 << (nb % 64);
+                    w.dfs.push(nb as u32);
+                }
+            }
+        }
+        true
+    }
+
+    /// A point of the edge of `b` opposite corner `j`, in front and off
+    /// every arc of `b`, if one of a few tried is.
+    fn edge_point(&self, b: usize, j: usize, p: &PatchFrame, w: &ExactScratch) -> Option<V3> {
+        let corners = self.cells.corners[b];
+        let (e1, e2) = (corners[(j + 1) % 3], corners[(j + 2) % 3]);
+        let ids = Self::arcs_of(b, w);
+        // The highest point of the edge, and points between it and the
+        // ends, and the ends' middle.
+        let (top, high) = arc_max_dot(&e1, &e2, p.normal);
+        if top <= p.min_dot {
+            return None;
+        }
+        let between = |a: &V3, f: f64| (high * (1.0 - f) + a * f).normalize();
+        let tries = [
+            (e1 + e2).normalize(),
+            high,
+            between(&e1, 0.5),
+            between(&e2, 0.5),
+            between(&e1, 0.25),
+            between(&e2, 0.25),
+        ];
+        for q in tries {
+            if q.dot(p.normal) <= p.min_dot {
+                continue;
+            }
+            let clear = w.arc_of[ids.clone()].iter().all(|&(_, a)| {
+                let a = &w.arcs[a as usize];
+                a.m.dot(&q).abs() >= SIDE_TOL
+                    || a.u.cross(&q).dot(&a.m) < -SIDE_TOL
+                    || q.cross(&a.v).dot(&a.m) < -SIDE_TOL
+            });
+            if clear {
+                return Some(q);
+            }
+        }
+        None
+    }
+
+    /// Decides boundary cell `b` from its point of known count, and passes
+    /// counts on to the cells around it; returns how many it opened (0 or
+    /// 1), or `None` when counts disagree.
+    fn visit(
+        &self,
+        b: usize,
+        p: &PatchFrame,
+        row: &mut [u64],
+        w: &mut ExactScratch,
+    ) -> Option<u32> {
+        let (r, count) = w.refs[b];
+        let range = Self::arcs_of(b, w);
+        let mut ids = std::mem::take(&mut w.ids);
+        ids.clear();
+        ids.extend(w.arc_of[range].iter().map(|e| e.1));
+        let verdict = self.visit_with(b, r, count, &ids, p, row, w);
+        w.ids = ids;
+        verdict
+    }
+
+    /// [`Exact::visit`] with the arcs `ids` of `b`.
+    #[allow(clippy::too_many_arguments)]
+    fn visit_with(
+        &self,
+        b: usize,
+        r: V3,
+        count: i32,
+        ids: &[u32],
+        p: &PatchFrame,
+        row: &mut [u64],
+        w: &mut ExactScratch,
+    ) -> Option<u32> {
+        let count_at = |x: &V3, w: &ExactScratch| match crossings(&r, x, ids, &w.arcs) {
+            Crossing::By(d) => Some(count + d),
+            Crossing::Unsure => None,
+        };
+        let total: i32 = ids.iter().map(|&a| w.arcs[a as usize].weight.abs()).sum();
+        // Decide.
+        let verdict = if count == 0 {
+            Some(Some(r))
+        } else if count > total {
+            Some(None)
+        } else {
+            self.lowest(b, p, ids, &count_at, w)
+        };
+        let mut opened = 0;
+        w.counted += usize::from(verdict.is_some());
+        match verdict {
+            Some(Some(x)) => {
+                row[b / 64] |= 1 << (b % 64);
+                w.witnesses.push((b as u32, x));
+                opened = 1;
+                w.settled[b] = (w.generation, Settled::Done);
+            }
+            Some(None) => w.settled[b] = (w.generation, Settled::Done),
+            None => {
+                w.settled[b] = (w.generation, Settled::Rays);
+                return Some(0);
+            }
+        }
+        // Pass the count on.
+        let corners = self.cells.corners[b];
+        for (j, &c) in self.sphere.across(b).iter().enumerate() {
+            let c = c as usize;
+            if !self.has_part(c, w) {
+                continue;
+            }
+            let boundary = is_open(&w.candidate, c);
+            if boundary && self.settled(c, w) != Settled::No {
+                continue;
+            }
+            if !boundary
+                && arc_max_dot(&corners[(j + 1) % 3], &corners[(j + 2) % 3], p.normal).0
+                    <= p.min_dot
+            {
+                continue;
+            }
+            let Some(k) = self
+                .edge_point(b, j, p, w)
+                .and_then(|q| Some((q, count_at(&q, w)?)))
+            else {
+                // No count to pass on: a ray decides that cell later.
+                if !boundary {
+                    w.unsure.push(c as u32);
+                }
+                continue;
+            };
+            let (q, k) = k;
+            if boundary {
+                self.reach(c, q, k, w);
+            } else if k > 0 {
+                if !is_open(&w.todo, c) && !self.flood_closed(c, p, row, w) {
+                    return None;
+                }
+            } else if is_open(&w.todo, c) {
+                return None;
+            } else {
+                w.known_open[c / 64] |= 1 << (c % 64);
+            }
+        }
+        Some(opened)
+    }
+
+    /// Whether some point of boundary cell `b` has count 0: `Some(Some(x))`
+    /// with such a point, `Some(None)` when every part of the cell is
+    /// covered, `None` when round-off leaves it open to doubt. A part of
+    /// count 0 lies on the side of lower count of every arc piece around
+    /// it, so a point just off each piece on that side is tried (after the
+    /// nine points of the exact test).
+    fn lowest(
+        &self,
+        b: usize,
+        p: &PatchFrame,
+        ids: &[u32],
+        count_at: &dyn Fn(&V3, &ExactScratch) -> Option<i32>,
+        w: &mut ExactScratch,
+    ) -> Option<Option<V3>> {
+        let n = p.normal;
+        let corners = self.cells.corners[b];
+        let centre = self.cells.dirs[b];
+        for k in 0..3 {
+            let (a, c) = (corners[k], corners[(k + 1) % 3]);
+            for x in [a, (a + c).normalize(), (a + centre).normalize()] {
+                if x.dot(n) > p.min_dot && count_at(&x, w)? == 0 {
+                    return Some(Some(x));
+                }
+            }
+        }
+        let edges = self.cells.edges[b];
+        for (i, &id) in ids.iter().enumerate() {
+            let a = w.arcs[id as usize];
+            let Some(curve) = Curve::arc(a.u, a.v, &a.m) else {
+                continue;
+            };
+            w.cuts.clear();
+            w.cuts.push(0.0);
+            w.cuts.push(curve.len);
+            for e in &edges {
+                curve.cuts_with(e, 0.0, &mut w.cuts);
+            }
+            for (j, &other) in ids.iter().enumerate() {
+                if j != i {
+                    curve.cuts_with(&w.arcs[other as usize].m, 0.0, &mut w.cuts);
+                }
+            }
+            if p.min_dot > 0.0 {
+                curve.cuts_with(n, p.min_dot, &mut w.cuts);
+            }
+            w.cuts.retain(|&t| t <= curve.len);
+            w.cuts.sort_unstable_by(f64::total_cmp);
+            // Off the piece toward fewer cones.
+            let toward = if a.weight > 0 { -a.m } else { a.m };
+            for k in 1..w.cuts.len() {
+                let (t0, t1) = (w.cuts[k - 1], w.cuts[k]);
+                if t1 - t0 < super::MIN_PIECE {
+                    continue;
+                }
+                let mid = curve.point(0.5 * (t0 + t1));
+                if !self.cells.inside(b, &mid) || mid.dot(n) <= p.min_dot {
+                    continue;
+                }
+                let x = (mid + toward * super::WITNESS_OFFSET).normalize();
+                if !self.cells.inside(b, &x) || x.dot(n) <= p.min_dot {
+                    continue;
+                }
+                if count_at(&x, w)? == 0 {
+                    return Some(Some(x));
+                }
+            }
+        }
+        Some(None)
+    }
+
+    /// Whether direction `d` (in front) reaches the patch: no occluder's
+    /// triangle meets the ray.
+    fn reaches(&self, p: &PatchFrame, level: f64, d: &V3, w: &mut ExactScratch) -> bool {
+        self.occluder_hit(p, level, d, w).is_none()
+    }
+
+    /// An occluder the ray along `d` meets, if any.
+    fn occluder_hit(
+        &self,
+        p: &PatchFrame,
+        level: f64,
+        d: &V3,
+        w: &mut ExactScratch,
+    ) -> Option<usize> {
+        let caster = self.caster;
+        let mut stack = std::mem::take(&mut w.rays);
+        let hit = caster.first_occluder(p, d, |t| w.occluder(caster, p, level, t), &mut stack);
+        w.rays = stack;
+        hit
+    }
+
+    /// Finds the contour edges of the patch through `tree` and marks the
+    /// cells their arcs cross (`w.candidate`, `w.list`).
+    fn mark_contour(&self, tree: &ContourTree, p: &PatchFrame, level: f64, w: &mut ExactScratch) {
+        let caster = self.caster;
+        if tree.nodes.is_empty() {
+            return;
+        }
+        let o = p.origin;
+        let n = p.normal;
+        let mut i = 0;
+        while i < tree.nodes.len() {
+            let node = &tree.nodes[i];
+            if tree.facing(i, p, level, caster.t_min) != Some(Facing::Mixed) {
+                // Behind the plane, or every edge interior.
+                i = node.end as usize;
+                continue;
+            }
+            if node.count == 0 {
+                i += 1;
+                continue;
+            }
+            i = node.end as usize;
+            for e in &tree.edges[node.first as usize..node.first as usize + node.count as usize] {
+                let (t, t2) = (e.t as usize, e.t2);
+                let [ca, cb, c1, c2] = e.corners.map(|v| &tree.points[v as usize]);
+                // Occluders have a corner in front (checked here before the
+                // cached test that also wants a cone).
+                let ends = n.dot(ca) > level || n.dot(cb) > level;
+                let q1 = (ends || n.dot(c1) > level) && w.occluder(caster, p, level, t);
+                let q2 = t2 != NONE
+                    && (ends || n.dot(c2) > level)
+                    && w.occluder(caster, p, level, t2 as usize);
+                if !q1 && !q2 {
+                    continue;
+                }
+                let (a, b) = (ca - o.coords, cb - o.coords);
+                let m = a.cross(&b);
+                let s1 = m.dot(&(c1 - o.coords));
+                let s2 = if t2 == NONE {
+                    0.0
+                } else {
+                    m.dot(&(c2 - o.coords))
+                };
+                if q1 && q2 && s1 * s2 < 0.0 {
+                    // Interior: the two cones meet along the edge.
+                    continue;
+                }
+                if a.dot(n) <= 0.0 && b.dot(n) <= 0.0 {
+                    continue;
+                }
+                // Crossing toward +m enters the cones on that side.
+                let side = |s: f64| if s > 0.0 { 1 } else { -1 };
+                let weight = if q1 { side(s1) } else { 0 } + if q2 { side(s2) } else { 0 };
+                let unit = m.normalize();
+                let (ua, ub) = (a.normalize(), b.normalize());
+                let (mut cu, mut cv) = (ua, ub);
+                let (da, db) = (ua.dot(n), ub.dot(n));
+                if da < 0.0 {
+                    cu = (ua * db - ub * da).normalize();
+                } else if db < 0.0 {
+                    cv = (ub * da - ua * db).normalize();
+                }
+                w.recording = w.arcs.len() as u32;
+                w.arcs.push(Arc {
+                    u: cu,
+                    v: cv,
+                    m: unit,
+                    weight,
+                });
+                self.mark_arc(ua, ub, n, |_| true, w);
+                w.recording = NONE;
+            }
+        }
+    }
+
+    /// Settles the boundary cells in `w.pending` (no count reached them),
+    /// as [`Exact::certify`] settles candidates, with rays that meet
+    /// occluders only; leaves the undecided ones in `w.list` for the exact
+    /// test and returns how many it opened.
+    fn settle(&self, p: &PatchFrame, level: f64, row: &mut [u64], w: &mut ExactScratch) -> u32 {
+        let n = p.normal;
+        let mut opened = 0;
+        w.list.clear();
+        for k in 0..w.pending.len() {
+            let c = w.pending[k];
+            let ci = c as usize;
+            let centre = self.cells.dirs[ci];
+            let x = if is_open(&w.front, ci) {
+                centre
+            } else {
+                self.part_point(ci, w)
+            };
+            let Some(blocker) = self.occluder_hit(p, level, &x, w) else {
+                row[ci / 64] |= 1 << (ci % 64);
+                w.witnesses.push((c, x));
+                opened += 1;
+                continue;
+            };
+            if self.flood_covers(p, ci, &x, blocker as u32, w) {
+                w.certified += 1;
+                continue;
+            }
+            let corners = self.cells.corners[ci];
+            let nine = (0..3).flat_map(|k| {
+                let (a, b) = (corners[k], corners[(k + 1) % 3]);
+                [a, (a + b).normalize(), (a + centre).normalize()]
+            });
+            let mut reached = None;
+            for d in nine {
+                if d.dot(n) > p.min_dot && self.reaches(p, level, &d, w) {
+                    reached = Some(d);
+                    break;
+                }
+            }
+            if let Some(d) = reached {
+                row[ci / 64] |= 1 << (ci % 64);
+                w.witnesses.push((c, d));
+                opened += 1;
+            } else {
+                w.list.push(c);
+            }
+        }
+        opened
+    }
+}
