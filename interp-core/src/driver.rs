@@ -183,23 +183,7 @@ impl Driver {
             return Err(PushError::Pending);
         }
         // Room for its segments, checked before planning.
-        let needed = match &self.split_memo {
-            Some((b, n)) if b == block => *n,
-            _ => {
-                let cfg = self.planner.config();
-                let mut paths = [block.path; MAX_PIECES];
-                let mut singular = [false; MAX_PIECES + 1];
-                let n = split_at_tangent_breaks(
-                    &block.path,
-                    &mut paths,
-                    cfg.tangent_tolerance,
-                    cfg.chord_tolerance,
-                    &mut singular,
-                )?;
-                self.split_memo = Some((*block, n));
-                n
-            }
-        };
+        let needed = self.segments_needed(block)?;
         if needed > st.free_segments {
             return Err(PushError::Full {
                 needed,
@@ -210,6 +194,28 @@ impl Driver {
         self.plan.finish = false;
         self.planner.plan(block, &mut self.plan)?;
         Ok(self.emit())
+    }
+
+    /// How many queue segments `block` takes (memoised: a block refused for
+    /// room is offered again every tick).
+    fn segments_needed(&mut self, block: &Block) -> Result<usize, PushError> {
+        if let Some((b, n)) = &self.split_memo
+            && b == block
+        {
+            return Ok(*n);
+        }
+        let cfg = self.planner.config();
+        let mut paths = [block.path; MAX_PIECES];
+        let mut singular = [false; MAX_PIECES + 1];
+        let n = split_at_tangent_breaks(
+            &block.path,
+            &mut paths,
+            cfg.tangent_tolerance,
+            cfg.chord_tolerance,
+            &mut singular,
+        )?;
+        self.split_memo = Some((*block, n));
+        Ok(n)
     }
 
     /// The program ends with what is pushed: its last plan comes from
@@ -267,7 +273,15 @@ impl Driver {
         }
         self.plan.finish = false;
         let pending = self.planner.has_pending();
-        if pending && st.free_segments >= MAX_PIECES {
+        // Room for the rest of the block's segments (a queue shorter than
+        // the most a block can have still takes a line's next part).
+        let room = match self.planner.pending().copied() {
+            Some(b) => self
+                .segments_needed(&b)
+                .is_ok_and(|n| n <= st.free_segments),
+            None => false,
+        };
+        if pending && room {
             self.sync(st);
             match self.planner.plan_pending(&mut self.plan) {
                 Ok(()) => return Some(self.emit()),

@@ -114,25 +114,42 @@ pub fn feed_limit(d: &Derivs, feed: f64, mrr: Option<&MrrParams>, cfg: &InterpCo
 /// then 0. Planning takes the laws at such a point from a tick's distance away
 /// instead ([`stationary_offset`]).
 pub fn machine_limit(d: &Derivs, cfg: &InterpConfig, budget: f64) -> f64 {
+    machine_limit_parts(d, cfg, budget)
+        .into_iter()
+        .fold(cfg.max_path_speed, f64::min)
+}
+
+/// How many terms [`machine_limit_parts`] returns.
+pub const MACHINE_LAW_PARTS: usize = 7;
+
+/// The terms of [`machine_limit`], each a smooth function along the path
+/// with its own peaks: the curvature laws (chord error, centripetal), each
+/// axis's velocity and acceleration, and each axis's steady jerk. Their
+/// minimum can have two dips a few µm apart (the `C‴` peaks of two axes, or
+/// a curvature peak and a `C‴` peak), where a search on the minimum finds
+/// one; each term alone is far less likely to.
+pub fn machine_limit_parts(
+    d: &Derivs,
+    cfg: &InterpConfig,
+    budget: f64,
+) -> [f64; MACHINE_LAW_PARTS] {
     if d.d1.norm_squared() == 0.0 {
-        return 0.0;
+        return [0.0; MACHINE_LAW_PARTS];
     }
-    let mut v = cfg.max_path_speed;
+    let mut v = [f64::INFINITY; MACHINE_LAW_PARTS];
     if cfg.chord_error_law {
-        v = v.min(chord_error_speed(
-            d.curvature(),
-            cfg.chord_tolerance,
-            cfg.period,
-        ));
+        v[0] = chord_error_speed(d.curvature(), cfg.chord_tolerance, cfg.period);
     }
     if let Some(a) = ArcLengthDerivs::new(d) {
         let keep = 1.0 - cfg.planning_margin;
         let k = a.c_ss.norm();
         if k > 0.0 {
-            v = v.min(libm::sqrt(budget * keep * cfg.max_centripetal_accel / k));
+            v[0] = v[0].min(libm::sqrt(budget * keep * cfg.max_centripetal_accel / k));
         }
-        v = v.min(axis_limit(&a, cfg, budget));
-        v = v.min(steady_jerk_speed(&a, cfg));
+        for i in 0..3 {
+            v[1 + i] = axis_limit_of(&a, cfg, budget, i);
+            v[4 + i] = steady_jerk_speed_of(&a, cfg, i);
+        }
     }
     v
 }
@@ -143,15 +160,18 @@ pub fn machine_limit(d: &Derivs, cfg: &InterpConfig, budget: f64) -> f64 {
 /// at constant speed at least), so it is a pointwise machine limit; the
 /// schedule's linear program holds the whole axis jerk along its profile.
 pub fn steady_jerk_speed(a: &ArcLengthDerivs, cfg: &InterpConfig) -> f64 {
+    (0..3).fold(f64::INFINITY, |v, i| v.min(steady_jerk_speed_of(a, cfg, i)))
+}
+
+/// [`steady_jerk_speed`] of axis `i` alone.
+pub fn steady_jerk_speed_of(a: &ArcLengthDerivs, cfg: &InterpConfig, i: usize) -> f64 {
     let keep = 1.0 - cfg.planning_margin;
-    let mut v = f64::INFINITY;
-    for i in 0..3 {
-        let csss = libm::fabs(a.c_sss[i]);
-        if csss > 0.0 {
-            v = v.min(libm::cbrt(keep * cfg.axis_max_jerk[i] / csss));
-        }
+    let csss = libm::fabs(a.c_sss[i]);
+    if csss > 0.0 {
+        libm::cbrt(keep * cfg.axis_max_jerk[i] / csss)
+    } else {
+        f64::INFINITY
     }
-    v
 }
 
 /// The share of one tick's step within which the curvature at a stationary
@@ -235,19 +255,24 @@ impl ArcLengthDerivs {
 /// on the planned `a` and `j`: the schedule's linear program holds it
 /// exactly, see [`crate::plan`].)
 pub fn axis_limit(a: &ArcLengthDerivs, cfg: &InterpConfig, budget: f64) -> f64 {
+    (0..3).fold(f64::INFINITY, |v, i| {
+        v.min(axis_limit_of(a, cfg, budget, i))
+    })
+}
+
+/// [`axis_limit`] of axis `i` alone.
+pub fn axis_limit_of(a: &ArcLengthDerivs, cfg: &InterpConfig, budget: f64, i: usize) -> f64 {
     let keep = 1.0 - cfg.planning_margin;
     let pa = cfg.planned_accel();
     let mut v = f64::INFINITY;
-    for i in 0..3 {
-        let t = libm::fabs(a.t[i]);
-        let css = libm::fabs(a.c_ss[i]);
-        if t > 0.0 {
-            v = v.min(keep * cfg.axis_max_velocity[i] / t);
-        }
-        let acc = budget * (keep * cfg.axis_max_accel[i] - t * pa);
-        if css > 0.0 {
-            v = v.min(libm::sqrt(acc.max(0.0) / css));
-        }
+    let t = libm::fabs(a.t[i]);
+    let css = libm::fabs(a.c_ss[i]);
+    if t > 0.0 {
+        v = v.min(keep * cfg.axis_max_velocity[i] / t);
+    }
+    let acc = budget * (keep * cfg.axis_max_accel[i] - t * pa);
+    if css > 0.0 {
+        v = v.min(libm::sqrt(acc.max(0.0) / css));
     }
     v
 }

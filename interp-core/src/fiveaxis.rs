@@ -24,7 +24,7 @@ use crate::geom::{Curve, Vec3};
 use crate::kinematics::{InverseError, Joints, Machine, ToolPose};
 use crate::path::Path;
 use crate::plan::{AxisSample, Window, index_of};
-use crate::prepare::axis_jerk_may_bind;
+use crate::prepare::{axis_jerk_may_bind, keep_axis_sample};
 
 /// Beyond this angle (rad) from its start a tool axis cannot be turned to
 /// its end on a unique great circle (the two are nearly opposite).
@@ -670,6 +670,9 @@ pub(crate) fn sample_joints(
 ) -> (Option<[f64; 6]>, (f64, f64)) {
     let mut last = None;
     let mut stop = (f64::INFINITY, f64::INFINITY);
+    // The previous sample's arc length and speed limit: between two samples
+    // the lower of the two holds, as for the feed laws.
+    let mut prev: Option<(f64, f64)> = None;
     for_each_sample(path, s0, length, hs, |s, u| {
         let Ok(Some(smp)) = JointSample::new(machine, orientation, path, u, joints) else {
             return;
@@ -680,13 +683,17 @@ pub(crate) fn sample_joints(
         stop = (stop.0.min(sa), stop.1.min(sj));
         let v = smp.speed_limit(cfg);
         let (a, j) = smp.tangential_limits(cfg);
+        match prev {
+            Some((sp, vp)) => w.lower_range(sp, s, 0, vp.min(v)),
+            None => w.lower_range(s, s, 0, v),
+        }
+        prev = Some((s, v));
         let g = index_of(s, h);
         let on_node = g as f64 * h == s;
         for gi in [g - 1, g] {
             if (gi == g || on_node)
                 && let Some(it) = w.interval_mut(gi)
             {
-                it.machine = it.machine.min(v);
                 it.accel = it.accel.min(a);
                 it.jerk = it.jerk.min(j);
                 it.joint_jerk = it.joint_jerk.min(j);
@@ -705,10 +712,8 @@ pub(crate) fn sample_joints(
                 smp_ax.css[ax] = smp.q_ss[jt] * scale;
                 smp_ax.csss[ax] = smp.q_sss[jt] * scale;
             }
-            if (0..3).any(|ax| axis_jerk_may_bind(&smp_ax, ax, l2, cfg))
-                && let Some(it) = w.interval_mut(g)
-            {
-                it.add_sample(smp_ax);
+            if (0..3).any(|ax| axis_jerk_may_bind(&smp_ax, ax, l2, cfg)) {
+                keep_axis_sample(w, smp_ax, h, l2, cfg);
             }
         }
     });

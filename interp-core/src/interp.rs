@@ -586,7 +586,9 @@ impl<const Q: usize> Executor<Q> {
         let was_empty = self.queue.is_empty();
         if let Some(last) = self.queue.back_mut() {
             last.stop_at_end = plan.stop_at_join;
-            self.count_junction(plan.stop_at_join);
+            if !plan.continues {
+                self.count_junction(plan.stop_at_join);
+            }
         }
         for seg in plan.pieces_geometry() {
             if seg.s1() < plan.s1 {

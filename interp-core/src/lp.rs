@@ -462,6 +462,12 @@ pub fn solve_traced<const N: usize, const M: usize>(
             && mu.is_finite()
             && w.x[..n].iter().all(|v| v.is_finite());
         if !finite {
+            // Fallen apart on round-off: the best iterate, if close enough.
+            if best <= ACCEPTABLE {
+                let (xb, xc) = (&w.xbest[..n], &mut w.x[..n]);
+                xc.copy_from_slice(xb);
+                break;
+            }
             return Err(LpError::NotConverged);
         }
         if worst <= opts.tolerance {

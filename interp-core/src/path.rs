@@ -342,12 +342,28 @@ impl Path {
         }
         match self {
             Path::Line(l) => {
-                // Both halves keep the whole line's parameter.
+                // Both halves keep the whole line's parameter and direction,
+                // and the second ends where the whole does: a length taken
+                // from the new end points put its `u_end` an ulp past the
+                // whole line's, and setpoints named parameters of neither.
                 let mid = l.eval(u, 0).p;
-                let mut a = Line::new(l.start, mid).map_err(|_| SplitAtError::NotInterior)?;
-                let mut b = Line::new(mid, l.end).map_err(|_| SplitAtError::NotInterior)?;
-                a.u0 = l.u0;
-                b.u0 = u;
+                let a = Line {
+                    start: l.start,
+                    end: mid,
+                    dir: l.dir,
+                    length: u - l.u0,
+                    u0: l.u0,
+                };
+                let b = Line {
+                    start: mid,
+                    end: l.end,
+                    dir: l.dir,
+                    length: l.u_end() - u,
+                    u0: u,
+                };
+                if !(a.length > 0.0 && b.length > 0.0) {
+                    return Err(SplitAtError::NotInterior);
+                }
                 Ok((Path::Line(a), Path::Line(b)))
             }
             Path::Arc(a) => {

@@ -33,19 +33,23 @@ use crate::lp::{self, LpError, LpOptions, LpWork, Problem, Row};
 use crate::spline::Piece;
 use crate::stop::Stop;
 
-/// Pieces one linear program can hold: from the machine to the end of the
-/// queue (a resumed hold is planned again from where the machine rests),
-/// so also the longest look-ahead, 96 mm at the default 0.25 mm grid.
+/// Grid intervals (and rest points) the queue may span from the machine to
+/// its end: the longest look-ahead, 96 mm at the default 0.25 mm grid.
+pub const REACH: usize = 256;
+/// Pieces one linear program can hold: the grid pieces of the look-ahead
+/// (a resumed hold is planned again from where the machine rests), and as
+/// many again for the cuts next to rest points and slow points.
 pub const REGION: usize = 384;
-/// Grid intervals the planner keeps (from the machine to the end of the
-/// queue: the look-ahead distance is at most about `REGION` intervals).
+/// Grid intervals the planner keeps (from the machine to the end of the queue).
+pub const INTERVALS: usize = REACH + 8;
+/// Pieces the window keeps (before and after the machine).
 pub const WINDOW: usize = REGION + 8;
 /// Longest stretch of a block planned at once, in grid intervals: longer
 /// blocks are planned in parts of this size (at fixed arc lengths, so the
 /// parts do not depend on timing).
-pub const CHUNK: usize = 192;
+pub const CHUNK: usize = 128;
 /// Per-axis derivative samples kept per grid interval.
-pub const SAMPLES_PER_INTERVAL: usize = 18;
+pub const SAMPLES_PER_INTERVAL: usize = 24;
 /// Rest points the window can hold.
 pub const MAX_STOPS: usize = 256;
 /// Rows of one linear program.
@@ -65,13 +69,19 @@ pub struct AxisSample {
     pub csss: [f64; 3],
 }
 
+/// Sub-ranges per grid interval the speed limits are kept for: a slow point
+/// (a sharp bend, a corner blend, a junction) limits its sub-range, not the
+/// whole interval, and the pieces are cut where the limits change.
+pub const SUB: usize = 8;
+
 /// What the planner knows about one grid interval.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Interval {
-    /// Smallest machine-law speed over the covered part, mm/s.
-    pub machine: f64,
-    /// Smallest feed-law speed at 100 % override, mm/s.
-    pub feed: f64,
+    /// Smallest machine-law speed over each sub-range (`SUB` of them, in
+    /// order), mm/s.
+    pub machine: [f64; SUB],
+    /// Smallest feed-law speed at 100 % override over each sub-range, mm/s.
+    pub feed: [f64; SUB],
     /// Tangential acceleration limit, mm/s² (lines fold the axes' in).
     pub accel: f64,
     /// Tangential jerk limit, mm/s³ (lines fold the axes' in).
@@ -81,7 +91,7 @@ pub struct Interval {
     /// Samples held.
     pub n_samples: u8,
     /// A sample could not be kept (the interval had more than the capacity):
-    /// its piece is planned with the worst case of the ones kept.
+    /// the speed limit there was lowered until its axis jerk cannot bind.
     pub overflow: bool,
     /// The tangential jerk a five-axis block's joints allow here, mm/s³
     /// (infinite for three-axis blocks): next to a rest point the
@@ -92,8 +102,8 @@ pub struct Interval {
 impl Interval {
     fn open(cfg: &InterpConfig) -> Self {
         Interval {
-            machine: f64::INFINITY,
-            feed: f64::INFINITY,
+            machine: [f64::INFINITY; SUB],
+            feed: [f64::INFINITY; SUB],
             accel: cfg.planned_accel(),
             jerk: cfg.max_path_jerk * (1.0 - cfg.planning_margin),
             samples: [AxisSample::default(); SAMPLES_PER_INTERVAL],
@@ -102,28 +112,32 @@ impl Interval {
             joint_jerk: f64::INFINITY,
         }
     }
+    /// Lower the machine (`which = 0`) or feed (`1`) limit of sub-ranges
+    /// `j0..=j1` to `v`.
+    pub fn lower(&mut self, j0: usize, j1: usize, which: usize, v: f64) {
+        let l = if which == 0 {
+            &mut self.machine
+        } else {
+            &mut self.feed
+        };
+        for x in &mut l[j0.min(SUB - 1)..=j1.min(SUB - 1)] {
+            *x = x.min(v);
+        }
+    }
     /// Keep a per-axis sample (the first ones; then the worst by curvature).
-    pub fn add_sample(&mut self, a: AxisSample) {
+    /// Keep a per-axis sample; false when the interval holds
+    /// [`SAMPLES_PER_INTERVAL`] already (the caller then makes it
+    /// unnecessary: see `prepare::keep_axis_sample`).
+    #[must_use]
+    pub fn add_sample(&mut self, a: AxisSample) -> bool {
         let n = self.n_samples as usize;
         if n < SAMPLES_PER_INTERVAL {
             self.samples[n] = a;
             self.n_samples += 1;
-            return;
-        }
-        self.overflow = true;
-        // Replace the sample with the smallest curvature terms.
-        let weight = |x: &AxisSample| {
-            x.css.iter().map(|v| v.abs()).sum::<f64>() + x.csss.iter().map(|v| v.abs()).sum::<f64>()
-        };
-        let (mut k, mut w) = (0, f64::INFINITY);
-        for (i, s) in self.samples.iter().enumerate() {
-            if weight(s) < w {
-                w = weight(s);
-                k = i;
-            }
-        }
-        if weight(&a) > w {
-            self.samples[k] = a;
+            true
+        } else {
+            self.overflow = true;
+            false
         }
     }
 }
@@ -157,6 +171,14 @@ struct WPiece {
     g: i64,
     rest_start: bool,
     d: f64,
+    /// Machine-law and feed-law speed limits over the piece, mm/s.
+    machine: f64,
+    feed: f64,
+    /// The squared-speed cap of the rows its coefficient was last solved
+    /// under (`None` before any): a re-solve that continues a kept plan
+    /// keeps the rows just past it as loose as they were (see
+    /// [`kept_caps`]).
+    solved_cap: Option<f64>,
 }
 
 impl WPiece {
@@ -182,8 +204,10 @@ pub struct SolveStats {
     pub variables: usize,
     /// Rows.
     pub rows: usize,
-    /// Interior-point iterations.
+    /// Interior-point iterations (all passes).
     pub iterations: u32,
+    /// Refinement passes that improved the plan.
+    pub passes: u32,
     /// The program could not be planned through the old end of the queue:
     /// the machine comes to rest there.
     pub fell_back: bool,
@@ -192,6 +216,28 @@ pub struct SolveStats {
     pub crawled: bool,
     /// The solved stretch, from the first unknown to the rest point at its end, mm.
     pub range: (f64, f64),
+}
+
+/// Counters over every solve of a window (diagnostics and benchmarks).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PlanTotals {
+    /// Linear programs solved (first passes).
+    pub solves: u64,
+    /// Refinement passes that improved a plan.
+    pub passes: u64,
+    /// Interior-point iterations, all passes.
+    pub iterations: u64,
+    /// First passes that failed and were retried with the rows past the
+    /// kept plan as loose as that plan's (see `kept_caps`).
+    pub kept_rows: u64,
+    /// Solves that kept a rest point at the old end of the queue.
+    pub fell_back: u64,
+    /// Solves that fell back to the crawl.
+    pub crawled: u64,
+    /// Rebuilds that left pieces uncut for lack of room in the program.
+    pub uncut: u64,
+    /// The last solver failure (a fallback or crawl followed).
+    pub last_failure: Option<LpError>,
 }
 
 /// The linear program's pull towards the pieces' limits (see
@@ -218,7 +264,7 @@ struct Data {
     g_base: i64,
     int_head: usize,
     n_int: usize,
-    ints: [Interval; WINDOW],
+    ints: [Interval; INTERVALS],
     /// Rest points in the window, ascending.
     stops: [f64; MAX_STOPS],
     n_stops: usize,
@@ -232,6 +278,8 @@ struct Data {
     tail: f64,
     /// Where the window starts at rest while nothing is planned yet.
     origin: f64,
+    /// Rebuilds that left pieces uncut (see [`PlanTotals::uncut`]).
+    uncut: u64,
 }
 
 /// Scratch of the linear program.
@@ -242,8 +290,14 @@ struct Scratch {
     lo: [f64; REGION],
     hi: [f64; REGION],
     x: [f64; REGION],
+    /// Per piece: the squared speed no plan can exceed there (see [`reach_caps`]).
+    cap2: [f64; WINDOW],
+    /// The unknowns before a refinement pass.
+    backup_x: [f64; REGION],
     /// The plan before a solve, to fall back on.
     backup: [WPiece; WINDOW],
+    /// How many pieces `backup` holds.
+    backup_n: usize,
 }
 
 /// The look-ahead window and its solver.
@@ -254,6 +308,8 @@ pub struct Window {
     ovr: f64,
     /// What the last solve did.
     pub last: SolveStats,
+    /// Counters over every solve.
+    pub totals: PlanTotals,
     /// Called after every iteration of the linear program (diagnostics).
     pub trace: Option<fn(lp::Iteration)>,
 }
@@ -262,7 +318,7 @@ impl Data {
     #[inline]
     fn slot(&self, g: i64) -> usize {
         debug_assert!(g >= self.g_base && g < self.g_base + self.n_int as i64);
-        (self.int_head + (g - self.g_base) as usize) % WINDOW
+        (self.int_head + (g - self.g_base) as usize) % INTERVALS
     }
 
     fn interval(&self, g: i64) -> &Interval {
@@ -318,27 +374,59 @@ impl Data {
     /// round-off of its ends, its neighbours': a sample on a knot belongs to
     /// both pieces, whichever interval it was stored in).
     fn piece_samples<'a>(&'a self, p: &'a WPiece) -> impl Iterator<Item = &'a AxisSample> + 'a {
+        // Its own samples, those at its ends included (the jerk jumps at a
+        // knot: a sample there bounds both sides). A short piece with none
+        // (cut next to a rest point, or where a limit changes) is checked
+        // against the nearest sample on each side, at its nearer end, if it
+        // lies within the piece's length or a sample spacing; samples lie on
+        // a grid of that spacing, so the reach stops a hair short of it
+        // (whether a sample counts must not turn on round-off).
         let tol = SLIVER * self.h;
+        let reach = if p.h() < 0.5 * self.h {
+            p.h().max(self.h / SUB as f64) * (1.0 - SUB_SNAP)
+        } else {
+            tol
+        };
         let held = |g: i64| g >= self.g_base && g < self.g_base + self.n_int as i64;
-        (p.g - 1..=p.g + 1)
-            .filter(move |&g| held(g))
-            .flat_map(move |g| {
-                let it = self.interval(g);
-                it.samples[..it.n_samples as usize].iter()
-            })
-            .filter(move |smp| smp.s >= p.x0 - tol && smp.s <= p.x1 + tol)
+        let near = move || {
+            (p.g - 1..=p.g + 1)
+                .filter(move |&g| held(g))
+                .flat_map(move |g| {
+                    let it = self.interval(g);
+                    it.samples[..it.n_samples as usize].iter()
+                })
+        };
+        let own = move |smp: &&AxisSample| smp.s >= p.x0 - tol && smp.s <= p.x1 + tol;
+        let none = !near().any(|smp| own(&smp));
+        let closest = move |before: bool| {
+            near()
+                .filter(move |smp| {
+                    let gap = if before { p.x0 - smp.s } else { smp.s - p.x1 };
+                    none && gap > 0.0 && gap <= reach
+                })
+                .min_by(move |a, b| {
+                    let da = if before { p.x0 - a.s } else { a.s - p.x1 };
+                    let db = if before { p.x0 - b.s } else { b.s - p.x1 };
+                    da.total_cmp(&db)
+                })
+        };
+        near()
+            .filter(own)
+            .chain(closest(true))
+            .chain(closest(false))
     }
 
     /// The squared speed limit of piece `i` at override `ovr`.
     fn limit2(&self, i: usize, ovr: f64, lift: &Option<(f64, Stop)>) -> f64 {
         let p = &self.pieces[i];
-        let it = self.interval(p.g);
         let top = self.cfg.max_path_speed;
-        let mut v = it.machine.min(ovr * it.feed).min(top);
+        let mut v = p.machine.min(ovr * p.feed).min(top);
         if let Some((x_f, stop)) = lift {
             // The feed may not fall faster than the machine can brake.
-            let vb = stop.speed_after(p.x0 - x_f);
-            v = v.max(vb.min(it.machine).min(top));
+            // Over the whole piece: the speed still rises at first while
+            // an acceleration the machine had ramps down.
+            let vb = stop.top_speed_over(p.x0 - x_f, p.x1 - x_f);
+            v = v.max(vb.min(p.machine).min(top));
         }
         if !v.is_finite() {
             v = top;
@@ -350,7 +438,7 @@ impl Data {
     fn drop_before(&mut self, x: f64) {
         let g = index_of(x, self.h);
         while self.n_int > 0 && self.g_base < g {
-            self.int_head = (self.int_head + 1) % WINDOW;
+            self.int_head = (self.int_head + 1) % INTERVALS;
             self.g_base += 1;
             self.n_int -= 1;
         }
@@ -366,6 +454,13 @@ impl Data {
 
     /// Rebuild pieces `from..` (starting at `x`) up to the tail out of the
     /// intervals and rest points.
+    /// Remember the caps the rows of pieces `first..` were solved under.
+    fn note_caps(&mut self, cap2: &[f64; WINDOW], first: usize) {
+        for i in first..self.n_pieces {
+            self.pieces[i].solved_cap = Some(cap2[i]);
+        }
+    }
+
     fn rebuild_from(
         &mut self,
         from: usize,
@@ -408,6 +503,9 @@ impl Data {
                     g: index_of(0.5 * (x + x1), self.h),
                     rest_start: rest,
                     d,
+                    machine: f64::INFINITY,
+                    feed: f64::INFINITY,
+                    solved_cap: None,
                 };
                 n += 1;
                 rest = false;
@@ -418,7 +516,155 @@ impl Data {
             x = x1;
         }
         self.n_pieces = n;
+        self.refine_pieces(from);
         Ok(())
+    }
+
+    /// Smallest machine-law and feed-law speeds over `[x0, x1]` (from the
+    /// sub-ranges it overlaps).
+    fn range_limits(&self, x0: f64, x1: f64) -> (f64, f64) {
+        let hs = self.h / SUB as f64;
+        let snap = SUB_SNAP;
+        let k0 = libm::floor(x0 / hs + snap) as i64;
+        let k1 = (libm::ceil(x1 / hs - snap) as i64 - 1).max(k0);
+        let (mut m, mut f) = (f64::INFINITY, f64::INFINITY);
+        let held = |g: i64| g >= self.g_base && g < self.g_base + self.n_int as i64;
+        for k in k0..=k1 {
+            let g = k.div_euclid(SUB as i64);
+            if held(g) {
+                let it = self.interval(g);
+                let j = k.rem_euclid(SUB as i64) as usize;
+                m = m.min(it.machine[j]);
+                f = f.min(it.feed[j]);
+            }
+        }
+        (m, f)
+    }
+
+    /// Cuts inside piece `p` (ascending, none within a sliver of another or
+    /// of its ends) into `out`; returns how many:
+    /// - where the speed limit of its sub-ranges changes by more than
+    ///   [`RUN_RATIO`], so a slow point limits only its own stretch;
+    /// - next to a rest point, pieces that grow geometrically away from it
+    ///   ([`GRADE`]): leaving a rest with bounded jerk, `S` grows like
+    ///   `s^(4/3)`, which one quadratic piece of the grid's length follows
+    ///   poorly (the plan would creep out of every rest).
+    fn cuts(&self, p: &WPiece, rest_end: bool, out: &mut [f64; MAX_CUTS]) -> usize {
+        let len = p.x1 - p.x0;
+        let sliver = SLIVER * self.h;
+        let mut raw = [0.0; MAX_CUTS];
+        let mut k = 0;
+        let (rs, re) = (p.rest_start, rest_end);
+        let scale = |both: bool| self.h.min(if both { 0.5 * len } else { len });
+        if rs {
+            let sc = scale(re);
+            for f in GRADE {
+                raw[k] = p.x0 + sc * f;
+                k += 1;
+            }
+        }
+        if re {
+            let sc = scale(rs);
+            for f in GRADE.iter().rev() {
+                raw[k] = p.x1 - sc * f;
+                k += 1;
+            }
+        }
+        // Sub-range boundaries where the limit changes.
+        let hs = self.h / SUB as f64;
+        let mut b = (libm::floor(p.x0 / hs + 1e-9) + 1.0) * hs;
+        let (mut lo, mut hi) = {
+            let (m, f) = self.range_limits(p.x0, b.min(p.x1));
+            let v = m.min(f);
+            (v, v)
+        };
+        while b < p.x1 - sliver && k < MAX_CUTS {
+            let (m, f) = self.range_limits(b, (b + hs).min(p.x1));
+            let v = m.min(f);
+            let (nlo, nhi) = (lo.min(v), hi.max(v));
+            if nhi > RUN_RATIO * nlo {
+                raw[k] = b;
+                k += 1;
+                (lo, hi) = (v, v);
+            } else {
+                (lo, hi) = (nlo, nhi);
+            }
+            b += hs;
+        }
+        // Sort (few), then drop slivers.
+        raw[..k].sort_unstable_by(|a, b| a.total_cmp(b));
+        let mut m = 0;
+        let mut last = p.x0;
+        for &c in &raw[..k] {
+            if c - last > sliver && p.x1 - c > sliver {
+                out[m] = c;
+                m += 1;
+                last = c;
+            }
+        }
+        m
+    }
+
+    /// Cut the pieces `from..` (see [`Self::cuts`]), as many cuts as one
+    /// linear program can hold, nearest the start first; then give every
+    /// piece its speed limits.
+    fn refine_pieces(&mut self, from: usize) {
+        let n = self.n_pieces;
+        if n <= from {
+            return;
+        }
+        let budget = REGION.saturating_sub(n - from + 8).min(WINDOW - n);
+        let mut counts = [0u8; WINDOW];
+        let mut cut = [0.0; MAX_CUTS];
+        let mut extra = 0usize;
+        for i in from..n {
+            let rest_end = i + 1 >= n || self.pieces[i + 1].rest_start;
+            let p = self.pieces[i];
+            let m = self.cuts(&p, rest_end, &mut cut);
+            if extra + m > budget {
+                self.uncut += 1;
+                break;
+            }
+            counts[i] = m as u8;
+            extra += m;
+        }
+        let mut w = n + extra;
+        for i in (from..n).rev() {
+            let p = self.pieces[i];
+            let m = counts[i] as usize;
+            if m == 0 {
+                w -= 1;
+                self.pieces[w] = p;
+                continue;
+            }
+            let rest_end = i + 1 >= n || self.pieces[i + 1].rest_start;
+            let mm = self.cuts(&p, rest_end, &mut cut);
+            debug_assert_eq!(mm, m);
+            let mut x1 = p.x1;
+            for j in (0..=m).rev() {
+                let x0 = if j == 0 { p.x0 } else { cut[j - 1] };
+                w -= 1;
+                self.pieces[w] = WPiece {
+                    x0,
+                    x1,
+                    g: p.g,
+                    rest_start: j == 0 && p.rest_start,
+                    d: if j == 0 { p.d } else { 0.0 },
+                    machine: f64::INFINITY,
+                    feed: f64::INFINITY,
+                    solved_cap: None,
+                };
+                x1 = x0;
+            }
+        }
+        debug_assert_eq!(w, from);
+        self.n_pieces = n + extra;
+        for i in from..self.n_pieces {
+            let (x0, x1) = (self.pieces[i].x0, self.pieces[i].x1);
+            let (m, f) = self.range_limits(x0, x1);
+            self.pieces[i].machine = m;
+            self.pieces[i].feed = f;
+        }
     }
 }
 
@@ -433,7 +679,7 @@ impl Window {
                 g_base: index_of(s, h),
                 int_head: 0,
                 n_int: 0,
-                ints: [open; WINDOW],
+                ints: [open; INTERVALS],
                 stops: [0.0; MAX_STOPS],
                 n_stops: 0,
                 pieces: [WPiece::default(); WINDOW],
@@ -441,6 +687,7 @@ impl Window {
                 prev: (0.0, 0.0),
                 tail: s,
                 origin: s,
+                uncut: 0,
             },
             scratch: Scratch {
                 lp: LpWork::new(),
@@ -448,10 +695,14 @@ impl Window {
                 lo: [0.0; REGION],
                 hi: [0.0; REGION],
                 x: [0.0; REGION],
+                cap2: [0.0; WINDOW],
+                backup_x: [0.0; REGION],
                 backup: [WPiece::default(); WINDOW],
+                backup_n: 0,
             },
             ovr: 1.0,
             last: SolveStats::default(),
+            totals: PlanTotals::default(),
             trace: None,
         }
     }
@@ -522,7 +773,7 @@ impl Window {
         let d = &mut self.data;
         let g = index_of(machine, d.h) - 1;
         while d.n_int > 0 && d.g_base < g {
-            d.int_head = (d.int_head + 1) % WINDOW;
+            d.int_head = (d.int_head + 1) % INTERVALS;
             d.g_base += 1;
             d.n_int -= 1;
         }
@@ -542,22 +793,60 @@ impl Window {
         let pieces = (g - from + 2).max(0) as usize + d.n_stops + stops;
         // (Margin: a fallback rest point or two, and the kept pieces before
         // the machine.)
-        g < d.g_base + (WINDOW - 2) as i64 && d.n_stops + stops <= MAX_STOPS && pieces + 8 <= REGION
+        g < d.g_base + (INTERVALS - 2) as i64
+            && d.n_stops + stops <= MAX_STOPS
+            && pieces + 8 <= REACH
     }
 
     /// Make intervals up to `g` present (new ones open). False when full.
     pub fn extend_to(&mut self, g: i64) -> bool {
-        if g >= self.data.g_base + (WINDOW - 2) as i64 {
+        if g >= self.data.g_base + (INTERVALS - 2) as i64 {
             return false;
         }
         let d = &mut self.data;
         let open = Interval::open(&d.cfg);
         while d.g_base + (d.n_int as i64) <= g {
-            let k = (d.int_head + d.n_int) % WINDOW;
+            let k = (d.int_head + d.n_int) % INTERVALS;
             d.ints[k] = open;
             d.n_int += 1;
         }
         true
+    }
+
+    /// Lower the machine (`which = 0`) or feed (`1`) limit of the sub-ranges
+    /// overlapping `(s0, s1)` to `v` (a point `s0 = s1` on a boundary lowers
+    /// both sides), in the intervals held.
+    pub fn lower_range(&mut self, s0: f64, s1: f64, which: usize, v: f64) {
+        let hs = self.data.h / SUB as f64;
+        let snap = SUB_SNAP;
+        let (q0, q1) = (s0 / hs, s1 / hs);
+        let (k0, k1) = if s1 > s0 {
+            // The sub-ranges overlapping the open range.
+            let k0 = libm::floor(q0 + snap) as i64;
+            (k0, (libm::ceil(q1 - snap) as i64 - 1).max(k0))
+        } else if libm::fabs(q0 - libm::round(q0)) <= snap {
+            // A point on a boundary: both sides.
+            let k = libm::round(q0) as i64;
+            (k - 1, k)
+        } else {
+            let k = libm::floor(q0) as i64;
+            (k, k)
+        };
+        let sub = SUB as i64;
+        let mut k = k0;
+        while k <= k1 {
+            let g = k.div_euclid(sub);
+            let j0 = k.rem_euclid(sub) as usize;
+            let j1 = if k1.div_euclid(sub) == g {
+                k1.rem_euclid(sub) as usize
+            } else {
+                SUB - 1
+            };
+            if let Some(it) = self.interval_mut(g) {
+                it.lower(j0, j1, which, v);
+            }
+            k = (g + 1) * sub;
+        }
     }
 
     /// The data of interval `g`, if held.
@@ -700,6 +989,7 @@ impl Window {
         // The current plan, to fall back on (it comes to rest at its end).
         let backup_n = self.data.n_pieces;
         self.scratch.backup[..backup_n].copy_from_slice(&self.data.pieces[..backup_n]);
+        self.scratch.backup_n = backup_n;
         let backup_prev = self.data.prev;
         let old_end = {
             let d = &self.data;
@@ -740,6 +1030,9 @@ impl Window {
         };
         self.ovr = ovr;
         let mut fell_back = false;
+        // After a failed first pass: once more with the rows past the kept
+        // pieces as loose as the kept plan's were (see [`kept_caps`]).
+        let mut keep_rows = false;
         loop {
             self.data.rebuild_from(first, from_x, rest, end)?;
             let n = self.data.n_pieces;
@@ -758,30 +1051,82 @@ impl Window {
                 first,
                 ovr,
                 &lift,
+                if keep_rows {
+                    Pass::KeptRows
+                } else {
+                    Pass::First
+                },
                 &mut |it| {
                     if let Some(t) = trace {
                         t(it)
                     }
                 },
             ) {
-                Ok(st) => {
+                Ok(mut st) => {
+                    self.data.note_caps(&self.scratch.cap2, first);
+                    // Sequential refinement: each pass caps every piece near
+                    // the speed the last one planned there, which loosens the
+                    // jerk rows; the last plan stays feasible, so a pass can
+                    // only gain, and one that fails changes nothing.
+                    for _ in 0..REFINE_PASSES {
+                        let n = self.data.n_pieces;
+                        let sc = &mut self.scratch;
+                        for (j, x) in sc.x[..n - first].iter_mut().enumerate() {
+                            *x = self.data.pieces[first + j].d;
+                        }
+                        match assemble_and_solve(
+                            &mut self.data,
+                            sc,
+                            first,
+                            ovr,
+                            &lift,
+                            Pass::Refine,
+                            &mut |_| {},
+                        ) {
+                            Ok(s2) => {
+                                self.data.note_caps(&self.scratch.cap2, first);
+                                st.iterations += s2.iterations;
+                                st.passes += 1;
+                            }
+                            Err(_) => {
+                                let sc = &self.scratch;
+                                for j in 0..n - first {
+                                    self.data.pieces[first + j].d = sc.backup_x[j];
+                                }
+                                break;
+                            }
+                        }
+                    }
                     let x0 = self.data.pieces[first].x0;
                     self.last = SolveStats {
                         fell_back,
                         range: (x0, end),
                         ..st
                     };
+                    let t = &mut self.totals;
+                    t.solves += 1;
+                    t.passes += u64::from(st.passes);
+                    t.iterations += u64::from(st.iterations);
+                    t.fell_back += u64::from(fell_back);
+                    t.uncut = self.data.uncut;
                     self.commit_region(freeze, keep_from, from_x);
                     return Ok(changed);
                 }
+                Err(PlanError::Solver(e)) if !keep_rows && first > 0 => {
+                    self.totals.last_failure = Some(e);
+                    self.totals.kept_rows += 1;
+                    keep_rows = true;
+                }
                 Err(e @ PlanError::Solver(_)) if !fallback => return Err(e),
-                Err(PlanError::Solver(_)) if !fell_back && old_end > from_x => {
+                Err(PlanError::Solver(e)) if !fell_back && old_end > from_x => {
+                    self.totals.last_failure = Some(e);
                     if !self.insert_stop(old_end) {
                         return Err(PlanError::Full);
                     }
                     fell_back = true;
                 }
-                Err(PlanError::Solver(_)) => {
+                Err(PlanError::Solver(e)) => {
+                    self.totals.last_failure = Some(e);
                     // Last resort, never a stall: keep the current plan to its
                     // end (at rest) and crawl from there, resting at every knot.
                     let d = &mut self.data;
@@ -795,6 +1140,7 @@ impl Window {
                         crawled: true,
                         ..SolveStats::default()
                     };
+                    self.totals.crawled += 1;
                     // The pieces before this plan's start stay as they are.
                     let first_kept = self.data.pieces[0].x0;
                     self.data.drop_before(first_kept.min(keep_from));
@@ -887,6 +1233,18 @@ impl RowSink<'_> {
     }
 }
 
+/// Which caps a linear program's rows are written with.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Pass {
+    /// The reach caps ([`reach_caps`]).
+    First,
+    /// The reach caps, and past the kept pieces the caps the kept plan was
+    /// solved under ([`kept_caps`]): the retry of a failed first pass.
+    KeptRows,
+    /// A trust region about the last plan.
+    Refine,
+}
+
 /// Build the linear program over the unknowns of pieces `first ..n` and
 /// solve it into the pieces.
 fn assemble_and_solve(
@@ -895,6 +1253,7 @@ fn assemble_and_solve(
     first: usize,
     ovr: f64,
     lift: &Option<(f64, Stop)>,
+    pass: Pass,
     trace: &mut dyn FnMut(lp::Iteration),
 ) -> Result<SolveStats, PlanError> {
     let n = d.n_pieces;
@@ -912,11 +1271,34 @@ fn assemble_and_solve(
         crate::prepare::axis_jerk_may_bind(smp, ax, l2, &cfg)
     };
     let lo_i = first.saturating_sub(1);
+    if pass == Pass::Refine {
+        // Cap each unknown piece near what the last pass planned there
+        // (kept in `backup_x` to restore if this pass fails).
+        for i in first..n {
+            let p = d.piece(i);
+            let smax = p.e0.max(p.d).max(p.e1).max(0.0);
+            let floor = MIN_SPEED2 * cfg.max_path_speed * cfg.max_path_speed;
+            sc.cap2[i] = sc.cap2[i].min((REFINE_TRUST * smax).max(floor));
+            sc.backup_x[i - first] = p.d;
+        }
+    } else {
+        reach_caps(d, &mut sc.cap2, lo_i, first, ovr, lift);
+        // The kept piece before the first unknown gets rows too (its end
+        // knot moves): the ones it was solved under, not tighter.
+        if lo_i < first
+            && let Some(c) = d.pieces[lo_i].solved_cap
+        {
+            sc.cap2[lo_i] = sc.cap2[lo_i].min(c);
+        }
+        if pass == Pass::KeptRows {
+            kept_caps(d, &mut sc.cap2, &sc.backup[..sc.backup_n], first);
+        }
+    }
     let mut needed = 0usize;
     for i in lo_i..n {
         let p = d.pieces[i];
         let it = d.interval(p.g);
-        let l2 = d.limit2(i, ovr, lift);
+        let l2 = sc.cap2[i];
         needed += 3;
         let _ = it;
         for smp in d.piece_samples(&p) {
@@ -934,7 +1316,7 @@ fn assemble_and_solve(
         let p = d.pieces[i];
         let h = p.h();
         let it = *d.interval(p.g);
-        let l2 = d.limit2(i, ovr, lift);
+        let l2 = sc.cap2[i];
         let rest_end = i + 1 >= n || d.pieces[i + 1].rest_start;
         if i >= first {
             let j = i - first;
@@ -965,11 +1347,24 @@ fn assemble_and_solve(
         // (d(S^−½)/dS = −½·S^−³ᐟ²): maximise Σ ∫S ds / V_p³, which weighs
         // slow pieces the most, where the time is spent.
         let floor = MIN_SPEED2 * cfg.max_path_speed * cfg.max_path_speed;
-        let weight = h / (3.0 * l2.max(floor) * libm::sqrt(l2.max(floor)));
+        let weigh = |l: f64| h / (3.0 * l.max(floor) * libm::sqrt(l.max(floor)));
+        let weight = weigh(l2);
+        // Next to a rest point the middle coefficient is bounded far below
+        // the piece's limit (the acceleration step at rest), and it alone
+        // sets how the motion leaves or reaches the rest: with it at zero
+        // the speed there goes like the distance, which takes forever. So
+        // it is linearised about its own bound, as the others are about
+        // theirs; without that, trading it for the next piece's coefficient
+        // looks free and the plan creeps out of every rest point.
+        let w_mid = if p.rest_start || rest_end {
+            weigh(l2.min(rest_accel(a_rest, &it, &cfg) * h))
+        } else {
+            weight
+        };
         for m in 0..3 {
             let q = i as isize + m as isize - 1;
             if q >= first as isize && (q as usize) < n {
-                sc.c[q as usize - first] += (e0[m] + mid[m] + e1[m]) * weight;
+                sc.c[q as usize - first] += (e0[m] + e1[m]) * weight + mid[m] * w_mid;
             }
         }
         // Tangential jerk |α|·v ≤ J, α = (e0 − 2d + e1)/h², v ≤ √l2.
@@ -978,7 +1373,7 @@ fn assemble_and_solve(
         sink.push(d, i, curv, -jb, jb)?;
         if !rest_end {
             // The end knot within both pieces' limits, and the acceleration there.
-            let l2n = d.limit2(i + 1, ovr, lift);
+            let l2n = sc.cap2[i + 1];
             sink.push(d, i, e1, 0.0, l2.min(l2n))?;
             let s = h + d.pieces[i + 1].h();
             let acc = it.accel.min(d.interval(d.pieces[i + 1].g).accel);
@@ -1046,6 +1441,174 @@ fn assemble_and_solve(
     })
 }
 
+/// Per piece `lo..n`, the squared speed limit the rows use: the pointwise
+/// limit, capped where the machine cannot reach it, being too close to a
+/// rest point or to a slower stretch (acceleration `A` from the limits
+/// around, both ways, and the jerk from rest points, [`reach_speed`]).
+/// The jerk rows hold `|S''|·v ≤ 2J` through `v ≤ √cap` (and the hull keeps
+/// `S ≤ cap`), so a cap near the real speed lets the plan accelerate as
+/// fast as the jerk allows, where the pointwise limit alone makes it creep
+/// out of every slow point. The caps bound every plan the rows admit, with
+/// a margin, so they cost no speed. The sweeps start at `first`: the pieces
+/// before, whose coefficients meet the kept plan, take the limit alone.
+fn reach_caps(
+    d: &Data,
+    cap2: &mut [f64; WINDOW],
+    lo: usize,
+    first: usize,
+    ovr: f64,
+    lift: &Option<(f64, Stop)>,
+) {
+    let n = d.n_pieces;
+    let cfg = &d.cfg;
+    let a0 = 0.5 * cfg.max_path_jerk * cfg.period;
+    let two_a = 2.0 * cfg.max_path_accel;
+    let m2 = REACH_MARGIN * REACH_MARGIN;
+    for i in lo..n {
+        cap2[i] = d.limit2(i, ovr, lift);
+    }
+    if n <= first {
+        return;
+    }
+    // Forward: `knot` bounds S at the start of piece i.
+    let mut rest: Option<f64> = None;
+    let mut knot = f64::INFINITY;
+    for i in first..n {
+        let p = &d.pieces[i];
+        let h = p.x1 - p.x0;
+        if p.rest_start {
+            rest = Some(p.x0);
+            knot = 0.0;
+        } else if i > first {
+            knot = knot.min(cap2[i - 1]);
+        }
+        let mut c = (knot + two_a * h) * m2;
+        if let Some(r) = rest {
+            let v = REACH_MARGIN * reach_speed(p.x1 - r, a0, cfg);
+            c = c.min(v * v);
+        }
+        let l2 = cap2[i];
+        cap2[i] = l2.min(c);
+        knot = (knot + two_a * h).min(l2);
+    }
+    // Backward, to the rest point at the end.
+    let mut r = d.pieces[n - 1].x1;
+    let mut knot = 0.0;
+    for i in (first..n).rev() {
+        let p = &d.pieces[i];
+        let h = p.x1 - p.x0;
+        let v = REACH_MARGIN * reach_speed(r - p.x0, a0, cfg);
+        let l2 = d.limit2(i, ovr, lift);
+        cap2[i] = cap2[i].min(v * v).min((knot + two_a * h) * m2);
+        knot = (knot + two_a * h).min(l2);
+        if p.rest_start {
+            r = p.x0;
+            knot = 0.0;
+        } else if i > 0 {
+            knot = knot.min(d.limit2(i - 1, ovr, lift));
+        }
+    }
+}
+
+/// A re-solve continues the kept plan (pieces before `first`), which was
+/// solved under its own caps: the jerk rows bound `|S''|` by `2J/√cap`, so
+/// a larger cap is a tighter row, and the first pass's caps (the reach, see
+/// [`reach_caps`]) are often larger than the trust caps of the refinement
+/// that made the kept plan. Just past the kept pieces, where their momentum
+/// leaves no choice, new rows tighter than the old ones can make the
+/// program infeasible (a kept braking towards a rest point that the new
+/// rows cannot finish). So up to the next rest point, or as far as braking
+/// from the speed there takes, each piece is capped by the caps the old plan
+/// was solved under where it overlaps them: the old plan stays feasible
+/// there, and the plan beyond is free.
+fn kept_caps(d: &Data, cap2: &mut [f64; WINDOW], old: &[WPiece], first: usize) {
+    let n = d.n_pieces;
+    if first == 0 || first >= n || old.is_empty() {
+        return;
+    }
+    let cfg = &d.cfg;
+    let xb = d.pieces[first].x0;
+    // The old plan's cap where the kept pieces end: its speed there at most.
+    let at = old.partition_point(|p| p.x1 <= xb);
+    let Some(Some(cb)) = old.get(at).map(|p| p.solved_cap) else {
+        return;
+    };
+    let (a, j) = (cfg.max_path_accel, cfg.max_path_jerk);
+    let vb = libm::sqrt(cb.max(0.0));
+    // Braking distance with a jerk-limited ramp, doubled.
+    let reach = 2.0 * (vb * vb / (2.0 * a) + vb * a / j);
+    let mut end = (xb + reach).min(old[old.len() - 1].x1);
+    for p in &d.pieces[first + 1..n] {
+        if p.rest_start {
+            end = end.min(p.x0);
+            break;
+        }
+    }
+    for i in first..n {
+        let p = &d.pieces[i];
+        if p.x0 >= end {
+            break;
+        }
+        // The old pieces overlapping this one: the largest of their caps
+        // (the old plan stays below it here).
+        let mut k = old.partition_point(|q| q.x1 <= p.x0);
+        let mut c: f64 = 0.0;
+        while k < old.len() && old[k].x0 < p.x1 {
+            match old[k].solved_cap {
+                Some(v) => c = c.max(v),
+                None => {
+                    c = f64::INFINITY;
+                    break;
+                }
+            }
+            k += 1;
+        }
+        if c > 0.0 {
+            cap2[i] = cap2[i].min(c);
+        }
+    }
+}
+
+/// Within this fraction of a sub-range of its boundary, a point counts as
+/// on it (and lowers both sides): law samples fall on boundaries and
+/// `k·hs/hs` need not be `k`, and a refined law minimum at a sample or a
+/// knot is placed there by an arc-length quadrature, to ~1e-10 mm.
+const SUB_SNAP: f64 = 1e-6;
+
+/// Where the pieces next to a rest point are cut, as fractions of the grid
+/// step (or of the piece, when shorter) from the rest.
+const GRADE: [f64; 3] = [1.0 / 64.0, 1.0 / 16.0, 0.25];
+
+/// A piece is cut where the speed limits of its sub-ranges differ by more
+/// than this factor.
+const RUN_RATIO: f64 = 1.5;
+/// Most cuts inside one piece (grading at both ends, and every sub-range).
+const MAX_CUTS: usize = 2 * GRADE.len() + SUB;
+
+/// Refinement passes after the first solve.
+const REFINE_PASSES: usize = 1;
+/// How far above its last planned square speed a refinement pass may take a
+/// piece (the trust region; 1.44 is 20 % in speed).
+const REFINE_TRUST: f64 = 1.44;
+
+/// Slack on the reach speed (a bound, not a target).
+const REACH_MARGIN: f64 = 1.1;
+
+/// The highest speed the machine can reach within distance `s` of a rest
+/// point: leaving it with acceleration `a0` and jerk `J` (the fastest way
+/// there), never faster than `√(2·A·s)`. An upper bound of the speed of any
+/// plan whose jerk, acceleration and acceleration at rest points are within
+/// the configured limits.
+fn reach_speed(s: f64, a0: f64, cfg: &InterpConfig) -> f64 {
+    let s = s.max(0.0);
+    let j = cfg.max_path_jerk;
+    // Time to cover s with jerk J alone from rest is (6s/J)^⅓; with a0 > 0
+    // it is shorter, so this speed is an upper bound.
+    let t = libm::cbrt(6.0 * s / j);
+    let by_jerk = a0 * t + 0.5 * j * t * t;
+    by_jerk.min(libm::sqrt(2.0 * cfg.max_path_accel * s))
+}
+
 /// The acceleration step allowed next to a rest point on a piece of
 /// interval `it`: half a tick of the path's jerk (`a_rest`), or of the
 /// jerk a five-axis block's joints allow there, if lower (a rotary joint
@@ -1098,4 +1661,12 @@ fn crawl(d: &mut Data, from: usize, ovr: f64, lift: &Option<(f64, Stop)>) {
 #[inline]
 pub fn index_of(s: f64, h: f64) -> i64 {
     libm::floor(s / h) as i64
+}
+
+/// The interval a per-axis sample at `s` is kept in: as [`index_of`], with a
+/// sample within round-off of an interval's start counted in it (samples
+/// fall on boundaries; which interval holds one must not turn on
+/// round-off, since an interval holds [`SAMPLES_PER_INTERVAL`] at most).
+pub(crate) fn sample_interval(s: f64, h: f64) -> i64 {
+    libm::floor(s / h + SUB_SNAP / SUB as f64) as i64
 }

@@ -14,7 +14,10 @@
 //! [`PushError::Stale`].
 
 use crate::config::{ConfigError, InterpConfig};
-use crate::feed::{ArcLengthDerivs, feed_limit, junction_speed, machine_limit, stationary_offset};
+use crate::feed::{
+    ArcLengthDerivs, MACHINE_LAW_PARTS, feed_limit, junction_speed, machine_limit,
+    machine_limit_parts, stationary_offset,
+};
 use crate::fiveaxis::{
     JointSample, Orientation, QueueEnd, joint_junction_speed, sample_joints, walk_joints,
 };
@@ -23,7 +26,9 @@ use crate::interp::{JOIN_TOLERANCE, MAX_PIECES, PushError, grid_multiple};
 use crate::kinematics::Machine;
 use crate::nurbs::Side;
 use crate::path::{Blending, Block, Path};
-use crate::plan::{AxisSample, CHUNK, Freeze, PlanError, SLIVER, WINDOW, Window, index_of};
+use crate::plan::{
+    AxisSample, CHUNK, Freeze, PlanError, SLIVER, WINDOW, Window, index_of, sample_interval,
+};
 use crate::spline::Piece;
 use crate::stop::Stop;
 
@@ -85,6 +90,9 @@ pub struct PlannedBlock {
     /// The last queued segment before these comes to rest at its end
     /// (a corner or an exact stop at the join).
     pub(crate) stop_at_join: bool,
+    /// The next part of the block before it (a long block is planned in
+    /// parts): the join is no junction of the program.
+    pub(crate) continues: bool,
     /// The spline update: pieces from `from_x` on, the first starting at rest
     /// when `rest_start`.
     pub(crate) from_x: f64,
@@ -115,6 +123,7 @@ impl PlannedBlock {
             segments: [None; MAX_PIECES],
             n_segments: 0,
             stop_at_join: false,
+            continues: false,
             from_x: 0.0,
             rest_start: true,
             pieces: [Piece::default(); WINDOW],
@@ -248,6 +257,10 @@ impl BlockPlanner {
     /// [`Self::plan_pending`] (when the real-time side has room) before the next block.
     pub fn has_pending(&self) -> bool {
         self.pending.is_some()
+    }
+    /// The rest of a long block still to be planned, if any.
+    pub fn pending(&self) -> Option<&Block> {
+        self.pending.as_ref()
     }
     /// Feed override the plans are made for.
     pub fn feed_override(&self) -> f64 {
@@ -395,6 +408,7 @@ impl BlockPlanner {
             (*block, None)
         };
         self.plan_part(&part, out)?;
+        out.continues = false;
         self.pending = rest;
         Ok(())
     }
@@ -405,7 +419,10 @@ impl BlockPlanner {
             return Ok(());
         };
         match self.plan(&b, out) {
-            Ok(()) => Ok(()),
+            Ok(()) => {
+                out.continues = true;
+                Ok(())
+            }
             Err(e) => {
                 self.pending = Some(b);
                 Err(e)
@@ -711,19 +728,11 @@ impl BlockPlanner {
     /// A junction of speed limit `v` at arc length `s`: a rest point, or a
     /// lower limit there. Returns whether it is a rest point.
     fn apply_junction(&mut self, v: f64, s: f64) -> bool {
-        let h = self.h;
         if v < self.cfg.junction_min_speed {
             let _ = self.window.add_stop(s);
             true
         } else {
-            let g = index_of(s, h);
-            for gi in [g - 1, g] {
-                if let Some(it) = self.window.interval_mut(gi)
-                    && (gi == g || g as f64 * h == s)
-                {
-                    it.machine = it.machine.min(v);
-                }
-            }
+            self.window.lower_range(s, s, 0, v);
             false
         }
     }
@@ -760,21 +769,15 @@ fn sample_laws(
             feed_limit(d, block.feed, block.mrr.as_ref(), cfg)
         }
     };
-    let lower = |w: &mut Window, g: i64, which: usize, v: f64| {
-        if let Some(it) = w.interval_mut(g) {
-            if which == 0 {
-                it.machine = it.machine.min(v);
-            } else {
-                it.feed = it.feed.min(v);
-            }
-        }
+    let lower = |w: &mut Window, s0: f64, s1: f64, which: usize, v: f64| {
+        w.lower_range(s0, s1, which, v);
     };
     // A per-axis sample is kept where the axis jerk could bind at the
-    // speed the laws allow there (elsewhere no row is needed); returns
-    // whether it was.
-    let sample = |w: &mut Window, s: f64, d: &Derivs| -> bool {
+    // speed the laws allow there (elsewhere no row is needed); returns how
+    // close it could come to its limit (see [`axis_jerk_load`]), kept above 1.
+    let sample = |w: &mut Window, s: f64, d: &Derivs| -> f64 {
         let Some(a) = ArcLengthDerivs::new(d) else {
-            return false;
+            return 0.0;
         };
         let smp = AxisSample {
             s,
@@ -783,20 +786,18 @@ fn sample_laws(
             csss: [a.c_sss.x, a.c_sss.y, a.c_sss.z],
         };
         let v = law(d, 0).min(law(d, 1)).min(cfg.max_path_speed);
-        if !(0..3).any(|ax| axis_jerk_may_bind(&smp, ax, v * v, cfg)) {
-            return false;
+        let load = (0..3)
+            .map(|ax| axis_jerk_load(&smp, ax, v * v, cfg))
+            .fold(0.0, f64::max);
+        if load > 1.0 {
+            keep_axis_sample(w, smp, h, v * v, cfg);
         }
-        if let Some(it) = w.interval_mut(index_of(s, h)) {
-            it.add_sample(smp);
-        }
-        true
+        load
     };
     let curve = !matches!(path, Path::Line(_));
     let (g_first, g_last) = (index_of(seg.s0, h), index_of(seg.s1(), h));
     let feed_top = block.feed.min(cfg.max_path_speed);
-    for g in g_first..=g_last {
-        lower(w, g, 1, feed_top);
-    }
+    lower(w, seg.s0, seg.s1(), 1, feed_top);
     if let Path::Line(_) = path {
         // Constant tangent: the axes' jerk limits bound the tangential jerk.
         let t = path.eval(path.u_start(), 1).d1;
@@ -824,9 +825,7 @@ fn sample_laws(
             let at = |uu: f64| law(&path.eval(uu.clamp(u_lo, u_hi), 3), which);
             let (u_min, v_min) = golden_section_argmin(at, u_lo, u_hi, GOLDEN_ITERS, 0.0);
             let v = v_min.min(at(u_lo)).min(at(u_hi));
-            for g in g_first..=g_last {
-                lower(w, g, which, v);
-            }
+            lower(w, seg.s0, seg.s1(), which, v);
             if which == 0 && v_min.is_finite() {
                 let u_min = u_min.clamp(u_lo, u_hi);
                 sample(
@@ -837,65 +836,121 @@ fn sample_laws(
             }
         }
     }
-    // Whether the last law sample kept a per-axis sample (then the stretch to
-    // the next one is sampled at its middle too: the terms change fast there).
-    let mut last_kept = false;
     let refine = matches!(path, Path::Nurbs(_));
     let k0 = libm::ceil(seg.s0 / hs) as i64;
     let k1 = libm::floor(seg.s1() / hs) as i64;
+    if k0 > k1 {
+        // No sample falls on the block: its laws at its middle and ends.
+        for which in 0..2 {
+            let v = [u_lo, 0.5 * (u_lo + u_hi), u_hi]
+                .iter()
+                .map(|&uu| law(&path.eval(uu, 3), which))
+                .fold(f64::INFINITY, f64::min);
+            lower(w, seg.s0, seg.s1(), which, v);
+        }
+    }
     let (mut u_prev, mut x_prev) = (path.u_start(), seg.s0);
-    // Per law, the last two samples: (k, u, value).
-    let mut w1: [Option<(i64, f64, f64)>; 2] = [None; 2];
-    let mut w2: [Option<(i64, f64, f64)>; 2] = [None; 2];
+    // Per law, the last sample: (k, value).
+    let mut last: [Option<(i64, f64)>; 2] = [None; 2];
+    // Per term (the machine law's, see `machine_limit_parts`, then the feed
+    // law), the last two samples (k, u, value): a term's sampled local
+    // minimum is refined between its neighbours. The terms, not their
+    // minimum: the minimum of terms that dip a few µm apart dips twice,
+    // and a term that dips between samples where another one is lower need
+    // not show as a minimum of the law.
+    const TERMS: usize = MACHINE_LAW_PARTS + 1;
+    let mut t1: [Option<(i64, f64, f64)>; TERMS] = [None; TERMS];
+    let mut t2: [Option<(i64, f64, f64)>; TERMS] = [None; TERMS];
+    // Both laws at the last sample.
+    let mut prev_both = [f64::INFINITY; 2];
     for k in k0..=k1 {
         let x = k as f64 * hs;
         let u = path.param_at_arc_length(u_prev, x - x_prev);
-        let g = k.div_euclid(m);
         // One evaluation for both laws at the sample.
         let d = path.eval(u.clamp(u_lo, u_hi), 3);
         if curve {
-            let kept = sample(w, x, &d);
-            if (kept || last_kept) && k > k0 {
+            // Per-axis samples at every law sample and between (the terms
+            // change fast near a curvature peak); each kept where its axis
+            // jerk may bind. Whether one is looked at must not turn on
+            // round-off: a variant of the same path (moved, scaled, split)
+            // would be planned differently.
+            sample(w, x, &d);
+            if k > k0 {
                 let um = (0.5 * (u_prev + u)).clamp(u_lo, u_hi);
                 sample(w, x - 0.5 * hs, &path.eval(um, 3));
             }
-            last_kept = kept;
         }
-        let both = [law(&d, 0), law(&d, 1)];
+        let parts = machine_limit_parts(&d, cfg, 1.0);
+        let both = [
+            parts.iter().fold(cfg.max_path_speed, |a, &b| a.min(b)),
+            law(&d, 1),
+        ];
         for which in 0..2 {
             let v = both[which];
-            lower(w, g, which, v);
-            if k.rem_euclid(m) == 0 {
-                lower(w, g - 1, which, v);
+            // Between two samples the law is taken as the lower of the two
+            // (a minimum between them is refined below); from the block's
+            // ends to the nearest sample, as that sample (its junctions
+            // price the ends).
+            let (xa, va) = match last[which] {
+                Some((ka, va)) => (ka as f64 * hs, va.min(v)),
+                None => (seg.s0, v),
+            };
+            lower(w, xa, x, which, va);
+            lower(w, x, x, which, v);
+            if k == k1 {
+                lower(w, x, seg.s1(), which, v);
             }
-            // w2, w1, this: a local minimum at w1 is refined between w2 and this sample.
-            if let (true, Some((ka, ua, va)), Some((_, _, vb))) = (refine, w2[which], w1[which])
+            last[which] = Some((k, v));
+        }
+        for term in 0..TERMS {
+            let (which, v) = if term < MACHINE_LAW_PARTS {
+                (0, parts[term])
+            } else {
+                (1, both[1])
+            };
+            // t2, t1, this: a local minimum at t1 is refined between t2 and
+            // this sample, if the term comes near the law there (a term far
+            // above the others cannot dip below them between two samples).
+            if let (true, Some((ka, ua, va)), Some((_, _, vb))) = (refine, t2[term], t1[term])
                 && vb < va
                 && vb <= v
+                && vb.is_finite()
+                && vb <= TERM_NEAR * prev_both[which]
             {
-                let (u_min, v_min) = golden_section_argmin(
-                    |uu| law(&path.eval(uu.clamp(u_lo, u_hi), 3), which),
-                    ua,
-                    u,
-                    GOLDEN_ITERS,
-                    0.0,
-                );
-                let vmin = v_min.min(vb);
-                for gi in ka.div_euclid(m)..=k.div_euclid(m) {
-                    lower(w, gi, which, vmin);
-                }
-                if which == 0 && v_min.is_finite() {
-                    // Where a curvature peak lies: a per-axis sample there too.
-                    let u_min = u_min.clamp(u_lo, u_hi);
+                let at = |uu: f64| {
+                    let d = path.eval(uu.clamp(u_lo, u_hi), 3);
+                    if which == 0 {
+                        machine_limit_parts(&d, cfg, 1.0)[term]
+                    } else {
+                        law(&d, 1)
+                    }
+                };
+                let (u_min, v_min) = golden_section_argmin(at, ua, u, GOLDEN_ITERS, 0.0);
+                if v_min.is_nan() {
+                    // The search failed: the bracket as its sampled minimum.
+                    lower(w, ka as f64 * hs, x, which, vb);
+                } else {
                     // From the bracket's start (at arc length ka·hs), not
                     // the block's: linear, not quadratic, in the block.
+                    let u_min = u_min.clamp(u_lo, u_hi);
                     let s_min = ka as f64 * hs + path.arc_length(ua, u_min);
-                    sample(w, s_min, &path.eval(u_min, 3));
+                    let d_min = path.eval(u_min, 3);
+                    // The law there (the minimum of the terms), at the
+                    // sub-range it lies in (both, on a boundary), not over
+                    // the whole bracket: which sample brackets it may turn
+                    // on round-off, where it lies does not.
+                    lower(w, s_min, s_min, which, law(&d_min, which).min(v_min));
+                    if which == 0 && (term == 0 || term >= 4) {
+                        // Where a peak of the curvature or of an axis's `C‴`
+                        // lies: a per-axis sample there too.
+                        sample(w, s_min, &d_min);
+                    }
                 }
             }
-            w2[which] = w1[which];
-            w1[which] = Some((k, u, v));
+            t2[term] = t1[term];
+            t1[term] = Some((k, u, v));
         }
+        prev_both = both;
         u_prev = u;
         x_prev = x;
     }
@@ -921,10 +976,10 @@ fn sample_laws(
                 let v = junction_speed(&left, &right, cfg);
                 at_s += path.arc_length(at_u, u);
                 at_u = u;
-                let g = index_of(at_s, h);
-                for gi in [g - 1, g, g + 1] {
-                    lower(w, gi, 0, v);
-                }
+                // (Arc length carried from knot to knot: a sub-range's
+                // slack each way.)
+                let hsub = h / crate::plan::SUB as f64;
+                lower(w, at_s - hsub, at_s + hsub, 0, v);
             }
             if u > ua {
                 prev = u;
@@ -937,13 +992,57 @@ fn sample_laws(
 /// Could the axis jerk `v·(C‴·S + 1.5·C″·S′ + 0.5·t·S″)` of axis `ax` reach
 /// its limit at this sample with `S ≤ l2`, `|S′| ≤ 2A`, `|S″| ≤ 2J/√l2`?
 pub(crate) fn axis_jerk_may_bind(smp: &AxisSample, ax: usize, l2: f64, cfg: &InterpConfig) -> bool {
+    axis_jerk_load(smp, ax, l2, cfg) > 1.0
+}
+
+/// The largest axis jerk of axis `ax` at this sample under the bounds of
+/// [`axis_jerk_may_bind`], as a fraction of its limit.
+pub(crate) fn axis_jerk_load(smp: &AxisSample, ax: usize, l2: f64, cfg: &InterpConfig) -> f64 {
     let keep = 1.0 - cfg.planning_margin;
     let v = libm::sqrt(l2).max(1e-9);
     let worst = libm::fabs(smp.csss[ax]) * l2
         + 3.0 * libm::fabs(smp.css[ax]) * cfg.planned_accel()
         + libm::fabs(smp.t[ax]) * cfg.max_path_jerk * keep / v;
-    worst > cfg.axis_max_jerk[ax] * keep / v
+    worst * v / (cfg.axis_max_jerk[ax] * keep)
 }
+
+/// Put a per-axis sample whose axis jerk may bind at squared speed `l2`
+/// into its interval. An interval that holds as many as it can instead
+/// lowers the speed limit where the sample lies until its axis jerk cannot
+/// bind there (its load at that speed is at most 1): slower, never over a
+/// limit, and the same under any choice of units.
+pub(crate) fn keep_axis_sample(
+    w: &mut Window,
+    smp: AxisSample,
+    h: f64,
+    l2: f64,
+    cfg: &InterpConfig,
+) {
+    if let Some(it) = w.interval_mut(sample_interval(smp.s, h))
+        && !it.add_sample(smp)
+    {
+        let load = |v: f64| {
+            (0..3)
+                .map(|ax| axis_jerk_load(&smp, ax, v * v, cfg))
+                .fold(0.0, f64::max)
+        };
+        // The load grows with the speed: bisect for the highest safe one.
+        let (mut lo, mut hi) = (0.0, libm::sqrt(l2));
+        for _ in 0..60 {
+            let m = 0.5 * (lo + hi);
+            if load(m) <= 1.0 {
+                lo = m;
+            } else {
+                hi = m;
+            }
+        }
+        w.lower_range(smp.s, smp.s, 0, lo);
+    }
+}
+
+/// A term of the laws whose sampled local minimum is within this factor of
+/// the law there is refined (see `sample_laws`).
+const TERM_NEAR: f64 = 1.5;
 
 /// Golden-section steps refining a sampled law minimum (bracket shrinks by 0.618 each).
 const GOLDEN_ITERS: usize = 40;

@@ -98,6 +98,26 @@ impl Stop {
         self.duration
     }
 
+    /// Distance covered when the speed peaks (it still rises while a
+    /// starting acceleration ramps down; zero when it does not).
+    pub fn peak_distance(&self) -> f64 {
+        if self.a0 > 0.0 && self.jerk[0] < 0.0 {
+            self.at(self.a0 / -self.jerk[0]).0
+        } else {
+            0.0
+        }
+    }
+
+    /// The highest speed over the stretch `[d0, d1]` of the stop.
+    pub fn top_speed_over(&self, d0: f64, d1: f64) -> f64 {
+        let peak = self.peak_distance();
+        if d0 < peak {
+            self.speed_after(d1.min(peak))
+        } else {
+            self.speed_after(d0)
+        }
+    }
+
     /// Speed once the stop has covered distance `d` (zero past its end).
     pub fn speed_after(&self, d: f64) -> f64 {
         if d <= 0.0 {
