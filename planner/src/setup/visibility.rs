@@ -1397,6 +1397,15 @@ mod raster_tests {
             for k in 0..4 {
                 counts[k] += c[k];
             }
+            // And with a grazing margin (the front half is then a smaller
+            // cap than the contour's clip).
+            if matches!(name, "cavity" | "drafted pocket") {
+                let margin = VisibilityOptions {
+                    grazing_margin: 5f64.to_radians(),
+                    exact_cells: true,
+                };
+                assert_methods_agree_with(name, &mesh, &sphere, 1, margin);
+            }
         }
         // The fast paths did decide cells both ways, and the counts decided
         // most boundary cells.
