@@ -38,8 +38,8 @@ pub struct VisibilityMap {
     patches: usize,
     words: usize,
     bits: Vec<u64>,
-    /// Per patch: cells in the cone whose centre is blocked (found by the
-    /// exact cell test).
+    /// Per patch: cells in the cone shown by a direction other than their
+    /// centre (see [`VisibilityMap::upgraded`]).
     upgraded: Vec<u32>,
 }
 
@@ -89,8 +89,12 @@ impl VisibilityMap {
             .sum()
     }
 
-    /// Cells of `PVC_patch` whose centre direction is blocked: only some
-    /// other direction of the cell reaches the patch.
+    /// Cells of `PVC_patch` that the exact cell test opened by a direction
+    /// other than their centre: by the occluders' contour (the default),
+    /// the cells the contour or the horizon crosses that some direction of
+    /// reaches the patch (their centre may reach it too); by the rasteriser
+    /// and the exact pass, the cells whose centre is blocked. 0 with
+    /// `exact_cells` off.
     pub fn upgraded(&self, patch: usize) -> usize {
         self.upgraded[patch] as usize
     }
