@@ -568,8 +568,9 @@ impl Exact<'_> {
         w.arc_of.clear();
         self.mark_contour(tree, p, level, w);
         let mut added = 0;
-        if w.list.is_empty() {
-            // No contour in front: one count everywhere.
+        if !w.list.iter().any(|&c| self.has_part(c as usize, w)) {
+            // No contour in front (the arcs, if any, lie between the plane
+            // and the grazing margin): one count everywhere.
             let seed = (0..row.len()).find(|&k| row[k] != 0);
             if let Some(k) = seed {
                 let c = k * 64 + row[k].trailing_zeros() as usize;
