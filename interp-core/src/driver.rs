@@ -281,7 +281,7 @@ impl Driver {
                 .is_ok_and(|n| n <= st.free_segments),
             None => false,
         };
-        if pending && room {
+        if room {
             self.sync(st);
             match self.planner.plan_pending(&mut self.plan) {
                 Ok(()) => return Some(self.emit()),

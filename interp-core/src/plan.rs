@@ -1297,10 +1297,8 @@ fn assemble_and_solve(
     let mut needed = 0usize;
     for i in lo_i..n {
         let p = d.pieces[i];
-        let it = d.interval(p.g);
         let l2 = sc.cap2[i];
         needed += 3;
-        let _ = it;
         for smp in d.piece_samples(&p) {
             needed += (0..3).filter(|&ax| binds(smp, ax, l2)).count();
         }
@@ -1318,14 +1316,17 @@ fn assemble_and_solve(
         let it = *d.interval(p.g);
         let l2 = sc.cap2[i];
         let rest_end = i + 1 >= n || d.pieces[i + 1].rest_start;
+        // The middle coefficient's bound: next to a rest point, the
+        // acceleration step allowed there.
+        let d_hi = if p.rest_start || rest_end {
+            l2.min(rest_accel(a_rest, &it, &cfg) * h)
+        } else {
+            l2
+        };
         if i >= first {
             let j = i - first;
             sc.lo[j] = 0.0;
-            sc.hi[j] = if p.rest_start || rest_end {
-                l2.min(rest_accel(a_rest, &it, &cfg) * h)
-            } else {
-                l2
-            };
+            sc.hi[j] = d_hi;
         }
         // Knot values (start, end) and the middle coefficient as forms on
         // the coefficients of pieces (i−1, i, i+1).
@@ -1356,11 +1357,7 @@ fn assemble_and_solve(
         // it is linearised about its own bound, as the others are about
         // theirs; without that, trading it for the next piece's coefficient
         // looks free and the plan creeps out of every rest point.
-        let w_mid = if p.rest_start || rest_end {
-            weigh(l2.min(rest_accel(a_rest, &it, &cfg) * h))
-        } else {
-            weight
-        };
+        let w_mid = weigh(d_hi);
         for m in 0..3 {
             let q = i as isize + m as isize - 1;
             if q >= first as isize && (q as usize) < n {

@@ -773,11 +773,10 @@ fn sample_laws(
         w.lower_range(s0, s1, which, v);
     };
     // A per-axis sample is kept where the axis jerk could bind at the
-    // speed the laws allow there (elsewhere no row is needed); returns how
-    // close it could come to its limit (see [`axis_jerk_load`]), kept above 1.
-    let sample = |w: &mut Window, s: f64, d: &Derivs| -> f64 {
+    // speed `v` the laws allow there (elsewhere no row is needed).
+    let sample_at = |w: &mut Window, s: f64, d: &Derivs, v: f64| {
         let Some(a) = ArcLengthDerivs::new(d) else {
-            return 0.0;
+            return;
         };
         let smp = AxisSample {
             s,
@@ -785,14 +784,12 @@ fn sample_laws(
             css: [a.c_ss.x, a.c_ss.y, a.c_ss.z],
             csss: [a.c_sss.x, a.c_sss.y, a.c_sss.z],
         };
-        let v = law(d, 0).min(law(d, 1)).min(cfg.max_path_speed);
-        let load = (0..3)
-            .map(|ax| axis_jerk_load(&smp, ax, v * v, cfg))
-            .fold(0.0, f64::max);
-        if load > 1.0 {
+        if (0..3).any(|ax| axis_jerk_may_bind(&smp, ax, v * v, cfg)) {
             keep_axis_sample(w, smp, h, v * v, cfg);
         }
-        load
+    };
+    let sample = |w: &mut Window, s: f64, d: &Derivs| {
+        sample_at(w, s, d, law(d, 0).min(law(d, 1)).min(cfg.max_path_speed));
     };
     let curve = !matches!(path, Path::Line(_));
     let (g_first, g_last) = (index_of(seg.s0, h), index_of(seg.s1(), h));
@@ -868,23 +865,24 @@ fn sample_laws(
         let u = path.param_at_arc_length(u_prev, x - x_prev);
         // One evaluation for both laws at the sample.
         let d = path.eval(u.clamp(u_lo, u_hi), 3);
+        let parts = machine_limit_parts(&d, cfg, 1.0);
+        // (As `law(&d, 0)`, from the terms already at hand.)
+        let both = [
+            parts.iter().fold(cfg.max_path_speed, |a, &b| a.min(b)),
+            law(&d, 1),
+        ];
         if curve {
             // Per-axis samples at every law sample and between (the terms
             // change fast near a curvature peak); each kept where its axis
             // jerk may bind. Whether one is looked at must not turn on
             // round-off: a variant of the same path (moved, scaled, split)
             // would be planned differently.
-            sample(w, x, &d);
+            sample_at(w, x, &d, both[0].min(both[1]));
             if k > k0 {
                 let um = (0.5 * (u_prev + u)).clamp(u_lo, u_hi);
                 sample(w, x - 0.5 * hs, &path.eval(um, 3));
             }
         }
-        let parts = machine_limit_parts(&d, cfg, 1.0);
-        let both = [
-            parts.iter().fold(cfg.max_path_speed, |a, &b| a.min(b)),
-            law(&d, 1),
-        ];
         for which in 0..2 {
             let v = both[which];
             // Between two samples the law is taken as the lower of the two

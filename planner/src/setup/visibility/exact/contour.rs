@@ -642,10 +642,7 @@ impl Exact<'_> {
             if is_open(&w.todo, c) || is_open(&w.known_open, c) {
                 continue;
             }
-            let x = self.part_point(c, w);
-            if self.reaches(p, level, &x, w) {
-                w.known_open[c / 64] |= 1 << (c % 64);
-            } else if !self.flood_closed(c, p, row, w) {
+            if !self.settle_by_ray(c, p, level, row, w) {
                 return None;
             }
         }
@@ -671,10 +668,7 @@ impl Exact<'_> {
                 if arc_max_dot(&corners[(j + 1) % 3], &corners[(j + 2) % 3], n).0 <= p.min_dot {
                     continue;
                 }
-                let x = self.part_point(c, w);
-                if self.reaches(p, level, &x, w) {
-                    w.known_open[c / 64] |= 1 << (c % 64);
-                } else if !self.flood_closed(c, p, row, w) {
+                if !self.settle_by_ray(c, p, level, row, w) {
                     return None;
                 }
             }
@@ -738,6 +732,26 @@ impl Exact<'_> {
         let lo = w.arc_of.partition_point(|e| e.0 < b);
         let hi = w.arc_of.partition_point(|e| e.0 <= b);
         lo..hi
+    }
+
+    /// Settles cell `c` by one ray to its point: open if it reaches the
+    /// patch, else its run is closed by a flood; false when the flood meets
+    /// a cell known open (round-off).
+    fn settle_by_ray(
+        &self,
+        c: usize,
+        p: &PatchFrame,
+        level: f64,
+        row: &mut [u64],
+        w: &mut ExactScratch,
+    ) -> bool {
+        let x = self.part_point(c, w);
+        if self.reaches(p, level, &x, w) {
+            w.known_open[c / 64] |= 1 << (c % 64);
+            true
+        } else {
+            self.flood_closed(c, p, row, w)
+        }
     }
 
     /// Closes the run of non-boundary cells from `c` (covered: its count is
