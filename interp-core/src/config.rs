@@ -60,7 +60,9 @@ pub struct InterpConfig {
     /// absorbs discrete-time effects (chord versus arc, law sampling). Default 0.02.
     pub planning_margin: f64,
     /// A junction (corner or curvature jump) whose limit-respecting speed is
-    /// below this is passed with a full stop instead, mm/s. Default 0.5.
+    /// below this is passed with a full stop instead, mm/s. Default 0.5. (The
+    /// planner stops below a higher speed where passing would be slower than
+    /// the stop: `plan::stop_speed`.)
     pub junction_min_speed: f64,
     /// Largest feed override accepted (1 = 100 %). Default 2.0.
     pub max_feed_override: f64,

@@ -1566,6 +1566,20 @@ fn kept_caps(d: &Data, cap2: &mut [f64; WINDOW], old: &[WPiece], first: usize) {
     }
 }
 
+/// Speed below which a junction or a corner blend is passed with a full
+/// stop, mm/s: `junction_min_speed`, or more where the plan cannot use the
+/// speed. A slow point lowers the limit of a whole law sub-range (`h/SUB`
+/// long), which costs about `h/(SUB·v)` to cross, while a stop costs at most
+/// the jerk-limited ramps down to rest and back up to `v`, `4·√(v/J)`: the
+/// stop is the faster below `v = (h·√J / (4·SUB))^⅔`, 1.8 mm/s at the
+/// defaults. (The corner blends of a `G64 P0.001` rapid, passable at
+/// 0.7 mm/s, cost 80–110 ms each; stopped, 10 ms.)
+pub fn stop_speed(cfg: &InterpConfig) -> f64 {
+    let hs = crate::interp::grid_step(cfg) / SUB as f64;
+    let v = libm::pow(hs * libm::sqrt(cfg.planned_jerk()) / 4.0, 2.0 / 3.0);
+    cfg.junction_min_speed.max(v)
+}
+
 /// Within this fraction of a sub-range of its boundary, a point counts as
 /// on it (and lowers both sides): law samples fall on boundaries and
 /// `k·hs/hs` need not be `k`, and a refined law minimum at a sample or a

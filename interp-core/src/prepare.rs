@@ -728,7 +728,7 @@ impl BlockPlanner {
     /// A junction of speed limit `v` at arc length `s`: a rest point, or a
     /// lower limit there. Returns whether it is a rest point.
     fn apply_junction(&mut self, v: f64, s: f64) -> bool {
-        if v < self.cfg.junction_min_speed {
+        if v < crate::plan::stop_speed(&self.cfg) {
             let _ = self.window.add_stop(s);
             true
         } else {

@@ -18,9 +18,9 @@
 //!   blend whose three first and three last control points lie on the two
 //!   lines: tangent and curvature (zero) continuous with both. Its size is
 //!   the largest that keeps the corner within `tol` and takes at most half of
-//!   either line. A blend slower than `junction_min_speed` at its tightest
-//!   point (the machine laws at its curvature) is no useful blend: the corner
-//!   stays exact.
+//!   either line. A blend slower than [`crate::plan::stop_speed`] at its
+//!   tightest point (the machine laws at its curvature) is no useful blend:
+//!   a stop is faster, and the corner stays exact.
 //!
 //! Under `G64`, consecutive lines whose joint lies on the line through their
 //! outer ends (within round-off, same feed) are merged. Under every mode,
@@ -614,7 +614,7 @@ impl<const W: usize> Smoother<W> {
                 let slowest = (0..=16)
                     .map(|i| machine_limit(&curve.eval(l * i as f64 / 16.0, 3), &self.cfg, 1.0))
                     .fold(f64::INFINITY, f64::min);
-                if slowest < self.cfg.junction_min_speed {
+                if slowest < crate::plan::stop_speed(&self.cfg) {
                     return None;
                 }
                 return Some((curve, d));

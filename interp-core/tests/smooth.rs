@@ -310,3 +310,32 @@ fn long_moves_get_curvature_continuous_corner_blends_within_the_tolerance() {
     }
     run(&blocks, &cfg, 1_000_000).unwrap();
 }
+
+#[test]
+fn a_corner_blend_slower_than_a_stop_is_an_exact_corner_and_costs_no_more_than_the_stop() {
+    // The rapids of a raster under `G64 P0.001`: up 10 mm, then 16 mm
+    // across. A blend within 1 µm of a 90° corner passes at 0.7 mm/s (more
+    // than `junction-min-speed`), but charged to its law sub-range it took
+    // ~100 ms more than stopping there.
+    let cfg = InterpConfig::default();
+    let pts = [
+        Vec3::new(13.0, 0.0, -3.0),
+        Vec3::new(13.0, 0.0, 7.0),
+        Vec3::new(-3.0, 2.0, 7.0),
+    ];
+    let g64 = Blending::Within {
+        tolerance: Some(0.001),
+    };
+    let blocks = polyline(&pts, 250.0, g64);
+    let out = smooth_all(&blocks, &cfg, Policy::Auto);
+    assert!(
+        out.iter().all(|b| matches!(b.path, Path::Line(_))),
+        "{out:?}"
+    );
+    let corner = run(&blocks, &cfg, 100_000).unwrap().len();
+    let alone: usize = blocks
+        .iter()
+        .map(|b| run(std::slice::from_ref(b), &cfg, 100_000).unwrap().len())
+        .sum();
+    assert!(corner <= alone + 2, "{corner} ticks, {alone} stopping");
+}

@@ -165,7 +165,9 @@ fn truncated_and_corrupted_traces_report_what_they_recovered() {
                 assert_eq!(file_bytes, cut);
                 assert!(!cause.is_empty());
                 let got = recovered.setpoints.len();
-                assert!(got < full.setpoints.len() || frac > 0.9, "cut {cut}: {got}");
+                // (Past the last setpoint chunk, at a layout-dependent share
+                // of the file, everything is recovered.)
+                assert!(got < full.setpoints.len() || frac > 0.5, "cut {cut}: {got}");
                 assert!(got >= last_setpoints, "more file, no fewer setpoints");
                 last_setpoints = got;
                 // What was recovered is the trace's own beginning.
