@@ -247,9 +247,11 @@ pub struct ServeArgs {
     #[arg(long, value_name = "FILE")]
     pub machine: Option<PathBuf>,
     /// Record the run to this MCAP trace (config, blocks, setpoints, loop
-    /// timing, events) through the `traces` recorder; `interpd replay` of it
-    /// reproduces the setpoints of the first program bit for bit when that
-    /// program was queued before `start`.
+    /// timing, events, the schedule of pushes and commands) through the
+    /// `traces` recorder; `interpd replay` of it reproduces every setpoint of
+    /// the session bit for bit (several programs, hold, resume, override,
+    /// abort; not yet past a look-ahead refusal mid-program), up to its last
+    /// complete chunk if `serve` was killed.
     #[arg(long, value_name = "PATH")]
     pub record: Option<PathBuf>,
     /// Print the final summary as JSON.

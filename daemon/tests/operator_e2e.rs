@@ -324,9 +324,9 @@ fn a_nurbs_of_the_most_control_points_at_full_precision_fits_one_line() {
 }
 
 /// The RT thread reaches the system allocator not once in a session of
-/// several programs from several connections (streamed, held, resumed,
-/// aborted, refused as busy): `serve` counts what its RT pool could not
-/// serve and prints it.
+/// several programs from several connections (streamed, two at once,
+/// held, resumed, aborted, refused as busy) with a subscriber joining:
+/// `serve` counts what its RT pool could not serve and prints it.
 #[test]
 fn the_rt_thread_makes_no_system_allocation_in_a_session_of_several_programs() {
     let dir = temp_dir("rt-alloc");
@@ -341,6 +341,26 @@ fn the_rt_thread_makes_no_system_allocation_in_a_session_of_several_programs() {
         let (st, _, err) = send(srv.port, prog, &[]);
         assert!(st.success(), "{err}");
     }
+    // A subscriber joins mid-session (iceoryx2 connects it on the RT
+    // thread's next publish) while two sends start at once: one runs, the
+    // other is refused as busy (or runs after it, on a slow machine).
+    let watcher = std::process::Command::new(interpd())
+        .args(["watch", "--count", "300", "--service", &srv.service])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let (one, two) = std::thread::scope(|s| {
+        let one = s.spawn(|| send(srv.port, &arcs, &[]));
+        let two = s.spawn(|| send(srv.port, &square, &[]));
+        (one.join().unwrap(), two.join().unwrap())
+    });
+    assert!(one.0.success() || two.0.success(), "{} / {}", one.2, two.2);
+    for (st, _, err) in [&one, &two] {
+        assert!(st.success() || err.contains("busy: program"), "{err}");
+    }
+    let w = wait_child(watcher, "interpd watch --count 300");
+    assert!(w.status.success(), "{}", String::from_utf8_lossy(&w.stderr));
     // Two connections: one streams, the other is refused, holds, resumes and aborts.
     let mut a = srv.connect();
     let mut b = srv.connect();

@@ -94,43 +94,90 @@ pub fn golden_section_min(
 /// [`golden_section_min`] with where it was seen: `(x, f(x))`.
 pub fn golden_section_argmin(
     f: impl Fn(f64) -> f64,
-    mut a: f64,
-    mut b: f64,
+    a: f64,
+    b: f64,
     iters: usize,
     min_width: f64,
 ) -> (f64, f64) {
-    const G: f64 = 0.618_033_988_749_894_9;
-    let mut x1 = b - G * (b - a);
-    let mut x2 = a + G * (b - a);
-    let (mut f1, mut f2) = (f(x1), f(x2));
+    let mut g = GoldenBracket::new(&f, a, b);
     // As f64::min: a NaN value never wins over a number.
     let better = |v: f64, best: f64| v < best || (best.is_nan() && !v.is_nan());
-    let mut best = if better(f2, f1) { (x2, f2) } else { (x1, f1) };
+    let mut best = if better(g.f2, g.f1) {
+        (g.x2, g.f2)
+    } else {
+        (g.x1, g.f1)
+    };
     for _ in 0..iters {
-        if b - a <= min_width {
+        if g.b - g.a <= min_width {
             break;
         }
-        if f1 < f2 {
-            b = x2;
-            x2 = x1;
-            f2 = f1;
-            x1 = b - G * (b - a);
-            f1 = f(x1);
-            if better(f1, best.1) {
-                best = (x1, f1);
-            }
-        } else {
-            a = x1;
-            x1 = x2;
-            f1 = f2;
-            x2 = a + G * (b - a);
-            f2 = f(x2);
-            if better(f2, best.1) {
-                best = (x2, f2);
-            }
+        let (x, v) = g.step(g.f1 < g.f2, &f);
+        if better(v, best.1) {
+            best = (x, v);
         }
     }
     best
+}
+
+/// A golden-section bracket `[a, b]` with its interior points `x1 < x2`
+/// and their values: the one golden-section search of the workspace, which
+/// [`golden_section_argmin`] runs and a caller with its own stopping rule
+/// (a bound on the remaining optimum, a maximum) steps itself.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GoldenBracket {
+    /// Left end.
+    pub a: f64,
+    /// Right end.
+    pub b: f64,
+    /// Left interior point, `b − 0.618…·(b − a)`.
+    pub x1: f64,
+    /// Right interior point, `a + 0.618…·(b − a)`.
+    pub x2: f64,
+    /// `f(x1)`.
+    pub f1: f64,
+    /// `f(x2)`.
+    pub f2: f64,
+}
+
+impl GoldenBracket {
+    /// `1/φ`: each step keeps this share of the bracket.
+    pub const RATIO: f64 = 0.618_033_988_749_894_9;
+
+    /// The bracket `[a, b]`, evaluating `f` at its two interior points.
+    pub fn new(f: impl Fn(f64) -> f64, a: f64, b: f64) -> Self {
+        let x1 = b - Self::RATIO * (b - a);
+        let x2 = a + Self::RATIO * (b - a);
+        Self {
+            a,
+            b,
+            x1,
+            x2,
+            f1: f(x1),
+            f2: f(x2),
+        }
+    }
+
+    /// Keeps `[a, x2]` when `left`, else `[x1, b]`, and evaluates `f` at
+    /// the one new interior point, which it returns with its value. A
+    /// minimum is searched with `left = f1 < f2`, a maximum with
+    /// `left = f1 > f2` (the tie is the caller's choice).
+    pub fn step(&mut self, left: bool, f: impl Fn(f64) -> f64) -> (f64, f64) {
+        if left {
+            self.b = self.x2;
+            self.x2 = self.x1;
+            self.f2 = self.f1;
+            self.x1 = self.b - Self::RATIO * (self.b - self.a);
+            self.f1 = f(self.x1);
+            (self.x1, self.f1)
+        } else {
+            self.a = self.x1;
+            self.x1 = self.x2;
+            self.f1 = self.f2;
+            self.x2 = self.a + Self::RATIO * (self.b - self.a);
+            self.f2 = f(self.x2);
+            (self.x2, self.f2)
+        }
+    }
 }
 
 /// The parameter `u` in `[u0, hi]` at arc length `ds` past `u0`, to what the
@@ -205,5 +252,33 @@ mod golden_section_tests {
         let (x, v) =
             golden_section_argmin(|x| if x < 0.5 { f64::NAN } else { x }, 0.0, 1.0, 60, 1e-12);
         assert!(!v.is_nan() && x >= 0.5 && (v - 0.5).abs() < 1e-9, "{x} {v}");
+    }
+
+    /// Stepped by hand, the bracket finds a maximum (`left = f1 > f2`), each
+    /// step keeps 0.618… of it and always holds the optimum; ties go where
+    /// the caller says.
+    #[test]
+    fn a_bracket_stepped_by_hand_maximises_and_shrinks_by_the_ratio() {
+        // A kink, not a parabola: its top resolves to the ulp.
+        let f = |x: f64| 1.0 - libm::fabs(x - 0.7);
+        let mut g = GoldenBracket::new(f, 0.0, 2.0);
+        for _ in 0..60 {
+            let w = g.b - g.a;
+            g.step(g.f1 > g.f2, f);
+            assert!((g.b - g.a - GoldenBracket::RATIO * w).abs() <= 1e-12 * w + 1e-15);
+            assert!(g.a <= 0.7 && 0.7 <= g.b && g.x1 <= g.x2, "{g:?}");
+        }
+        assert!(
+            (g.x1 - 0.7).abs() < 1e-11 && (g.f1 - 1.0).abs() < 1e-11,
+            "{g:?}"
+        );
+        let flat = |_: f64| 3.0;
+        let mut left = GoldenBracket::new(flat, 0.0, 1.0);
+        let mut right = left;
+        left.step(true, flat);
+        right.step(false, flat);
+        assert_eq!((left.a, left.b), (0.0, 0.618_033_988_749_894_9));
+        assert_eq!(right.b, 1.0);
+        assert!((right.a - (1.0 - 0.618_033_988_749_894_9)).abs() < 1e-16);
     }
 }

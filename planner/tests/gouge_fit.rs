@@ -75,19 +75,11 @@ fn blocks_are_valid_interp_core_curves_within_tolerance() {
                     d(a as f64 / SAMPLES as f64).total_cmp(&d(c as f64 / SAMPLES as f64))
                 })
                 .unwrap();
-            let (mut lo, mut hi) = (
+            let (lo, hi) = (
                 (i as f64 - 1.0) / SAMPLES as f64,
                 (i as f64 + 1.0) / SAMPLES as f64,
             );
-            for _ in 0..60 {
-                let (m1, m2) = (lo + (hi - lo) * 0.382, lo + (hi - lo) * 0.618);
-                if d(m1) < d(m2) {
-                    hi = m2;
-                } else {
-                    lo = m1;
-                }
-            }
-            best = best.min(d(0.5 * (lo + hi)));
+            best = best.min(interp_core::geom::golden_section_min(d, lo, hi, 60, 0.0));
         }
         assert!(best <= cfg.tolerance, "{p}: {best}");
     }

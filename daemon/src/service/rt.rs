@@ -693,71 +693,98 @@ impl Loop {
         let mut next = now_ns();
         self.status.epoch_ns.store(next, Ordering::Release);
         self.status.running.store(true, Ordering::Release);
+        // One period, in the phases of docs/daemon.md › One tick.
         loop {
             next += self.period_ns;
-            wait_until_ns(next, self.spin_ns);
-            let wake = now_ns();
-            lateness.record((wake - next).max(0) as u64);
+            let late_ns = self.wait(next, lateness);
             if self.stop.load(Ordering::Acquire) {
                 break;
             }
             let push_ns = self.apply_steps();
-
             let t0 = now_ns();
-            // Tick only once the planning thread has decided this tick (it
-            // sent every step before it): otherwise the last point again,
-            // unticked (waiting for `start`, or a late planner).
-            let ticked = self.decided.load(Ordering::Acquire) > self.exec.stats().ticks;
-            if ticked {
-                last = self.exec.tick();
-            } else {
-                if matches!(self.exec.state(), RunState::Running | RunState::Stopping)
-                    && self.status.started.load(Ordering::Relaxed)
-                {
-                    self.status.planner_late.fetch_add(1, Ordering::Relaxed);
-                }
-                last.feed = 0.0;
-                // A step may have left `done` for a new program (queued,
-                // not started: it stays idle until it ticks).
-                let st = self.exec.state();
-                if st == RunState::Idle || (last.state == RunState::Done && st != RunState::Done) {
-                    last.state = RunState::Idle;
-                }
-            }
+            let ticked = self.tick(&mut last);
             let seq = self.publisher.publish(&last);
-            let t1 = now_ns();
-            let tick_ns = (t1 - t0).max(0) as u64;
+            let tick_ns = (now_ns() - t0).max(0) as u64;
             if push_ns > 0 {
                 compute_with_push.record(push_ns + tick_ns);
             } else {
                 compute.record(tick_ns);
             }
-            let rec = TickRecord {
-                setpoint: last,
-                lateness_ns: (wake - next).max(0) as u64,
-                compute_ns: tick_ns,
-                queue_depth: self.exec.queued_segments() as u32,
-                ticked,
-            };
-            self.record(RtRecord::Tick(rec));
+            self.record_tick(last, late_ns, tick_ns, ticked);
             self.publish_status(&last, seq);
+            next = self.skip_missed(next, &mut overruns);
+        }
+        self.drain_steps();
+        (overruns, last)
+    }
 
-            // A missed period is counted and skipped, never hidden: the next
-            // deadline is the first one still ahead.
-            let end = now_ns();
-            if end > next + self.period_ns {
-                let missed = (end - next) / self.period_ns;
-                overruns += missed as u64;
-                next += (missed - 1).max(0) * self.period_ns;
-                self.status.overruns.store(overruns, Ordering::Release);
+    /// Phase 1: sleeps (or spins) to the deadline `next`; returns the wake
+    /// lateness, ns, also recorded in `lateness`.
+    fn wait(&self, next: i64, lateness: &mut Histogram) -> u64 {
+        wait_until_ns(next, self.spin_ns);
+        let late_ns = (now_ns() - next).max(0) as u64;
+        lateness.record(late_ns);
+        late_ns
+    }
+
+    /// Phase 3: ticks once the planning thread has decided this tick (it
+    /// sent every step before it); otherwise `last` again, unticked
+    /// (waiting for `start`, or a late planner). Returns whether it ticked.
+    fn tick(&mut self, last: &mut Setpoint) -> bool {
+        let ticked = self.decided.load(Ordering::Acquire) > self.exec.stats().ticks;
+        if ticked {
+            *last = self.exec.tick();
+        } else {
+            if matches!(self.exec.state(), RunState::Running | RunState::Stopping)
+                && self.status.started.load(Ordering::Relaxed)
+            {
+                self.status.planner_late.fetch_add(1, Ordering::Relaxed);
+            }
+            last.feed = 0.0;
+            // A step may have left `done` for a new program (queued,
+            // not started: it stays idle until it ticks).
+            let st = self.exec.state();
+            if st == RunState::Idle || (last.state == RunState::Done && st != RunState::Done) {
+                last.state = RunState::Idle;
             }
         }
+        ticked
+    }
+
+    /// Phase 5: the setpoint and its timing to the recorder.
+    fn record_tick(&mut self, setpoint: Setpoint, lateness_ns: u64, compute_ns: u64, ticked: bool) {
+        let rec = TickRecord {
+            setpoint,
+            lateness_ns,
+            compute_ns,
+            queue_depth: self.exec.queued_segments() as u32,
+            ticked,
+        };
+        self.record(RtRecord::Tick(rec));
+    }
+
+    /// Phase 6: a missed period is counted and skipped, never hidden: the
+    /// next deadline is the first one still ahead. Returns the deadline
+    /// the next period starts from.
+    fn skip_missed(&self, next: i64, overruns: &mut u64) -> i64 {
+        let end = now_ns();
+        if end > next + self.period_ns {
+            let missed = (end - next) / self.period_ns;
+            *overruns += missed as u64;
+            self.status.overruns.store(*overruns, Ordering::Release);
+            return next + (missed - 1).max(0) * self.period_ns;
+        }
+        next
+    }
+
+    /// After the loop: plan buffers still queued go back to the planning
+    /// thread, not freed here.
+    fn drain_steps(&mut self) {
         while let Some(step) = self.steps.dequeue() {
             if let Some(Op::Commit(plan)) = step.op {
                 self.recycle(plan);
             }
         }
-        (overruns, last)
     }
 
     /// The state is stored last: a reader that sees it (Acquire) sees the

@@ -1,6 +1,8 @@
 //! Shared helpers of the `serve_*` end-to-end tests: locate the `interpd`
 //! binary cargo built for them, start `interpd serve` on a private iceoryx2 service and a
-//! free port, talk the line protocol, read `interpd watch` CSV files.
+//! free port, talk the line protocol (every reply read through the library's
+//! typed [`Reply`], which must print it back to the same line), read
+//! `interpd watch` CSV files.
 #![allow(dead_code)] // each test file uses a subset
 
 use std::io::{BufRead, BufReader, Write};
@@ -8,6 +10,9 @@ use std::net::TcpStream;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
+
+use interpd::protocol::Reply;
+use interpd::service::publish::{run_state, state_name};
 
 /// How long a test waits for any one thing before failing.
 pub const WAIT: Duration = Duration::from_secs(20);
@@ -143,20 +148,28 @@ impl Conn {
         self.w.write_all(b"\n").expect("write");
     }
 
-    /// Reads one reply line.
+    /// Reads one reply line. It must parse as the library's [`Reply`] and
+    /// print back to the same line.
     pub fn reply(&mut self) -> String {
         let mut s = String::new();
         self.r.read_line(&mut s).expect("reply");
-        s.trim_end().to_owned()
+        let line = s.trim_end().to_owned();
+        let typed = Reply::parse(&line).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(typed.to_string(), line, "the reply does not print back");
+        line
     }
 
-    /// The status as JSON.
+    /// The typed reply to one request.
+    pub fn ask_typed(&mut self, line: &str) -> Reply {
+        Reply::parse(&self.ask(line)).expect("checked by reply")
+    }
+
+    /// The status as JSON (read through the library's typed status).
     pub fn status(&mut self) -> serde_json::Value {
-        let r = self.ask("status");
-        let j = r
-            .strip_prefix("status ")
-            .unwrap_or_else(|| panic!("not a status: {r}"));
-        serde_json::from_str(j).expect("status JSON")
+        match self.ask_typed("status") {
+            Reply::Status(s) => serde_json::to_value(&*s).expect("status JSON"),
+            other => panic!("not a status: {other}"),
+        }
     }
 
     /// Polls the status until `pred` holds.
@@ -188,8 +201,6 @@ pub struct Row {
     pub state: &'static str,
 }
 
-const STATES: [&str; 6] = ["idle", "running", "holding", "stopping", "done", "fault"];
-
 /// Reads a `watch` CSV.
 pub fn read_csv(path: &Path) -> Vec<Row> {
     let text = std::fs::read_to_string(path).expect("csv");
@@ -204,10 +215,9 @@ pub fn read_csv(path: &Path) -> Vec<Row> {
                 p: [num(3), num(4), num(5)],
                 feed: num(6),
                 block_id: f[9].parse().expect("block id"),
-                state: STATES
-                    .iter()
-                    .find(|s| **s == f[10])
-                    .copied()
+                state: (0..6)
+                    .map(|c| state_name(run_state(c)))
+                    .find(|s| *s == f[10])
                     .expect("state"),
             }
         })

@@ -117,10 +117,34 @@ pub enum RasterError {
         /// The limit.
         limit: usize,
     },
+    /// The path would hold more CL points than the limit: the chord
+    /// tolerance (or the step-over) is far finer than any machine needs, and
+    /// the program written from it would exhaust memory.
+    #[error(
+        "more than {limit} CL points (at least {points}) at chord-tolerance {chord_tolerance} mm \
+         and stepover {stepover} mm: raise either"
+    )]
+    TooManyPoints {
+        /// Points made before planning stopped (a lower bound).
+        points: usize,
+        /// The chord tolerance, mm.
+        chord_tolerance: f64,
+        /// The step-over, mm.
+        stepover: f64,
+        /// The limit.
+        limit: usize,
+    },
 }
 
 /// Upper limit on the number of passes (10 m at 0.1 µm would be absurd).
 pub const MAX_PASSES: usize = 10_000_000;
+
+/// Upper limit on the CL points of a path. Ten million points is a large
+/// mould finished at a fine step-over (about 0.5 GB of G-code); a chord
+/// tolerance near what f64 resolves asks for far more (a 20 mm plate at
+/// 1e-11 mm: 65 million points, a 3 GB program built in 23 GB of memory).
+/// Planning stops soon after the limit is passed, so memory stays bounded.
+pub const MAX_POINTS: usize = 10_000_000;
 
 /// One pass: its index from the first pass and its polylines in cutting
 /// order (several when the tool leaves the mesh in between).
@@ -303,6 +327,18 @@ pub fn plan_raster_with_progress(
     config: &RasterConfig,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<RasterPath, RasterError> {
+    plan_raster_limited(mesh, cutter, config, progress, MAX_POINTS)
+}
+
+/// [`plan_raster_with_progress`] refusing a path of more than `max_points`
+/// CL points: passes not yet started once the limit is passed are skipped.
+fn plan_raster_limited(
+    mesh: &TriMesh,
+    cutter: &Cutter,
+    config: &RasterConfig,
+    progress: &(dyn Fn(usize, usize) + Sync),
+    max_points: usize,
+) -> Result<RasterPath, RasterError> {
     config.validate()?;
     let cutter = cutter.validated().map_err(|_| RasterError::Config {
         field: "cutter",
@@ -389,11 +425,22 @@ pub fn plan_raster_with_progress(
         prune_tolerance: PRUNE_TOLERANCE,
     };
     let done = AtomicUsize::new(0);
+    let points = AtomicUsize::new(0);
     let results: Vec<(RasterPass, usize)> = (0..count)
         .into_par_iter()
         .map_init(
             || (Vec::<Piece>::new(), EnvelopeScratch::default()),
             |(pieces, scratch), k| {
+                if points.load(Ordering::Relaxed) > max_points {
+                    let polylines = Vec::new();
+                    return (
+                        RasterPass {
+                            index: k,
+                            polylines,
+                        },
+                        0,
+                    );
+                }
                 let w = wmin + k as f64 * config.stepover;
                 pieces.clear();
                 index.for_each_at(w, |id| {
@@ -419,6 +466,8 @@ pub fn plan_raster_with_progress(
                         p.reverse();
                     }
                 }
+                let made: usize = polylines.iter().map(Vec::len).sum();
+                points.fetch_add(made, Ordering::Relaxed);
                 let n = done.fetch_add(1, Ordering::Relaxed) + 1;
                 progress(n, count);
                 (
@@ -431,6 +480,15 @@ pub fn plan_raster_with_progress(
             },
         )
         .collect();
+    let made = points.into_inner();
+    if made > max_points {
+        return Err(RasterError::TooManyPoints {
+            points: made,
+            chord_tolerance: config.chord_tolerance,
+            stepover: config.stepover,
+            limit: max_points,
+        });
+    }
     let mut stats = RasterStats {
         triangles: mesh.triangles.len(),
         edges: topo.edges.len(),

@@ -29,6 +29,7 @@
 //!   envelope step recognises the copies by their feature id.
 
 use crate::cutter::Cutter;
+use interp_core::geom::GoldenBracket;
 
 /// A point of the pass frame: `u` along the pass, `w` across, `z` up.
 pub(crate) type F3 = [f64; 3];
@@ -461,13 +462,19 @@ impl OffsetEdge {
             let y = self.p0[1] + t * (self.p1[1] - self.p0[1]) - w;
             self.z_at(t) - shape.profile((x * x + y * y).sqrt())
         };
-        const INV_PHI: f64 = 0.618_033_988_749_894_9;
-        let (mut a, mut b) = (t1, t2);
-        let (mut fa, mut fb) = (h(a), h(b));
-        let mut c = b - INV_PHI * (b - a);
-        let mut d = a + INV_PHI * (b - a);
-        let (mut fc, mut fd) = (h(c), h(d));
+        // The one golden-section bracket (interp_core::geom), maximising:
+        // c, d its interior points, fa, fb the values at its ends.
+        let mut g = GoldenBracket::new(h, t1, t2);
+        let (mut fa, mut fb) = (h(t1), h(t2));
         for _ in 0..GOLDEN_ITERATIONS {
+            let GoldenBracket {
+                a,
+                b,
+                x1: c,
+                x2: d,
+                f1: fc,
+                f2: fd,
+            } = g;
             if b - a <= f64::EPSILON * 4.0 {
                 break;
             }
@@ -490,22 +497,17 @@ impl OffsetEdge {
             if bound - found <= BULL_VALUE_TOLERANCE {
                 break;
             }
-            if fc >= fd {
-                b = d;
+            // Towards the higher value, ties to the left: [a, d] (b = d)
+            // or [c, b] (a = c).
+            let left = fc >= fd;
+            if left {
                 fb = fd;
-                d = c;
-                fd = fc;
-                c = b - INV_PHI * (b - a);
-                fc = h(c);
             } else {
-                a = c;
                 fa = fc;
-                c = d;
-                fc = fd;
-                d = a + INV_PHI * (b - a);
-                fd = h(d);
             }
+            g.step(left, h);
         }
+        let (c, d, fc, fd) = (g.x1, g.x2, g.f1, g.f2);
         let mut best = if fc >= fd { (fc, c) } else { (fd, d) };
         for t in [t1, t2] {
             let v = h(t);

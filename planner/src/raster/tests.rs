@@ -84,3 +84,39 @@ fn edge_drop_matches_brute_force_for_every_cutter() {
         assert!(checked > 100, "{tool}: {checked}");
     }
 }
+
+/// A path of more CL points than the limit is refused (naming the chord
+/// tolerance and the step-over), not built: a tolerance near what f64
+/// resolves would otherwise exhaust memory. At the limit it is the path.
+#[test]
+fn a_path_over_the_point_limit_is_refused() {
+    use super::{RasterConfig, RasterError, plan_raster, plan_raster_limited};
+    use crate::mesh::{P3, TriMesh, WeldOptions};
+    // A 20 × 20 mm plate: the ball rolls over its edges, where the chord
+    // tolerance sets the points.
+    let p = |x: f64, y: f64| P3::new(x, y, 2.0);
+    let soup = [
+        [p(0.0, 0.0), p(20.0, 0.0), p(20.0, 20.0)],
+        [p(0.0, 0.0), p(20.0, 20.0), p(0.0, 20.0)],
+    ];
+    let mesh = TriMesh::from_triangles(&soup, WeldOptions::default()).unwrap();
+    let cutter = Cutter::Ball { diameter: 4.0 };
+    let config = RasterConfig {
+        stepover: 2.0,
+        ..RasterConfig::default()
+    };
+    let path = plan_raster(&mesh, &cutter, &config).unwrap();
+    let n = path.point_count();
+    assert!(n > 100, "{n} points");
+    let at = plan_raster_limited(&mesh, &cutter, &config, &|_, _| {}, n).unwrap();
+    assert_eq!(at, path);
+    let err = plan_raster_limited(&mesh, &cutter, &config, &|_, _| {}, n - 1).unwrap_err();
+    let RasterError::TooManyPoints { points, limit, .. } = err else {
+        panic!("{err}");
+    };
+    assert!(points > n - 1 && points <= n, "{points}");
+    assert_eq!(limit, n - 1);
+    let text = err.to_string();
+    assert!(text.contains("chord-tolerance 0.00001 mm"), "{text}");
+    assert!(text.contains("stepover 2 mm"), "{text}");
+}
