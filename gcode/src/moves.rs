@@ -111,6 +111,23 @@ impl MoveOrientation {
     pub fn is_tcp(&self) -> bool {
         matches!(self, MoveOrientation::ToolAxis { .. })
     }
+
+    /// How far the move turns, degrees: `|Δ(A, B, C)|` of the rotary axes,
+    /// or the angle the tool axis turns by. A move whose path stands still
+    /// (`G0 A30 C45` alone) is a turn in place of this length, and its feed
+    /// is in degrees per minute (`interp_core::fiveaxis::Orientation::in_place`).
+    pub fn turn(&self) -> f64 {
+        match self {
+            MoveOrientation::Axes { start, end } => (0..3)
+                .map(|k| (end[k] - start[k]) * (end[k] - start[k]))
+                .sum::<f64>()
+                .sqrt(),
+            MoveOrientation::ToolAxis { start, end } => {
+                let (a, b) = (v3(*start), v3(*end));
+                a.cross(&b).norm().atan2(a.dot(&b)).to_degrees()
+            }
+        }
+    }
 }
 
 impl Move<'_> {
@@ -205,7 +222,7 @@ impl Cutter {
 
     /// Moves on past `last`, a block cut before (the last of a move's blocks).
     pub fn follow(&mut self, last: &Block) {
-        self.at = last.path.end_point();
+        self.at = last.end_position();
         self.tcp = last.is_tcp();
         self.next_id = last.id.wrapping_add(1);
     }
@@ -239,9 +256,19 @@ impl Cutter {
             b
         };
         let mut out = Vec::new();
+        // A straight move whose end is its start but that turns: a turn in
+        // place, its path the turn's measure in degrees from where it stands.
+        let in_place = match (m.path, m.orientation) {
+            (MovePath::Line { end }, Some(o)) if v3(end) == start => Some(o.turn()),
+            _ => None,
+        };
         match m.path {
             MovePath::Line { end } => {
-                let l = Line::new(start, v3(end)).map_err(CutError::Path)?;
+                let end = match in_place {
+                    Some(turn) => start + Vec3::x() * turn,
+                    None => v3(end),
+                };
+                let l = Line::new(start, end).map_err(CutError::Path)?;
                 out.push(block(Path::Line(l)));
             }
             MovePath::Arc {
@@ -297,7 +324,10 @@ impl Cutter {
                 }
             }
             .map_err(CutError::Orientation)?;
-            let core = with_end_parameter(core, last.path.u_end());
+            let mut core = with_end_parameter(core, last.path.u_end());
+            if in_place.is_some() {
+                core = core.in_place(start);
+            }
             for b in &mut out {
                 b.orientation = Some(core);
             }
@@ -312,22 +342,9 @@ impl Cutter {
 /// `o` over a parameter range that ends at `u1`.
 fn with_end_parameter(o: CoreOrientation, u1: f64) -> CoreOrientation {
     match o {
-        CoreOrientation::Axes { start, end, u0, .. } => {
-            CoreOrientation::Axes { start, end, u0, u1 }
+        CoreOrientation::Axes { u0, .. } | CoreOrientation::ToolAxis { u0, .. } => {
+            o.with_range(u0, u1)
         }
-        CoreOrientation::ToolAxis {
-            start,
-            w,
-            theta,
-            u0,
-            ..
-        } => CoreOrientation::ToolAxis {
-            start,
-            w,
-            theta,
-            u0,
-            u1,
-        },
     }
 }
 

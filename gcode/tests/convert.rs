@@ -181,11 +181,11 @@ fn the_path_control_mode_in_force_becomes_each_blocks_blending() {
 fn five_axis_moves_that_cannot_be_converted_are_refused_naming_the_line() {
     let ca = ca_options();
     for (text, opts, line, reason) in [
-        // The tool tip (or X Y Z) stands still while a rotary axis turns.
+        // Under TCP at the pole (A = 0) C turns but the tool does not.
         (
-            "G1 X1 F100\nG1 C90\n",
-            CoreOptions::default(),
-            2,
+            "G0 X0 Y0 Z10 A0 C0\nG43.4\nG1 X0 Y0 Z10 F100\nG1 C90\n",
+            ca,
+            4,
             FiveAxisReason::RotaryOnly,
         ),
         (
@@ -322,4 +322,57 @@ fn five_axis_moves_convert_to_core_orientations() {
         (p - interp_core::Vec3::new(0.0, -20.0, 55.0)).norm() < 1e-12,
         "{p:?}"
     );
+}
+
+/// A move whose tip (or X Y Z) stands still but whose rotary axes or tool
+/// turn is a turn in place: its path is the turn's measure in degrees from
+/// where the tool stands, F in deg/min (G93: the turn in 1/F min, G0 at the
+/// rapid speed), and the next move starts where the tool stands.
+#[test]
+fn rotary_only_moves_turn_in_place() {
+    use interp_core::fiveaxis::OrientationAt;
+    let opts = CoreOptions {
+        rapid_speed: 100.0,
+        ..ca_options()
+    };
+    let text = "G0 X10 Y0 Z5\nG0 A30 C40\nG1 A0 F600\nG93 G1 C0 F4\nG94 G1 X12 F600\n";
+    let b = parse(text).unwrap().to_core_blocks(&opts).unwrap();
+    assert_eq!(b.len(), 5);
+    let at = [10.0, 0.0, 5.0];
+    for (k, (turn, feed, end)) in [
+        (50.0, 100.0, [30.0, 0.0, 40.0]),
+        (30.0, 10.0, [0.0, 0.0, 40.0]),
+        // 40 degrees in a quarter of a minute: 160 deg/min.
+        (40.0, 160.0 / 60.0, [0.0, 0.0, 0.0]),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let t = &b[1 + k];
+        assert!(t.is_in_place() && !t.is_tcp(), "block {}", k + 2);
+        assert_eq!(arr(t.start_position()), at);
+        assert_eq!(arr(t.end_position()), at);
+        assert!(
+            (t.path.length() - turn).abs() < 1e-12,
+            "{}",
+            t.path.length()
+        );
+        assert!((t.feed - feed).abs() < 1e-12, "{} {}", t.feed, feed);
+        let o = t.orientation.unwrap();
+        assert_eq!(o.at(t.path.u_end()), OrientationAt::Axes(end));
+    }
+    assert_eq!(arr(b[4].path.start_point()), at);
+    assert!(b[4].orientation.is_none());
+
+    // Under G43.4 the tip stands and the tool axis turns (by A's 20 degrees
+    // on a C,A table); under G43.5 by the angle between the vectors.
+    let text = "G0 X10 Y0 Z5 A0 C0\nG43.4\nG1 X10 Y0 Z5 F600\nG1 A20\nG43.5\nG1 I0 J0 K1\n";
+    let b = parse(text).unwrap().to_core_blocks(&opts).unwrap();
+    let turns: Vec<_> = b.iter().filter(|b| b.is_in_place()).collect();
+    assert_eq!(turns.len(), 2);
+    for t in &turns {
+        assert!(t.is_tcp());
+        assert!((t.path.length() - 20.0).abs() < 1e-9, "{}", t.path.length());
+        assert_eq!(t.start_position(), turns[0].start_position());
+    }
 }

@@ -40,6 +40,16 @@ pub const JOINT_STEP: f64 = 0.01;
 /// Small on purpose: every block and queued segment carries one, and the
 /// interpolator is built on the stack. (A second NURBS for the tool axis or
 /// the rotary coordinates would double a block's size; it is not here yet.)
+///
+/// **A turn in place** (`fixed: Some(p)`): the tool tip (under
+/// tool-centre-point control) or X Y Z stands at `p` while the rotary axes
+/// or the tool axis turn, as in `G0 A30 C45` alone. The block's path is
+/// then no position but the turn's own measure: a line from `p` whose
+/// length is the turn in degrees (the rotary axes' `|Δ(A, B, C)|`, or the
+/// tool axis' angle), so that the planner schedules the turn as it
+/// schedules a path, its speed in degrees per second (`F` in deg/min, as
+/// Fanuc and Siemens take it for rotary-only moves), within the joints'
+/// limits. See [`TurnInPlace`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Orientation {
     /// Tool-centre-point control off: the path is X Y Z of the machine, and
@@ -54,6 +64,8 @@ pub enum Orientation {
         u0: f64,
         /// See `u0`.
         u1: f64,
+        /// X Y Z stand here while the axes turn (a turn in place).
+        fixed: Option<Vec3>,
     },
     /// Tool-centre-point control on: the path is the tool tip in the
     /// workpiece frame, and the unit tool axis turns from `start` towards
@@ -70,6 +82,8 @@ pub enum Orientation {
         u0: f64,
         /// See `u0`.
         u1: f64,
+        /// The tool tip stands here while the tool turns (a turn in place).
+        fixed: Option<Vec3>,
     },
 }
 
@@ -115,6 +129,7 @@ impl Orientation {
             end,
             u0: path.u_start(),
             u1: path.u_end(),
+            fixed: None,
         })
     }
 
@@ -142,7 +157,40 @@ impl Orientation {
             theta,
             u0: path.u_start(),
             u1: path.u_end(),
+            fixed: None,
         })
+    }
+
+    /// The same turn with the tool tip (or X Y Z) standing at `at`: a turn
+    /// in place, whose path is its measure ([`TurnInPlace`]).
+    pub fn in_place(self, at: Vec3) -> Self {
+        self.with_fixed(Some(at))
+    }
+
+    fn with_fixed(mut self, at: Option<Vec3>) -> Self {
+        match &mut self {
+            Orientation::Axes { fixed, .. } | Orientation::ToolAxis { fixed, .. } => *fixed = at,
+        }
+        self
+    }
+
+    /// Where the tool tip (or X Y Z) stands during a turn in place.
+    #[inline]
+    pub fn fixed(&self) -> Option<Vec3> {
+        match self {
+            Orientation::Axes { fixed, .. } | Orientation::ToolAxis { fixed, .. } => *fixed,
+        }
+    }
+
+    /// The same orientation over the parameter range `u0..u1` (a block cut
+    /// or joined keeps one orientation over its whole range).
+    pub fn with_range(mut self, from: f64, to: f64) -> Self {
+        match &mut self {
+            Orientation::Axes { u0, u1, .. } | Orientation::ToolAxis { u0, u1, .. } => {
+                (*u0, *u1) = (from, to)
+            }
+        }
+        self
     }
 
     /// Under tool-centre-point control (the path is the tool tip)?
@@ -158,7 +206,9 @@ impl Orientation {
     #[inline]
     pub fn at(&self, u: f64) -> OrientationAt {
         match *self {
-            Orientation::Axes { start, end, u0, u1 } => {
+            Orientation::Axes {
+                start, end, u0, u1, ..
+            } => {
                 let f = Self::fraction(u, u0, u1);
                 let mut q = [0.0; 3];
                 for (k, q) in q.iter_mut().enumerate() {
@@ -177,6 +227,7 @@ impl Orientation {
                 theta,
                 u0,
                 u1,
+                ..
             } => {
                 let phi = theta * Self::fraction(u, u0, u1);
                 OrientationAt::ToolAxis(start * libm::cos(phi) + w * libm::sin(phi))
@@ -198,7 +249,8 @@ impl Orientation {
     }
 
     /// [`Self::joints`], and whether the tool axis is at the pole (the
-    /// first rotary joint kept its value).
+    /// first rotary joint kept its value). In a turn in place `p` (a point
+    /// of the turn's measure) is not looked at: the tip stands still.
     pub fn solve(
         &self,
         machine: Option<&Machine>,
@@ -206,6 +258,7 @@ impl Orientation {
         u: f64,
         prev: &Joints,
     ) -> Result<(Joints, bool), JointError> {
+        let p = self.fixed().unwrap_or(p);
         match self.at(u) {
             OrientationAt::Axes(abc) => Ok(([p.x, p.y, p.z, abc[0], abc[1], abc[2]], false)),
             OrientationAt::ToolAxis(axis) => {
@@ -378,7 +431,13 @@ impl JointSample {
             // axis the actual one is measured against.
             let t = d.d1 / sigma;
             let e_tip = c_ss - tip_lin;
-            let along = t.dot(&e_tip);
+            // (In a turn in place there is no path for the tip to slide
+            // along: all of the bend is off the program.)
+            let along = if orientation.fixed().is_some() {
+                0.0
+            } else {
+                t.dot(&e_tip)
+            };
             out.tip_bend = (e_tip - t * along).norm();
             out.axis_bend = (a_ss - axis_lin - (a_u / sigma) * along).norm();
         }

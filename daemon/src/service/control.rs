@@ -645,7 +645,7 @@ impl Control {
         let n = pieces.len();
         for (i, piece) in pieces.into_iter().enumerate() {
             let id = piece.id;
-            let end = piece.path.end_point();
+            let end = piece.end_position();
             let mut item = Segment {
                 program,
                 block: piece,
