@@ -95,9 +95,9 @@ fn cut_error(line: u32, e: CutError) -> ConvertError {
             line,
             reason: FiveAxisReason::Orientation(e),
         },
-        error @ (CutError::Discontinuous { .. } | CutError::FrameStart) => {
-            ConvertError::Move { line, error }
-        }
+        error @ (CutError::Discontinuous { .. }
+        | CutError::FrameStart
+        | CutError::RotaryWhileStill(_)) => ConvertError::Move { line, error },
     }
 }
 
@@ -185,6 +185,7 @@ impl Program {
             let start = pose
                 .start(programmed_start, orientation, tcp, &b.kind)
                 .map_err(five_err)?;
+            let rotary_values: Vec<[f64; 3]>;
             let (path, feed, first_line) = match &b.kind {
                 BlockKind::Rapid(_) | BlockKind::Linear(_) => {
                     let length = match Line::new(v3(start), v3(programmed_end)) {
@@ -287,14 +288,25 @@ impl Program {
                         Feed::PerMinute(_) => 0.0,
                     };
                     let feed = feed_mm_min(m.feed, length, line).map_err(convert)?;
-                    if !m.rotary.is_empty() {
+                    if !m.rotary.is_empty() && tcp {
                         return Err(five_err(FiveAxisReason::RotaryNurbs));
                     }
+                    // A B C of each control point, an axis left out where
+                    // the machine has it: coordinates of the curve.
+                    rotary_values = m
+                        .rotary
+                        .iter()
+                        .map(|r| {
+                            let q = pose.with_rotary(r);
+                            [q[3], q[4], q[5]]
+                        })
+                        .collect();
                     let path = MovePath::Nurbs {
                         degree: m.degree,
                         points: &m.points,
                         weights: Some(&m.weights),
                         knots: &m.knots,
+                        rotary: (!rotary_values.is_empty()).then_some(&rotary_values[..]),
                     };
                     (path, feed, m.first_line)
                 }

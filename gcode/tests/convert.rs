@@ -275,23 +275,18 @@ fn five_axis_moves_convert_to_core_orientations() {
     assert!(!o.is_tcp());
     assert_eq!(o.at(0.0), OrientationAt::Axes([0.0, 0.0, 0.0]));
     assert_eq!(o.at(5.0), OrientationAt::Axes([15.0, 0.0, -45.0]));
-    // G6.2 with B coordinates (TCP off) is refused too, naming the line.
-    let e = parse(
+    // G6.2 with B coordinates (TCP off): B is a coordinate of the curve
+    // (one quadratic span: B = 10 at its middle parameter by symmetry).
+    let b = core(
         "G0 X0 Y0\nF600 G6.2 P3 X0 Y0 R1 K0\nX1 Y1 B10 R1 K0\nX2 Y0 B20 R1 K0\nG6.2 K1\nG6.2 K1\nG6.2 K1\n",
-    )
-    .unwrap()
-    .to_core_blocks(&CoreOptions::default())
-    .unwrap_err();
-    assert!(
-        matches!(
-            e,
-            ConvertError::FiveAxisMove {
-                line: 7,
-                reason: FiveAxisReason::RotaryNurbs,
-            }
-        ),
-        "{e}"
     );
+    let o = b[0].orientation.expect("rotary curve");
+    assert_eq!(o.at(0.0), OrientationAt::Axes([0.0, 0.0, 0.0]));
+    assert_eq!(o.at(1.0), OrientationAt::Axes([0.0, 20.0, 0.0]));
+    let OrientationAt::Axes(mid) = o.at(0.5) else {
+        panic!()
+    };
+    assert!((mid[1] - 10.0).abs() < 1e-12, "{mid:?}");
 
     let opts = ca_options();
     let m = Machine::new(opts.machine.unwrap()).unwrap();
@@ -375,4 +370,148 @@ fn rotary_only_moves_turn_in_place() {
         assert!((t.path.length() - 20.0).abs() < 1e-9, "{}", t.path.length());
         assert_eq!(t.start_position(), turns[0].start_position());
     }
+}
+
+/// A G6.2 program text (order `degree + 1`) of `points` with A and C on
+/// every control point, and its knot vector.
+fn rotary_nurbs_text(
+    degree: usize,
+    points: &[[f64; 3]],
+    rotary: &[[f64; 3]],
+    weights: &[f64],
+    knots: &[f64],
+) -> String {
+    use std::fmt::Write as _;
+    let mut text = format!(
+        "G0 X{} Y{} Z{}\nF600 G6.2 P{}",
+        points[0][0],
+        points[0][1],
+        points[0][2],
+        degree + 1
+    );
+    for (i, pt) in points.iter().enumerate() {
+        if i > 0 {
+            text.push('\n');
+        }
+        write!(
+            text,
+            " X{} Y{} A{} C{} R{} K{}",
+            pt[0], pt[1], rotary[i][0], rotary[i][2], weights[i], knots[i]
+        )
+        .unwrap();
+    }
+    text.push('\n');
+    for k in &knots[points.len()..] {
+        writeln!(text, "G6.2 K{k}").unwrap();
+    }
+    text
+}
+
+/// 40 control points (more than one block holds), rational, cubic, with
+/// uneven knots; A and C change along it.
+struct RotaryNurbs {
+    degree: usize,
+    points: Vec<[f64; 3]>,
+    rotary: Vec<[f64; 3]>,
+    weights: Vec<f64>,
+    knots: Vec<f64>,
+}
+
+fn rotary_nurbs() -> RotaryNurbs {
+    let (n, p) = (40, 3);
+    let mut pts = Vec::new();
+    let mut rot = Vec::new();
+    let mut ws = Vec::new();
+    for i in 0..n {
+        let t = i as f64;
+        pts.push([
+            20.0 * (0.3 * t).sin() + 2.0 * t,
+            15.0 * (0.2 * t).cos() - 15.0,
+            0.0,
+        ]);
+        rot.push([10.0 * (0.25 * t).sin(), 0.0, 4.0 * t]);
+        ws.push(1.0 + 0.5 * (1.7 * t).sin().abs());
+    }
+    let mut knots = vec![0.0; p + 1];
+    let mut u = 0.0;
+    for j in 0..n - p - 1 {
+        u += 1.0 + 0.3 * (j as f64).sin();
+        knots.push(u);
+    }
+    u += 1.0;
+    knots.extend([u; 4]);
+    RotaryNurbs {
+        degree: p,
+        points: pts,
+        rotary: rot,
+        weights: ws,
+        knots,
+    }
+}
+
+/// The rotary curve by the definition of a NURBS, `Σ Nᵢ·wᵢ·rᵢ / Σ Nᵢ·wᵢ`.
+fn rotary_at(p: usize, rot: &[[f64; 3]], ws: &[f64], knots: &[f64], u: f64) -> [f64; 3] {
+    let (span, n) = interp_core::nurbs::basis_functions(p, knots, u);
+    let (mut num, mut den) = ([0.0; 3], 0.0);
+    for k in 0..=p {
+        let i = span - p + k;
+        for j in 0..3 {
+            num[j] += n[k] * ws[i] * rot[i][j];
+        }
+        den += n[k] * ws[i];
+    }
+    num.map(|v| v / den)
+}
+
+/// G6.2 with A B C on its control points, TCP off: the rotary axes are
+/// coordinates of the curve (same weights and knots, as Fanuc allows). The
+/// curve is cut into its knot spans, each block with its piece of the
+/// rotary curve; at every parameter the blocks give what the program's
+/// NURBS gives by its definition within 1e-9 degrees, neighbouring blocks
+/// meet bit for bit, and X Y Z are the program's curve.
+#[test]
+fn g6_2_rotary_coordinates_are_coordinates_of_the_curve() {
+    use interp_core::fiveaxis::OrientationAt;
+    let RotaryNurbs {
+        degree: p,
+        points: pts,
+        rotary: rot,
+        weights: ws,
+        knots,
+    } = rotary_nurbs();
+    let text = rotary_nurbs_text(p, &pts, &rot, &ws, &knots);
+    let b = core(&text);
+    let curve: Vec<_> = b
+        .iter()
+        .filter(|b| matches!(b.path, Path::Nurbs(_)))
+        .collect();
+    assert_eq!(curve.len(), pts.len() - p, "one block per knot span");
+    let mut worst = 0.0f64;
+    let mut prev_end: Option<OrientationAt> = None;
+    for blk in &curve {
+        let o = blk.orientation.expect("rotary curve");
+        assert!(!o.is_tcp());
+        let (ua, ub) = (blk.path.u_start(), blk.path.u_end());
+        if let Some(e) = prev_end {
+            assert_eq!(o.at(ua), e, "blocks meet bit for bit");
+        }
+        prev_end = Some(o.at(ub));
+        for k in 0..=20 {
+            let u = ua + (ub - ua) * k as f64 / 20.0;
+            let OrientationAt::Axes(got) = o.at(u) else {
+                panic!("axes")
+            };
+            let want = rotary_at(p, &rot, &ws, &knots, u);
+            for j in 0..3 {
+                worst = worst.max((got[j] - want[j]).abs());
+            }
+        }
+    }
+    assert!(worst < 1e-9, "rotary curve off by {worst} degrees");
+    assert_eq!(prev_end, Some(OrientationAt::Axes(rot[rot.len() - 1])));
+    // The first block starts at the first control point's A B C exactly.
+    assert_eq!(
+        curve[0].orientation.unwrap().at(curve[0].path.u_start()),
+        OrientationAt::Axes(rot[0])
+    );
 }

@@ -35,6 +35,10 @@ pub const MAX_TURN: f64 = core::f64::consts::PI - 1e-6;
 /// that the third difference is not round-off (`ε·|q|/h³ ≈ 1e-7` per mm³).
 pub const JOINT_STEP: f64 = 0.01;
 
+/// Control values of a rational Bézier piece of the highest degree a
+/// NURBS may have ([`Orientation::AxesCurve`]).
+pub const BEZIER: usize = crate::nurbs::MAX_DEGREE + 1;
+
 /// What a block does beside the path.
 ///
 /// Small on purpose: every block and queued segment carries one, and the
@@ -84,6 +88,25 @@ pub enum Orientation {
         u1: f64,
         /// The tool tip stands here while the tool turns (a turn in place).
         fixed: Option<Vec3>,
+    },
+    /// Tool-centre-point control off: the rotary joints A B C (degrees) are
+    /// coordinates of the path's NURBS (G6.2 with A B C on its control
+    /// points, as Fanuc allows: the same weights and knots), over one knot
+    /// span of it: a rational Bézier curve in `t = (u − u0)/(u1 − u0)` with
+    /// these control values and the weights the path has on that span
+    /// ([`Orientation::axes_curve`]). A program curve is cut into its spans
+    /// (`gcode::Cutter`), each a block with its own piece of the curve.
+    AxesCurve {
+        /// A B C of the control points, degrees.
+        values: [[f64; 3]; BEZIER],
+        /// Their weights.
+        w: [f64; BEZIER],
+        /// Degree (`degree + 1` control points are used).
+        degree: u8,
+        /// The span's parameter range.
+        u0: f64,
+        /// See `u0`.
+        u1: f64,
     },
 }
 
@@ -161,6 +184,40 @@ impl Orientation {
         })
     }
 
+    /// The rotary axes as coordinates of a NURBS path over one of its knot
+    /// spans `u0..u1`, a rational Bézier piece of `degree`: `values[k]` the
+    /// A B C (degrees) and `w[k]` the weight of its `degree + 1` control
+    /// points (the path's own weights on the span).
+    pub fn axes_curve(
+        degree: usize,
+        values: &[[f64; 3]],
+        w: &[f64],
+        u0: f64,
+        u1: f64,
+    ) -> Result<Self, OrientationError> {
+        let n = degree + 1;
+        if !(1..BEZIER).contains(&degree)
+            || values.len() != n
+            || w.len() != n
+            || !(u0 < u1 && u0.is_finite() && u1.is_finite())
+            || !values.iter().flatten().all(|v| v.is_finite())
+            || !w.iter().all(|w| *w > 0.0 && w.is_finite())
+        {
+            return Err(OrientationError::BadValue);
+        }
+        let mut vs = [[0.0; 3]; BEZIER];
+        let mut ws = [1.0; BEZIER];
+        vs[..n].copy_from_slice(values);
+        ws[..n].copy_from_slice(w);
+        Ok(Orientation::AxesCurve {
+            values: vs,
+            w: ws,
+            degree: degree as u8,
+            u0,
+            u1,
+        })
+    }
+
     /// The same turn with the tool tip (or X Y Z) standing at `at`: a turn
     /// in place, whose path is its measure ([`TurnInPlace`]).
     pub fn in_place(self, at: Vec3) -> Self {
@@ -170,6 +227,8 @@ impl Orientation {
     fn with_fixed(mut self, at: Option<Vec3>) -> Self {
         match &mut self {
             Orientation::Axes { fixed, .. } | Orientation::ToolAxis { fixed, .. } => *fixed = at,
+            // (A NURBS always moves the tip.)
+            Orientation::AxesCurve { .. } => {}
         }
         self
     }
@@ -179,6 +238,7 @@ impl Orientation {
     pub fn fixed(&self) -> Option<Vec3> {
         match self {
             Orientation::Axes { fixed, .. } | Orientation::ToolAxis { fixed, .. } => *fixed,
+            Orientation::AxesCurve { .. } => None,
         }
     }
 
@@ -186,9 +246,9 @@ impl Orientation {
     /// or joined keeps one orientation over its whole range).
     pub fn with_range(mut self, from: f64, to: f64) -> Self {
         match &mut self {
-            Orientation::Axes { u0, u1, .. } | Orientation::ToolAxis { u0, u1, .. } => {
-                (*u0, *u1) = (from, to)
-            }
+            Orientation::Axes { u0, u1, .. }
+            | Orientation::ToolAxis { u0, u1, .. }
+            | Orientation::AxesCurve { u0, u1, .. } => (*u0, *u1) = (from, to),
         }
         self
     }
@@ -231,6 +291,38 @@ impl Orientation {
             } => {
                 let phi = theta * Self::fraction(u, u0, u1);
                 OrientationAt::ToolAxis(start * libm::cos(phi) + w * libm::sin(phi))
+            }
+            Orientation::AxesCurve {
+                values,
+                w,
+                degree,
+                u0,
+                u1,
+            } => {
+                let p = degree as usize;
+                let t = Self::fraction(u, u0, u1);
+                // Exact at both ends (where the next span starts).
+                if t == 0.0 {
+                    return OrientationAt::Axes(values[0]);
+                }
+                if t == 1.0 {
+                    return OrientationAt::Axes(values[p]);
+                }
+                // De Casteljau on the homogeneous values (w·A, w·B, w·C, w).
+                let mut h = [[0.0; 4]; BEZIER];
+                for k in 0..=p {
+                    let v = values[k];
+                    h[k] = [w[k] * v[0], w[k] * v[1], w[k] * v[2], w[k]];
+                }
+                for r in 1..=p {
+                    for k in 0..=p - r {
+                        for j in 0..4 {
+                            h[k][j] = (1.0 - t) * h[k][j] + t * h[k + 1][j];
+                        }
+                    }
+                }
+                let [a, b, c, ww] = h[0];
+                OrientationAt::Axes([a / ww, b / ww, c / ww])
             }
         }
     }

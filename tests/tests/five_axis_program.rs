@@ -244,3 +244,136 @@ fn rotary_only_moves_turn_in_place_through_simulate() {
     check.finish(Some([0.0, 0.0, 100.0]));
     check.assert_clean("rotary-only moves");
 }
+
+/// G6.2 with A and C on its control points (TCP off) from G-code text
+/// through `traces::sim::run` (the JSON block form and the `simulate`
+/// pipeline): at every setpoint the rotary joints are the program's
+/// rotary NURBS at the setpoint's parameter (`Σ Nᵢ·wᵢ·rᵢ / Σ Nᵢ·wᵢ`,
+/// within 1e-9°), X Y Z its curve, every joint within its limits (the
+/// setpoint checker), and the axes end on the last control point.
+#[test]
+fn g6_2_rotary_coordinates_run_as_coordinates_of_the_curve() {
+    use std::fmt::Write as _;
+    let (n, p) = (12, 3);
+    let pts: Vec<[f64; 2]> = (0..n)
+        .map(|i| {
+            let t = i as f64;
+            [6.0 * t, 10.0 * (0.5 * t).sin()]
+        })
+        .collect();
+    let rot: Vec<[f64; 2]> = (0..n)
+        .map(|i| {
+            let t = i as f64;
+            [8.0 * (0.4 * t).sin(), 5.0 * t]
+        })
+        .collect();
+    let ws: Vec<f64> = (0..n)
+        .map(|i| 1.0 + 0.4 * (1.3 * i as f64).cos().abs())
+        .collect();
+    let mut knots = vec![0.0; p + 1];
+    for j in 0..n - p - 1 {
+        knots.push(j as f64 + 1.0 + 0.25 * (j % 3) as f64);
+    }
+    let end = knots[knots.len() - 1] + 1.0;
+    knots.extend([end; 4]);
+    let mut text = format!("G21 G90 G94 G61\nG0 X0 Y0 Z20\nG1 Z0 F600\nG6.2 P{}", p + 1);
+    for i in 0..n {
+        if i > 0 {
+            text.push('\n');
+        }
+        write!(
+            text,
+            " X{} Y{} A{} C{} R{} K{}",
+            pts[i][0], pts[i][1], rot[i][0], rot[i][1], ws[i], knots[i]
+        )
+        .unwrap();
+    }
+    text.push('\n');
+    for k in &knots[n..] {
+        writeln!(text, "G6.2 K{k}").unwrap();
+    }
+    text.push_str("M2\n");
+    let dir = example_dir();
+    let spec = machine_from_toml(&std::fs::read_to_string(dir.join("machine.toml")).unwrap())
+        .expect("machine");
+    let cfg = InterpConfig {
+        machine: Some(spec),
+        ..InterpConfig::default()
+    };
+    let g = gcode::parse(&text).unwrap();
+    let program = traces::Program::from_gcode(&g, &gcode::CoreOptions::for_config(&cfg), [0.0; 6])
+        .expect("converts");
+    let config = traces::sim::config_for(
+        &program,
+        cfg,
+        &traces::sim::SimSettings::default(),
+        "test",
+        "g6.2 rotary",
+    );
+    let mut sps = Vec::new();
+    traces::sim::run(&config, &program, 600.0, |item| {
+        if let traces::sim::SimItem::Tick { setpoint, .. } = item {
+            sps.push(*setpoint);
+        }
+        Ok::<(), std::convert::Infallible>(())
+    })
+    .expect("runs");
+    let expanded = program
+        .expand(
+            traces::sim::SimSettings::default().max_ctrl_per_block,
+            traces::sim::FIRST_BLOCK_ID,
+        )
+        .unwrap();
+    let curve_ids: std::collections::HashSet<u32> = expanded
+        .segments()
+        .filter(|b| matches!(b.path, interp_core::Path::Nurbs(_)))
+        .map(|b| b.id)
+        .collect();
+    assert_eq!(curve_ids.len(), n - p, "one block per knot span");
+    let (mut worst, mut on_curve) = (0.0f64, 0);
+    for sp in sps.iter().filter(|s| curve_ids.contains(&s.block_id)) {
+        let (span, nb) = interp_core::nurbs::basis_functions(p, &knots, sp.u);
+        let (mut num, mut den, mut xy) = ([0.0; 2], 0.0, [0.0; 2]);
+        for k in 0..=p {
+            let i = span - p + k;
+            let wn = nb[k] * ws[i];
+            for j in 0..2 {
+                num[j] += wn * rot[i][j];
+                xy[j] += wn * pts[i][j];
+            }
+            den += wn;
+        }
+        worst = worst
+            .max((sp.axes[3] - num[0] / den).abs())
+            .max((sp.axes[5] - num[1] / den).abs())
+            .max((sp.axes[0] - xy[0] / den).abs())
+            .max((sp.axes[1] - xy[1] / den).abs());
+        on_curve += 1;
+    }
+    assert!(on_curve > 500, "{on_curve}");
+    assert!(worst < 1e-9, "joints off the program's curves by {worst}");
+    let last = sps.last().unwrap();
+    assert_eq!(last.state, RunState::Done);
+    assert_eq!(
+        [last.axes[3], last.axes[5]],
+        rot[n - 1],
+        "the axes end on the last control point"
+    );
+    let m = Machine::new(spec).unwrap();
+    let mut check = Checker::five_axis(
+        cfg.period,
+        Limits::new(&cfg, cfg.max_path_speed),
+        m,
+        [0.0; 6],
+    );
+    for sp in &sps {
+        check.check_in_frame(sp, false);
+    }
+    check.finish(Some([pts[n - 1][0], pts[n - 1][1], 0.0]));
+    check.assert_clean("G6.2 with rotary coordinates");
+    assert!(
+        check.measured.rotary_velocity_deg_s[2] > 1.0,
+        "{:?}",
+        check.measured
+    );
+}
