@@ -965,7 +965,14 @@ impl<const Q: usize> Executor<Q> {
                 self.block_id = next.block_id;
                 self.enter_frame();
             } else {
-                // At the end of the queue: done, or waiting on the path for more.
+                // At the end of the queue: done, or waiting on the path for
+                // more. A turn in place ends where the tool stands (the
+                // point, the queue's end and a new program's start, is the
+                // tip or X Y Z again, not the end of the turn's measure).
+                if let Some(at) = self.turn.and_then(|o| o.fixed()) {
+                    self.point = at;
+                    self.turn = None;
+                }
                 self.len = 0;
                 if self.finished {
                     self.state = RunState::Done;

@@ -770,6 +770,19 @@ fn rotary_axes_turn_in_place_without_tcp() {
         assert!(seen > 10, "the turn took {seen} ticks");
         let end = sps.last().expect("setpoints").axes;
         assert_eq!(end, [10.0, 5.0, 0.0, a, 0.0, c]);
+        // A program that ends with the turn: the executor's point (where a
+        // new program starts) is where the tool stands, not on the measure.
+        let mut ip: Box<Interpolator> = Box::new(Interpolator::new(cfg, [0.0; 6]).expect("config"));
+        for b in [first, turn_block] {
+            ip.push(&b).expect("queued");
+        }
+        ip.finish();
+        while ip.tick().state != RunState::Done {}
+        let st = ip.executor().status();
+        assert_eq!(
+            (st.point, ip.executor().axes()),
+            ([10.0, 0.0, 0.0], [10.0, 0.0, 0.0, a, 0.0, c])
+        );
         let ratio = joint_ratios(&cfg, &q);
         for (j, r) in ratio.iter().enumerate() {
             assert!(
