@@ -243,6 +243,20 @@ fn rotary_only_moves_turn_in_place_through_simulate() {
     }
     check.finish(Some([0.0, 0.0, 100.0]));
     check.assert_clean("rotary-only moves");
+    // The trace summary measures a turn's chord error on the point the
+    // tool stands on (not on the turn's measure, degrees away).
+    let segments = traces::sim::smoothed_segments(&expanded, &config.interp).unwrap();
+    let mut analyzer = traces::analysis::Analyzer::new(&config, expanded.blocks.len(), &segments);
+    for sp in &sps {
+        analyzer.push(sp);
+    }
+    let summary = analyzer.summary();
+    assert!(
+        summary.max_chord_error_mm <= cfg.chord_tolerance,
+        "chord error {} mm at tick {}",
+        summary.max_chord_error_mm,
+        summary.max_chord_error_seq
+    );
 }
 
 /// G6.2 with A and C on its control points (TCP off) from G-code text
