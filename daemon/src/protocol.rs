@@ -321,6 +321,7 @@ pub fn nurbs_json(
             points: points.to_vec(),
             weights: Some(weights.to_vec()),
             knots: knots.to_vec(),
+            rotary: None,
         },
     })
 }

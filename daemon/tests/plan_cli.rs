@@ -201,3 +201,144 @@ fn plan_setup_json_prints_the_certificate_equivalents_and_rotary_positions() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// 3+2 from `plan setup`: the rotary positions its JSON prints, given to
+/// the machine as `G0 C.. A..` (a turn in place), then a three-axis
+/// program run as `interpd simulate` runs it (`traces::sim::run`, the
+/// example's C,A table with its offsets): once the axes stand, the tool
+/// axis in the workpiece frame (the forward transform of every setpoint's
+/// joints) is the setup's tool axis on every tick, and the tool tip runs
+/// on the program's moves as the part, turned by the setup, sees them (the
+/// images of the programmed points under the fixed rotary axes: the
+/// machine's X Y Z on the programmed line at the same fraction).
+#[test]
+fn plan_setup_positions_the_rotary_axes_for_a_three_axis_cut() {
+    use interp_core::InterpConfig;
+    use interp_core::kinematics::{Machine, MachineSpec};
+    use interp_core::{RunState, Vec3};
+    use std::fmt::Write as _;
+    let dir = std::env::temp_dir().join(format!("interpd-plan-setup-32-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let stl = dir.join("teapot.stl");
+    let mut text = String::from("solid teapot\n");
+    for t in planner::setup::samples::teapot(10, 12, 5, 6) {
+        text.push_str("facet normal 0 0 0\nouter loop\n");
+        for p in t {
+            writeln!(text, "vertex {} {} {}", p.x, p.y, p.z).unwrap();
+        }
+        text.push_str("endloop\nendfacet\n");
+    }
+    text.push_str("endsolid teapot\n");
+    std::fs::write(&stl, text).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_interpd"))
+        .args(["plan", "setup", "--machine", "W/caxyBz/T"])
+        .args(["--ranges", "90,90,180,180", "--json", "--stl"])
+        .arg(&stl)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    std::fs::remove_dir_all(&dir).ok();
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let setup = &json["setup"];
+    let p: Vec<f64> = setup["tool_axis"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    let p = Vec3::new(p[0], p[1], p[2]);
+    let mut words = String::new();
+    for pos in setup["rotary_positions"].as_array().unwrap() {
+        write!(
+            words,
+            " {}{}",
+            pos["axis"].as_str().unwrap(),
+            pos["deg"].as_f64().unwrap()
+        )
+        .unwrap();
+    }
+    // The example's machine: a C,A table, A 50 mm below the gauge point.
+    let toml_text = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/five_axis/machine.toml"),
+    )
+    .unwrap();
+    let spec: MachineSpec = toml::from_str(&toml_text).unwrap();
+    let m = Machine::new(spec).unwrap();
+    let cfg = InterpConfig {
+        machine: Some(spec),
+        ..InterpConfig::default()
+    };
+    // A pocket outline and a plunge in the setup's frame, machine X Y Z.
+    let cut = [
+        [10.0, 0.0, 40.0],
+        [10.0, 15.0, 40.0],
+        [-5.0, 15.0, 38.0],
+        [-5.0, 0.0, 38.0],
+        [10.0, 0.0, 40.0],
+    ];
+    let mut program = format!("G21 G90 G94 G61\nG0 X0 Y0 Z60\nG0{words}\nG0 X10 Y0 Z45\n");
+    for q in &cut {
+        writeln!(program, "G1 X{} Y{} Z{} F1200", q[0], q[1], q[2]).unwrap();
+    }
+    program.push_str("G0 X0 Y0 Z60\nM2\n");
+    let g = gcode::parse(&program).unwrap();
+    let opts = gcode::CoreOptions::for_config(&cfg);
+    let input = traces::Program::from_gcode(&g, &opts, [0.0; 6]).expect(&program);
+    let config = traces::sim::config_for(
+        &input,
+        cfg,
+        &traces::sim::SimSettings::default(),
+        "test",
+        "3+2",
+    );
+    let mut sps = Vec::new();
+    traces::sim::run(&config, &input, 600.0, |item| {
+        if let traces::sim::SimItem::Tick { setpoint, .. } = item {
+            sps.push(*setpoint);
+        }
+        Ok::<(), std::convert::Infallible>(())
+    })
+    .expect("runs");
+    assert_eq!(sps.last().unwrap().state, RunState::Done);
+    // From the first setpoint at the setup's rotary positions on, they stand.
+    let rotary = |q: &[f64; 6]| [q[3], q[4], q[5]];
+    let last = rotary(&sps.last().unwrap().axes);
+    let first = sps
+        .iter()
+        .position(|s| rotary(&s.axes) == last)
+        .expect("positioned");
+    assert!(first > 10, "the rotary axes turned in {first} ticks");
+    let (mut on_axis, mut on_cut, mut ticks_cut) = (0.0f64, 0.0f64, 0);
+    let xyz = |q: &[f64; 6]| Vec3::new(q[0], q[1], q[2]);
+    let tip_of = |x: Vec3| m.forward(&[x.x, x.y, x.z, last[0], last[1], last[2]]).tip;
+    for sp in &sps[first..] {
+        assert_eq!(rotary(&sp.axes), last, "tick {}", sp.seq);
+        let pose = m.forward(&sp.axes);
+        on_axis = on_axis.max((pose.axis - p).norm());
+        // On a programmed cut: the tip at the image of the machine point's
+        // fraction along it, between the images of its ends.
+        let x = xyz(&sp.axes);
+        for w in cut.windows(2) {
+            let (a, b) = (Vec3::from(w[0]), Vec3::from(w[1]));
+            let t = (x - a).dot(&(b - a)) / (b - a).norm_squared();
+            if (0.0..=1.0).contains(&t) && (a + (b - a) * t - x).norm() < 1e-9 {
+                let want = tip_of(a) + (tip_of(b) - tip_of(a)) * t;
+                on_cut = on_cut.max((pose.tip - want).norm());
+                ticks_cut += 1;
+                break;
+            }
+        }
+    }
+    eprintln!(
+        "3+2 with{words}: axis off by {on_axis:e}, tip off its cut by {on_cut:e} mm over {ticks_cut} ticks"
+    );
+    assert!(on_axis < 1e-12, "tool axis {on_axis} off the setup's");
+    assert!(on_cut < 1e-9, "tip {on_cut} mm off its cut");
+    assert!(ticks_cut > 1000, "{ticks_cut}");
+    // The setup tilts: the tool axis is not the machine's +z.
+    assert!((p - Vec3::z()).norm() > 0.01, "{p:?}");
+}

@@ -95,9 +95,9 @@ fn cut_error(line: u32, e: CutError) -> ConvertError {
             line,
             reason: FiveAxisReason::Orientation(e),
         },
-        error @ (CutError::Discontinuous { .. } | CutError::FrameStart) => {
-            ConvertError::Move { line, error }
-        }
+        error @ (CutError::Discontinuous { .. }
+        | CutError::FrameStart
+        | CutError::RotaryWhileStill(_)) => ConvertError::Move { line, error },
     }
 }
 
@@ -111,7 +111,10 @@ impl Program {
     ///   G1, G2/G3 and NURBS at F (G94, mm/min) or in the time G93 gives
     ///   (the move's length × F, for a NURBS the whole curve's);
     /// - a NURBS is passed on exactly as written;
-    /// - moves of zero length are dropped (RS274/NGC allows them; they move nothing);
+    /// - moves of zero length are dropped (RS274/NGC allows them; they move
+    ///   nothing), unless the rotary axes or the tool turn: a turn in place,
+    ///   whose length is the turn in degrees and F in deg/min
+    ///   ([`MoveOrientation::turn`], `interp_core::fiveaxis::Orientation::in_place`);
     /// - dwell, spindle, tool, path-control and tool-centre-point blocks
     ///   carry no path and are skipped; the path control mode in force (G61.1,
     ///   G61, G64 P; G61 until the program sets one) becomes each move's
@@ -182,22 +185,34 @@ impl Program {
             let start = pose
                 .start(programmed_start, orientation, tcp, &b.kind)
                 .map_err(five_err)?;
+            let rotary_values: Vec<[f64; 3]>;
             let (path, feed, first_line) = match &b.kind {
                 BlockKind::Rapid(_) | BlockKind::Linear(_) => {
-                    let l = match Line::new(v3(start), v3(programmed_end)) {
-                        Ok(l) => l,
+                    let length = match Line::new(v3(start), v3(programmed_end)) {
+                        Ok(l) => l.length(),
+                        // The tip (or X Y Z) stands: a turn in place if the
+                        // rotary axes or the tool turn (its length the turn
+                        // in degrees, F in deg/min), else nothing to do.
                         Err(PathError::ZeroLength) => {
-                            if pose.turns(orientation) {
-                                return Err(five_err(FiveAxisReason::RotaryOnly));
+                            let turn = match pose.orientation(orientation).map_err(five_err)? {
+                                Some(o) if pose.turns(orientation) => o.turn(),
+                                _ => 0.0,
+                            };
+                            if !(turn > 0.0) {
+                                if pose.turns(orientation) {
+                                    // (Under TCP at the pole: C turns, the tool does not.)
+                                    return Err(five_err(FiveAxisReason::RotaryOnly));
+                                }
+                                pose.after(programmed_end, orientation, tcp)
+                                    .map_err(five_err)?;
+                                continue;
                             }
-                            pose.after(programmed_end, orientation, tcp)
-                                .map_err(five_err)?;
-                            continue;
+                            turn
                         }
                         Err(e) => return Err(path_err(e)),
                     };
                     let feed = match &b.kind {
-                        BlockKind::Linear(m) => feed_mm_min(m.feed, l.length(), line),
+                        BlockKind::Linear(m) => feed_mm_min(m.feed, length, line),
                         _ => feed_mm_min(
                             Feed::PerMinute(opts.rapid_speed * SECONDS_PER_MINUTE),
                             0.0,
@@ -273,14 +288,25 @@ impl Program {
                         Feed::PerMinute(_) => 0.0,
                     };
                     let feed = feed_mm_min(m.feed, length, line).map_err(convert)?;
-                    if !m.rotary.is_empty() {
+                    if !m.rotary.is_empty() && tcp {
                         return Err(five_err(FiveAxisReason::RotaryNurbs));
                     }
+                    // A B C of each control point, an axis left out where
+                    // the machine has it: coordinates of the curve.
+                    rotary_values = m
+                        .rotary
+                        .iter()
+                        .map(|r| {
+                            let q = pose.with_rotary(r);
+                            [q[3], q[4], q[5]]
+                        })
+                        .collect();
                     let path = MovePath::Nurbs {
                         degree: m.degree,
                         points: &m.points,
                         weights: Some(&m.weights),
                         knots: &m.knots,
+                        rotary: (!rotary_values.is_empty()).then_some(&rotary_values[..]),
                     };
                     (path, feed, m.first_line)
                 }

@@ -145,14 +145,17 @@ pub enum FiveAxisReason {
         "tool-centre-point control (G43.4/G43.5) needs the machine (its W/.../T chain) to find the tool axis and the joints"
     )]
     NoMachine,
-    /// The tool tip stands still while the rotary axes or the tool turn.
+    /// Under tool-centre-point control a move whose tip stands still turns
+    /// the rotary axes but not the tool axis (C at the pole of a C,A
+    /// machine): the tool pose does not change, the move cannot be timed.
     #[error(
-        "a move that only turns the rotary axes or the tool (the tool tip or X Y Z stand still) is not interpolated yet"
+        "under tool-centre-point control the rotary axes turn but the tool axis does not (at the pole, where the first rotary axis is undefined): nothing to interpolate"
     )]
     RotaryOnly,
-    /// Rotary coordinates on a NURBS (G6.2 A B C).
+    /// Rotary coordinates on a NURBS (G6.2 A B C) under G43.4 (without
+    /// tool-centre-point control they are coordinates of the curve).
     #[error(
-        "rotary coordinates on a NURBS are not interpolated yet (give the moves as G1, or the tool axis with G43.5)"
+        "rotary coordinates on a NURBS under tool-centre-point control (G43.4) are not interpolated yet (give the moves as G1, or the tool axis with G43.5)"
     )]
     RotaryNurbs,
     /// The first move after G43.4/G43.5/G49 is not a straight move.

@@ -81,6 +81,11 @@ pub enum MovePath<'a> {
         weights: Option<&'a [f64]>,
         /// `points.len() + degree + 1` knots, clamped.
         knots: &'a [f64],
+        /// A B C of each control point (G6.2 with rotary coordinates,
+        /// tool-centre-point control off): the rotary axes are coordinates
+        /// of the curve, with its weights and knots. `None`: the move's
+        /// orientation, if any, is in proportion to the parameter.
+        rotary: Option<&'a [[f64; 3]]>,
     },
 }
 
@@ -110,6 +115,23 @@ impl MoveOrientation {
     /// Under tool-centre-point control (the path is the tool tip)?
     pub fn is_tcp(&self) -> bool {
         matches!(self, MoveOrientation::ToolAxis { .. })
+    }
+
+    /// How far the move turns, degrees: `|Δ(A, B, C)|` of the rotary axes,
+    /// or the angle the tool axis turns by. A move whose path stands still
+    /// (`G0 A30 C45` alone) is a turn in place of this length, and its feed
+    /// is in degrees per minute (`interp_core::fiveaxis::Orientation::in_place`).
+    pub fn turn(&self) -> f64 {
+        match self {
+            MoveOrientation::Axes { start, end } => (0..3)
+                .map(|k| (end[k] - start[k]) * (end[k] - start[k]))
+                .sum::<f64>()
+                .sqrt(),
+            MoveOrientation::ToolAxis { start, end } => {
+                let (a, b) = (v3(*start), v3(*end));
+                a.cross(&b).norm().atan2(a.dot(&b)).to_degrees()
+            }
+        }
     }
 }
 
@@ -153,6 +175,12 @@ pub enum CutError {
     /// The rotary positions or tool axis are refused.
     #[error("{0}")]
     Orientation(OrientationError),
+    /// A NURBS with rotary coordinates whose rotary axes turn where its
+    /// tool tip stands still (a knot span left out of the path).
+    #[error(
+        "the rotary coordinates of the NURBS turn where its X Y Z stand still (at parameter {0}): split the move there"
+    )]
+    RotaryWhileStill(f64),
 }
 
 fn v3(p: [f64; 3]) -> Vec3 {
@@ -205,7 +233,7 @@ impl Cutter {
 
     /// Moves on past `last`, a block cut before (the last of a move's blocks).
     pub fn follow(&mut self, last: &Block) {
-        self.at = last.path.end_point();
+        self.at = last.end_position();
         self.tcp = last.is_tcp();
         self.next_id = last.id.wrapping_add(1);
     }
@@ -239,9 +267,19 @@ impl Cutter {
             b
         };
         let mut out = Vec::new();
+        // A straight move whose end is its start but that turns: a turn in
+        // place, its path the turn's measure in degrees from where it stands.
+        let in_place = match (m.path, m.orientation) {
+            (MovePath::Line { end }, Some(o)) if v3(end) == start => Some(o.turn()),
+            _ => None,
+        };
         match m.path {
             MovePath::Line { end } => {
-                let l = Line::new(start, v3(end)).map_err(CutError::Path)?;
+                let end = match in_place {
+                    Some(turn) => start + Vec3::x() * turn,
+                    None => v3(end),
+                };
+                let l = Line::new(start, end).map_err(CutError::Path)?;
                 out.push(block(Path::Line(l)));
             }
             MovePath::Arc {
@@ -261,6 +299,7 @@ impl Cutter {
                 points,
                 weights,
                 knots,
+                rotary,
             } => {
                 let ones;
                 let w: &[f64] = match weights {
@@ -271,7 +310,13 @@ impl Cutter {
                     }
                 };
                 let mut first = true;
-                split_program_curve(degree, points, w, knots, self.max_ctrl, |n| {
+                // Rotary coordinates: one block per knot span, each with its
+                // piece of the rotary curve (a rational Bézier).
+                let max_ctrl = match rotary {
+                    Some(_) => degree + 1,
+                    None => self.max_ctrl,
+                };
+                split_program_curve(degree, points, w, knots, max_ctrl, |n| {
                     if first {
                         first = false;
                         check_start(n.start_point(), start)?;
@@ -285,7 +330,25 @@ impl Cutter {
                 })?;
             }
         }
-        if let (Some(o), Some(first), Some(last)) = (m.orientation, out.first(), out.last()) {
+        if let MovePath::Nurbs {
+            degree,
+            weights,
+            knots,
+            rotary: Some(rotary),
+            points,
+        } = m.path
+        {
+            let ones;
+            let w: &[f64] = match weights {
+                Some(w) => w,
+                None => {
+                    ones = vec![1.0; points.len()];
+                    &ones
+                }
+            };
+            rotary_pieces(degree, w, knots, rotary, &mut out)?;
+        } else if let (Some(o), Some(first), Some(last)) = (m.orientation, out.first(), out.last())
+        {
             // One orientation over the whole move: a split NURBS keeps its
             // parameter, so every piece evaluates it at its own `u`.
             let core = match o {
@@ -297,7 +360,10 @@ impl Cutter {
                 }
             }
             .map_err(CutError::Orientation)?;
-            let core = with_end_parameter(core, last.path.u_end());
+            let mut core = with_end_parameter(core, last.path.u_end());
+            if in_place.is_some() {
+                core = core.in_place(start);
+            }
             for b in &mut out {
                 b.orientation = Some(core);
             }
@@ -309,25 +375,134 @@ impl Cutter {
     }
 }
 
+/// Gives each block of a NURBS with rotary coordinates (cut into its knot
+/// spans, the original parameter kept) its piece of the rotary curve: the
+/// rational Bézier with the block's own weights `w_k` whose homogeneous
+/// values `w_k·(A, B, C)_k` give `r(u)·Σ B_k(t)·w_k` (`r` the program's
+/// rotary curve, `Σ Nᵢ·wᵢ·rᵢ / Σ Nᵢ·wᵢ`) at `degree + 1` parameters of the
+/// span: the block's weight function is the program curve's there (up to
+/// a constant factor), so that is a polynomial of the degree, matched
+/// exactly up to round-off; its ends are the program curve's values there, shared
+/// bit for bit by neighbouring spans, the first and last the given ones.
+fn rotary_pieces(
+    degree: usize,
+    weights: &[f64],
+    knots: &[f64],
+    rotary: &[[f64; 3]],
+    out: &mut [Block],
+) -> Result<(), CutError> {
+    let p = degree;
+    let (first_u, last_u) = (knots[0], knots[knots.len() - 1]);
+    // The program's rotary curve at `u`.
+    let at = |u: f64| {
+        if u == first_u {
+            return rotary[0];
+        }
+        if u == last_u {
+            return rotary[rotary.len() - 1];
+        }
+        let (span, n) = interp_core::nurbs::basis_functions(p, knots, u);
+        let (mut num, mut den) = ([0.0; 3], 0.0);
+        for (k, nk) in n.iter().enumerate().take(p + 1) {
+            let i = span - p + k;
+            let wn = nk * weights[i];
+            for j in 0..3 {
+                num[j] += wn * rotary[i][j];
+            }
+            den += wn;
+        }
+        [num[0] / den, num[1] / den, num[2] / den]
+    };
+    let mut prev_end: Option<(f64, [f64; 3])> = None;
+    for b in out.iter_mut() {
+        let Path::Nurbs(n) = &b.path else {
+            continue;
+        };
+        if n.control_count() != p + 1 {
+            // (Cut into single spans above: a Bézier piece each.)
+            return Err(CutError::Orientation(OrientationError::BadValue));
+        }
+        let (ua, ub) = (n.u_start(), n.u_end());
+        let w: Vec<f64> = (0..=p).map(|k| n.weight(k)).collect();
+        let (ra, rb) = (at(ua), at(ub));
+        if let Some((u, r)) = prev_end
+            && r != ra
+        {
+            // A span the path left out (it stands still) turned the axes.
+            return Err(CutError::RotaryWhileStill(u));
+        }
+        // Bernstein collocation at t_j = j/p for the homogeneous values.
+        let mut m = vec![[0.0; interp_core::fiveaxis::BEZIER + 3]; p + 1];
+        for (j, row) in m.iter_mut().enumerate() {
+            let t = j as f64 / p as f64;
+            let r = at(ua + (ub - ua) * t);
+            let mut den = 0.0;
+            for k in 0..=p {
+                row[k] = bernstein(p, k, t);
+                den += row[k] * w[k];
+            }
+            for c in 0..3 {
+                row[p + 1 + c] = r[c] * den;
+            }
+        }
+        let h = solve(&mut m, p + 1);
+        let mut values: Vec<[f64; 3]> = (0..=p)
+            .map(|k| [h[k][0] / w[k], h[k][1] / w[k], h[k][2] / w[k]])
+            .collect();
+        values[0] = ra;
+        values[p] = rb;
+        let o =
+            CoreOrientation::axes_curve(p, &values, &w, ua, ub).map_err(CutError::Orientation)?;
+        b.orientation = Some(o);
+        prev_end = Some((ub, rb));
+    }
+    Ok(())
+}
+
+/// The Bernstein polynomial `B_{k,p}(t)`.
+fn bernstein(p: usize, k: usize, t: f64) -> f64 {
+    let mut binom = 1.0;
+    for i in 0..k {
+        binom = binom * (p - i) as f64 / (i + 1) as f64;
+    }
+    binom * t.powi(k as i32) * (1.0 - t).powi((p - k) as i32)
+}
+
+/// Solves the `n × n` system in the first `n` columns of `m` for the three
+/// right-hand sides after them (Gaussian elimination, partial pivoting;
+/// the Bernstein collocation matrix at distinct points is regular).
+fn solve(m: &mut [[f64; interp_core::fiveaxis::BEZIER + 3]], n: usize) -> Vec<[f64; 3]> {
+    for c in 0..n {
+        let piv = (c..n)
+            .max_by(|&a, &b| m[a][c].abs().total_cmp(&m[b][c].abs()))
+            .unwrap_or(c);
+        m.swap(c, piv);
+        for r in c + 1..n {
+            let f = m[r][c] / m[c][c];
+            for k in c..n + 3 {
+                m[r][k] -= f * m[c][k];
+            }
+        }
+    }
+    let mut x = vec![[0.0; 3]; n];
+    for r in (0..n).rev() {
+        for c in 0..3 {
+            let mut v = m[r][n + c];
+            for k in r + 1..n {
+                v -= m[r][k] * x[k][c];
+            }
+            x[r][c] = v / m[r][r];
+        }
+    }
+    x
+}
+
 /// `o` over a parameter range that ends at `u1`.
 fn with_end_parameter(o: CoreOrientation, u1: f64) -> CoreOrientation {
     match o {
-        CoreOrientation::Axes { start, end, u0, .. } => {
-            CoreOrientation::Axes { start, end, u0, u1 }
-        }
-        CoreOrientation::ToolAxis {
-            start,
-            w,
-            theta,
-            u0,
-            ..
-        } => CoreOrientation::ToolAxis {
-            start,
-            w,
-            theta,
-            u0,
-            u1,
-        },
+        CoreOrientation::Axes { u0, .. }
+        | CoreOrientation::ToolAxis { u0, .. }
+        | CoreOrientation::AxesCurve { u0, .. } => o.with_range(u0, u1),
     }
 }
 

@@ -181,11 +181,11 @@ fn the_path_control_mode_in_force_becomes_each_blocks_blending() {
 fn five_axis_moves_that_cannot_be_converted_are_refused_naming_the_line() {
     let ca = ca_options();
     for (text, opts, line, reason) in [
-        // The tool tip (or X Y Z) stands still while a rotary axis turns.
+        // Under TCP at the pole (A = 0) C turns but the tool does not.
         (
-            "G1 X1 F100\nG1 C90\n",
-            CoreOptions::default(),
-            2,
+            "G0 X0 Y0 Z10 A0 C0\nG43.4\nG1 X0 Y0 Z10 F100\nG1 C90\n",
+            ca,
+            4,
             FiveAxisReason::RotaryOnly,
         ),
         (
@@ -275,23 +275,18 @@ fn five_axis_moves_convert_to_core_orientations() {
     assert!(!o.is_tcp());
     assert_eq!(o.at(0.0), OrientationAt::Axes([0.0, 0.0, 0.0]));
     assert_eq!(o.at(5.0), OrientationAt::Axes([15.0, 0.0, -45.0]));
-    // G6.2 with B coordinates (TCP off) is refused too, naming the line.
-    let e = parse(
+    // G6.2 with B coordinates (TCP off): B is a coordinate of the curve
+    // (one quadratic span: B = 10 at its middle parameter by symmetry).
+    let b = core(
         "G0 X0 Y0\nF600 G6.2 P3 X0 Y0 R1 K0\nX1 Y1 B10 R1 K0\nX2 Y0 B20 R1 K0\nG6.2 K1\nG6.2 K1\nG6.2 K1\n",
-    )
-    .unwrap()
-    .to_core_blocks(&CoreOptions::default())
-    .unwrap_err();
-    assert!(
-        matches!(
-            e,
-            ConvertError::FiveAxisMove {
-                line: 7,
-                reason: FiveAxisReason::RotaryNurbs,
-            }
-        ),
-        "{e}"
     );
+    let o = b[0].orientation.expect("rotary curve");
+    assert_eq!(o.at(0.0), OrientationAt::Axes([0.0, 0.0, 0.0]));
+    assert_eq!(o.at(1.0), OrientationAt::Axes([0.0, 20.0, 0.0]));
+    let OrientationAt::Axes(mid) = o.at(0.5) else {
+        panic!()
+    };
+    assert!((mid[1] - 10.0).abs() < 1e-12, "{mid:?}");
 
     let opts = ca_options();
     let m = Machine::new(opts.machine.unwrap()).unwrap();
@@ -321,5 +316,202 @@ fn five_axis_moves_convert_to_core_orientations() {
     assert!(
         (p - interp_core::Vec3::new(0.0, -20.0, 55.0)).norm() < 1e-12,
         "{p:?}"
+    );
+}
+
+/// A move whose tip (or X Y Z) stands still but whose rotary axes or tool
+/// turn is a turn in place: its path is the turn's measure in degrees from
+/// where the tool stands, F in deg/min (G93: the turn in 1/F min, G0 at the
+/// rapid speed), and the next move starts where the tool stands.
+#[test]
+fn rotary_only_moves_turn_in_place() {
+    use interp_core::fiveaxis::OrientationAt;
+    let opts = CoreOptions {
+        rapid_speed: 100.0,
+        ..ca_options()
+    };
+    let text = "G0 X10 Y0 Z5\nG0 A30 C40\nG1 A0 F600\nG93 G1 C0 F4\nG94 G1 X12 F600\n";
+    let b = parse(text).unwrap().to_core_blocks(&opts).unwrap();
+    assert_eq!(b.len(), 5);
+    let at = [10.0, 0.0, 5.0];
+    for (k, (turn, feed, end)) in [
+        (50.0, 100.0, [30.0, 0.0, 40.0]),
+        (30.0, 10.0, [0.0, 0.0, 40.0]),
+        // 40 degrees in a quarter of a minute: 160 deg/min.
+        (40.0, 160.0 / 60.0, [0.0, 0.0, 0.0]),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let t = &b[1 + k];
+        assert!(t.is_in_place() && !t.is_tcp(), "block {}", k + 2);
+        assert_eq!(arr(t.start_position()), at);
+        assert_eq!(arr(t.end_position()), at);
+        assert!(
+            (t.path.length() - turn).abs() < 1e-12,
+            "{}",
+            t.path.length()
+        );
+        assert!((t.feed - feed).abs() < 1e-12, "{} {}", t.feed, feed);
+        let o = t.orientation.unwrap();
+        assert_eq!(o.at(t.path.u_end()), OrientationAt::Axes(end));
+    }
+    assert_eq!(arr(b[4].path.start_point()), at);
+    assert!(b[4].orientation.is_none());
+
+    // Under G43.4 the tip stands and the tool axis turns (by A's 20 degrees
+    // on a C,A table); under G43.5 by the angle between the vectors.
+    let text = "G0 X10 Y0 Z5 A0 C0\nG43.4\nG1 X10 Y0 Z5 F600\nG1 A20\nG43.5\nG1 I0 J0 K1\n";
+    let b = parse(text).unwrap().to_core_blocks(&opts).unwrap();
+    let turns: Vec<_> = b.iter().filter(|b| b.is_in_place()).collect();
+    assert_eq!(turns.len(), 2);
+    for t in &turns {
+        assert!(t.is_tcp());
+        assert!((t.path.length() - 20.0).abs() < 1e-9, "{}", t.path.length());
+        assert_eq!(t.start_position(), turns[0].start_position());
+    }
+}
+
+/// A G6.2 program text (order `degree + 1`) of `points` with A and C on
+/// every control point, and its knot vector.
+fn rotary_nurbs_text(
+    degree: usize,
+    points: &[[f64; 3]],
+    rotary: &[[f64; 3]],
+    weights: &[f64],
+    knots: &[f64],
+) -> String {
+    use std::fmt::Write as _;
+    let mut text = format!(
+        "G0 X{} Y{} Z{}\nF600 G6.2 P{}",
+        points[0][0],
+        points[0][1],
+        points[0][2],
+        degree + 1
+    );
+    for (i, pt) in points.iter().enumerate() {
+        if i > 0 {
+            text.push('\n');
+        }
+        write!(
+            text,
+            " X{} Y{} A{} C{} R{} K{}",
+            pt[0], pt[1], rotary[i][0], rotary[i][2], weights[i], knots[i]
+        )
+        .unwrap();
+    }
+    text.push('\n');
+    for k in &knots[points.len()..] {
+        writeln!(text, "G6.2 K{k}").unwrap();
+    }
+    text
+}
+
+/// 40 control points (more than one block holds), rational, cubic, with
+/// uneven knots; A and C change along it.
+struct RotaryNurbs {
+    degree: usize,
+    points: Vec<[f64; 3]>,
+    rotary: Vec<[f64; 3]>,
+    weights: Vec<f64>,
+    knots: Vec<f64>,
+}
+
+fn rotary_nurbs() -> RotaryNurbs {
+    let (n, p) = (40, 3);
+    let mut pts = Vec::new();
+    let mut rot = Vec::new();
+    let mut ws = Vec::new();
+    for i in 0..n {
+        let t = i as f64;
+        pts.push([
+            20.0 * (0.3 * t).sin() + 2.0 * t,
+            15.0 * (0.2 * t).cos() - 15.0,
+            0.0,
+        ]);
+        rot.push([10.0 * (0.25 * t).sin(), 0.0, 4.0 * t]);
+        ws.push(1.0 + 0.5 * (1.7 * t).sin().abs());
+    }
+    let mut knots = vec![0.0; p + 1];
+    let mut u = 0.0;
+    for j in 0..n - p - 1 {
+        u += 1.0 + 0.3 * (j as f64).sin();
+        knots.push(u);
+    }
+    u += 1.0;
+    knots.extend([u; 4]);
+    RotaryNurbs {
+        degree: p,
+        points: pts,
+        rotary: rot,
+        weights: ws,
+        knots,
+    }
+}
+
+/// The rotary curve by the definition of a NURBS, `Σ Nᵢ·wᵢ·rᵢ / Σ Nᵢ·wᵢ`.
+fn rotary_at(p: usize, rot: &[[f64; 3]], ws: &[f64], knots: &[f64], u: f64) -> [f64; 3] {
+    let (span, n) = interp_core::nurbs::basis_functions(p, knots, u);
+    let (mut num, mut den) = ([0.0; 3], 0.0);
+    for k in 0..=p {
+        let i = span - p + k;
+        for j in 0..3 {
+            num[j] += n[k] * ws[i] * rot[i][j];
+        }
+        den += n[k] * ws[i];
+    }
+    num.map(|v| v / den)
+}
+
+/// G6.2 with A B C on its control points, TCP off: the rotary axes are
+/// coordinates of the curve (same weights and knots, as Fanuc allows). The
+/// curve is cut into its knot spans, each block with its piece of the
+/// rotary curve; at every parameter the blocks give what the program's
+/// NURBS gives by its definition within 1e-9 degrees, neighbouring blocks
+/// meet bit for bit, and X Y Z are the program's curve.
+#[test]
+fn g6_2_rotary_coordinates_are_coordinates_of_the_curve() {
+    use interp_core::fiveaxis::OrientationAt;
+    let RotaryNurbs {
+        degree: p,
+        points: pts,
+        rotary: rot,
+        weights: ws,
+        knots,
+    } = rotary_nurbs();
+    let text = rotary_nurbs_text(p, &pts, &rot, &ws, &knots);
+    let b = core(&text);
+    let curve: Vec<_> = b
+        .iter()
+        .filter(|b| matches!(b.path, Path::Nurbs(_)))
+        .collect();
+    assert_eq!(curve.len(), pts.len() - p, "one block per knot span");
+    let mut worst = 0.0f64;
+    let mut prev_end: Option<OrientationAt> = None;
+    for blk in &curve {
+        let o = blk.orientation.expect("rotary curve");
+        assert!(!o.is_tcp());
+        let (ua, ub) = (blk.path.u_start(), blk.path.u_end());
+        if let Some(e) = prev_end {
+            assert_eq!(o.at(ua), e, "blocks meet bit for bit");
+        }
+        prev_end = Some(o.at(ub));
+        for k in 0..=20 {
+            let u = ua + (ub - ua) * k as f64 / 20.0;
+            let OrientationAt::Axes(got) = o.at(u) else {
+                panic!("axes")
+            };
+            let want = rotary_at(p, &rot, &ws, &knots, u);
+            for j in 0..3 {
+                worst = worst.max((got[j] - want[j]).abs());
+            }
+        }
+    }
+    assert!(worst < 1e-9, "rotary curve off by {worst} degrees");
+    assert_eq!(prev_end, Some(OrientationAt::Axes(rot[rot.len() - 1])));
+    // The first block starts at the first control point's A B C exactly.
+    assert_eq!(
+        curve[0].orientation.unwrap().at(curve[0].path.u_start()),
+        OrientationAt::Axes(rot[0])
     );
 }

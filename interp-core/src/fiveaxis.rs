@@ -35,11 +35,25 @@ pub const MAX_TURN: f64 = core::f64::consts::PI - 1e-6;
 /// that the third difference is not round-off (`ε·|q|/h³ ≈ 1e-7` per mm³).
 pub const JOINT_STEP: f64 = 0.01;
 
+/// Control values of a rational Bézier piece of the highest degree a
+/// NURBS may have ([`Orientation::AxesCurve`]).
+pub const BEZIER: usize = crate::nurbs::MAX_DEGREE + 1;
+
 /// What a block does beside the path.
 ///
 /// Small on purpose: every block and queued segment carries one, and the
 /// interpolator is built on the stack. (A second NURBS for the tool axis or
 /// the rotary coordinates would double a block's size; it is not here yet.)
+///
+/// **A turn in place** (`fixed: Some(p)`): the tool tip (under
+/// tool-centre-point control) or X Y Z stands at `p` while the rotary axes
+/// or the tool axis turn, as in `G0 A30 C45` alone. The block's path is
+/// then no position but the turn's own measure: a line from `p` whose
+/// length is the turn in degrees (the rotary axes' `|Δ(A, B, C)|`, or the
+/// tool axis' angle), so that the planner schedules the turn as it
+/// schedules a path, its speed in degrees per second (`F` in deg/min, as
+/// Fanuc and Siemens take it for rotary-only moves), within the joints'
+/// limits. See [`TurnInPlace`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Orientation {
     /// Tool-centre-point control off: the path is X Y Z of the machine, and
@@ -54,6 +68,8 @@ pub enum Orientation {
         u0: f64,
         /// See `u0`.
         u1: f64,
+        /// X Y Z stand here while the axes turn (a turn in place).
+        fixed: Option<Vec3>,
     },
     /// Tool-centre-point control on: the path is the tool tip in the
     /// workpiece frame, and the unit tool axis turns from `start` towards
@@ -67,6 +83,27 @@ pub enum Orientation {
         /// The angle from `start` to `end`, rad, `0 ≤ θ < π`.
         theta: f64,
         /// Parameter range of the whole block.
+        u0: f64,
+        /// See `u0`.
+        u1: f64,
+        /// The tool tip stands here while the tool turns (a turn in place).
+        fixed: Option<Vec3>,
+    },
+    /// Tool-centre-point control off: the rotary joints A B C (degrees) are
+    /// coordinates of the path's NURBS (G6.2 with A B C on its control
+    /// points, as Fanuc allows: the same weights and knots), over one knot
+    /// span of it: a rational Bézier curve in `t = (u − u0)/(u1 − u0)` with
+    /// these control values and the weights the path has on that span
+    /// ([`Orientation::axes_curve`]). A program curve is cut into its spans
+    /// (`gcode::Cutter`), each a block with its own piece of the curve.
+    AxesCurve {
+        /// A B C of the control points, degrees.
+        values: [[f64; 3]; BEZIER],
+        /// Their weights.
+        w: [f64; BEZIER],
+        /// Degree (`degree + 1` control points are used).
+        degree: u8,
+        /// The span's parameter range.
         u0: f64,
         /// See `u0`.
         u1: f64,
@@ -115,6 +152,7 @@ impl Orientation {
             end,
             u0: path.u_start(),
             u1: path.u_end(),
+            fixed: None,
         })
     }
 
@@ -142,7 +180,77 @@ impl Orientation {
             theta,
             u0: path.u_start(),
             u1: path.u_end(),
+            fixed: None,
         })
+    }
+
+    /// The rotary axes as coordinates of a NURBS path over one of its knot
+    /// spans `u0..u1`, a rational Bézier piece of `degree`: `values[k]` the
+    /// A B C (degrees) and `w[k]` the weight of its `degree + 1` control
+    /// points (the path's own weights on the span).
+    pub fn axes_curve(
+        degree: usize,
+        values: &[[f64; 3]],
+        w: &[f64],
+        u0: f64,
+        u1: f64,
+    ) -> Result<Self, OrientationError> {
+        let n = degree + 1;
+        if !(1..BEZIER).contains(&degree)
+            || values.len() != n
+            || w.len() != n
+            || !(u0 < u1 && u0.is_finite() && u1.is_finite())
+            || !values.iter().flatten().all(|v| v.is_finite())
+            || !w.iter().all(|w| *w > 0.0 && w.is_finite())
+        {
+            return Err(OrientationError::BadValue);
+        }
+        let mut vs = [[0.0; 3]; BEZIER];
+        let mut ws = [1.0; BEZIER];
+        vs[..n].copy_from_slice(values);
+        ws[..n].copy_from_slice(w);
+        Ok(Orientation::AxesCurve {
+            values: vs,
+            w: ws,
+            degree: degree as u8,
+            u0,
+            u1,
+        })
+    }
+
+    /// The same turn with the tool tip (or X Y Z) standing at `at`: a turn
+    /// in place, whose path is its measure ([`TurnInPlace`]).
+    pub fn in_place(self, at: Vec3) -> Self {
+        self.with_fixed(Some(at))
+    }
+
+    fn with_fixed(mut self, at: Option<Vec3>) -> Self {
+        match &mut self {
+            Orientation::Axes { fixed, .. } | Orientation::ToolAxis { fixed, .. } => *fixed = at,
+            // (A NURBS always moves the tip.)
+            Orientation::AxesCurve { .. } => {}
+        }
+        self
+    }
+
+    /// Where the tool tip (or X Y Z) stands during a turn in place.
+    #[inline]
+    pub fn fixed(&self) -> Option<Vec3> {
+        match self {
+            Orientation::Axes { fixed, .. } | Orientation::ToolAxis { fixed, .. } => *fixed,
+            Orientation::AxesCurve { .. } => None,
+        }
+    }
+
+    /// The same orientation over the parameter range `u0..u1` (a block cut
+    /// or joined keeps one orientation over its whole range).
+    pub fn with_range(mut self, from: f64, to: f64) -> Self {
+        match &mut self {
+            Orientation::Axes { u0, u1, .. }
+            | Orientation::ToolAxis { u0, u1, .. }
+            | Orientation::AxesCurve { u0, u1, .. } => (*u0, *u1) = (from, to),
+        }
+        self
     }
 
     /// Under tool-centre-point control (the path is the tool tip)?
@@ -158,7 +266,9 @@ impl Orientation {
     #[inline]
     pub fn at(&self, u: f64) -> OrientationAt {
         match *self {
-            Orientation::Axes { start, end, u0, u1 } => {
+            Orientation::Axes {
+                start, end, u0, u1, ..
+            } => {
                 let f = Self::fraction(u, u0, u1);
                 let mut q = [0.0; 3];
                 for (k, q) in q.iter_mut().enumerate() {
@@ -177,9 +287,42 @@ impl Orientation {
                 theta,
                 u0,
                 u1,
+                ..
             } => {
                 let phi = theta * Self::fraction(u, u0, u1);
                 OrientationAt::ToolAxis(start * libm::cos(phi) + w * libm::sin(phi))
+            }
+            Orientation::AxesCurve {
+                values,
+                w,
+                degree,
+                u0,
+                u1,
+            } => {
+                let p = degree as usize;
+                let t = Self::fraction(u, u0, u1);
+                // Exact at both ends (where the next span starts).
+                if t == 0.0 {
+                    return OrientationAt::Axes(values[0]);
+                }
+                if t == 1.0 {
+                    return OrientationAt::Axes(values[p]);
+                }
+                // De Casteljau on the homogeneous values (w·A, w·B, w·C, w).
+                let mut h = [[0.0; 4]; BEZIER];
+                for k in 0..=p {
+                    let v = values[k];
+                    h[k] = [w[k] * v[0], w[k] * v[1], w[k] * v[2], w[k]];
+                }
+                for r in 1..=p {
+                    for k in 0..=p - r {
+                        for j in 0..4 {
+                            h[k][j] = (1.0 - t) * h[k][j] + t * h[k + 1][j];
+                        }
+                    }
+                }
+                let [a, b, c, ww] = h[0];
+                OrientationAt::Axes([a / ww, b / ww, c / ww])
             }
         }
     }
@@ -198,7 +341,8 @@ impl Orientation {
     }
 
     /// [`Self::joints`], and whether the tool axis is at the pole (the
-    /// first rotary joint kept its value).
+    /// first rotary joint kept its value). In a turn in place `p` (a point
+    /// of the turn's measure) is not looked at: the tip stands still.
     pub fn solve(
         &self,
         machine: Option<&Machine>,
@@ -206,6 +350,7 @@ impl Orientation {
         u: f64,
         prev: &Joints,
     ) -> Result<(Joints, bool), JointError> {
+        let p = self.fixed().unwrap_or(p);
         match self.at(u) {
             OrientationAt::Axes(abc) => Ok(([p.x, p.y, p.z, abc[0], abc[1], abc[2]], false)),
             OrientationAt::ToolAxis(axis) => {
@@ -378,7 +523,13 @@ impl JointSample {
             // axis the actual one is measured against.
             let t = d.d1 / sigma;
             let e_tip = c_ss - tip_lin;
-            let along = t.dot(&e_tip);
+            // (In a turn in place there is no path for the tip to slide
+            // along: all of the bend is off the program.)
+            let along = if orientation.fixed().is_some() {
+                0.0
+            } else {
+                t.dot(&e_tip)
+            };
             out.tip_bend = (e_tip - t * along).norm();
             out.axis_bend = (a_ss - axis_lin - (a_u / sigma) * along).norm();
         }

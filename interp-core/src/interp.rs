@@ -23,7 +23,7 @@ use heapless::Deque;
 
 use crate::config::{ConfigError, InterpConfig, ParamUpdate};
 use crate::driver::Driver;
-use crate::fiveaxis::JointError;
+use crate::fiveaxis::{JointError, Orientation};
 use crate::geom::{Curve, Vec3};
 use crate::kinematics::{Joints, Machine};
 use crate::path::{Block, Path, SplitAtError};
@@ -266,6 +266,9 @@ pub struct Executor<const Q: usize = DEFAULT_QUEUE> {
     machine: Option<Machine>,
     tcp: bool,
     joints: Joints,
+    /// The front segment turns in place (`Orientation::in_place`): `point`
+    /// is on the turn's measure, and the machine stands at `joints`.
+    turn: Option<Orientation>,
     /// End of everything queued so far (where the next block must start).
     tail: Vec3,
     tail_s: f64,
@@ -306,6 +309,7 @@ impl<const Q: usize> Executor<Q> {
             machine,
             tcp: false,
             joints: position,
+            turn: None,
             tail: p,
             tail_s: 0.0,
             seq: 0,
@@ -750,7 +754,7 @@ impl<const Q: usize> Executor<Q> {
     /// The machine's joints X Y Z A B C.
     #[inline]
     pub fn axes(&self) -> Joints {
-        if self.tcp {
+        if self.tcp || self.turn.is_some() {
             self.joints
         } else {
             let p = self.point;
@@ -781,31 +785,36 @@ impl<const Q: usize> Executor<Q> {
 
     /// The front segment was entered at rest: if it is in the other frame
     /// (tool-centre-point control goes on or off), the point is the same
-    /// machine pose seen in it, its start.
+    /// machine pose seen in it, its start. Entering or leaving a turn in
+    /// place moves the point between the turn's measure and the path.
     #[inline]
     fn enter_frame(&mut self) -> bool {
         let Some(seg) = self.queue.front() else {
             return false;
         };
-        if seg.is_tcp() == self.tcp {
+        let turn = seg.orientation.filter(|o| o.fixed().is_some());
+        // (The parts of one long turn are one measure: nothing to enter.)
+        if seg.is_tcp() == self.tcp && turn == self.turn {
             return false;
         }
-        if !self.tcp {
+        if !self.tcp && self.turn.is_none() {
             self.joints = self.axes();
         }
         self.tcp = seg.is_tcp();
+        self.turn = turn;
         self.point = seg.path.start_point();
         true
     }
 
     /// Abort finished: drop everything queued; idle where the machine stands.
     fn flush(&mut self) {
-        if self.tcp {
+        if self.tcp || self.turn.is_some() {
             // Idle in the machine's own X Y Z (where a new program starts).
             let q = self.joints;
             self.point = Vec3::new(q[0], q[1], q[2]);
             self.abc = [q[3], q[4], q[5]];
             self.tcp = false;
+            self.turn = None;
         }
         self.queue.clear();
         self.abort = false;
@@ -956,7 +965,14 @@ impl<const Q: usize> Executor<Q> {
                 self.block_id = next.block_id;
                 self.enter_frame();
             } else {
-                // At the end of the queue: done, or waiting on the path for more.
+                // At the end of the queue: done, or waiting on the path for
+                // more. A turn in place ends where the tool stands (the
+                // point, the queue's end and a new program's start, is the
+                // tip or X Y Z again, not the end of the turn's measure).
+                if let Some(at) = self.turn.and_then(|o| o.fixed()) {
+                    self.point = at;
+                    self.turn = None;
+                }
                 self.len = 0;
                 if self.finished {
                     self.state = RunState::Done;

@@ -563,6 +563,28 @@ impl Block {
         self.orientation.is_some_and(|o| o.is_tcp())
     }
 
+    /// A turn in place: the tool tip (or X Y Z) stands still while the
+    /// rotary axes or the tool axis turn; the path is the turn's measure
+    /// (`crate::fiveaxis::Orientation::in_place`).
+    pub fn is_in_place(&self) -> bool {
+        self.orientation.is_some_and(|o| o.fixed().is_some())
+    }
+
+    /// Where the block starts in its frame (the tool tip, or X Y Z).
+    pub fn start_position(&self) -> Vec3 {
+        self.orientation
+            .and_then(|o| o.fixed())
+            .unwrap_or_else(|| self.path.start_point())
+    }
+
+    /// Where the block ends in its frame (the tool tip, or X Y Z): where
+    /// the next block starts.
+    pub fn end_position(&self) -> Vec3 {
+        self.orientation
+            .and_then(|o| o.fixed())
+            .unwrap_or_else(|| self.path.end_point())
+    }
+
     /// The same block with another blending mode.
     pub fn with_blending(self, blending: Blending) -> Self {
         Block { blending, ..self }

@@ -168,6 +168,9 @@ pub struct BlockPlanner {
     tail_derivs: Option<Derivs>,
     /// The last planned block asks to stop at its end (G61.1).
     tail_exact_stop: bool,
+    /// The orientation of the last planned block if it turns in place: a
+    /// turn is entered and left at rest, but its own parts join smoothly.
+    tail_turn: Option<Orientation>,
     window: Window,
     /// The rest of a block longer than a part.
     pending: Option<Block>,
@@ -211,6 +214,7 @@ impl BlockPlanner {
             tail_s,
             tail_derivs: None,
             tail_exact_stop: false,
+            tail_turn: None,
             window: Window::new(cfg, h, tail_s),
             pending: None,
             machine: tail_s,
@@ -287,6 +291,7 @@ impl BlockPlanner {
         self.tail_s = tail_s;
         self.tail_derivs = None;
         self.tail_exact_stop = false;
+        self.tail_turn = None;
         self.pending = None;
         self.machine = tail_s;
         self.machine_at_rest = true;
@@ -365,7 +370,7 @@ impl BlockPlanner {
                 .check_join(self.machine_kin.as_ref(), o, block.path.u_start())
                 .map_err(PushError::Kinematics)?;
         }
-        let gap = (block.path.start_point() - tail).norm();
+        let gap = (block.start_position() - tail).norm();
         if !(gap <= JOIN_TOLERANCE) {
             return Err(PushError::Discontinuous { gap });
         }
@@ -572,7 +577,12 @@ impl BlockPlanner {
         out.stop_at_join = false;
         if let Some(left) = self.tail_derivs {
             let entry = block.path.eval(windows[0].0, 3);
-            let v = if self.tail_exact_stop || switch {
+            // A turn in place is entered and left at rest (its measure is
+            // degrees, not the path's millimetres), but its parts (a long
+            // turn is planned in parts) join as one line.
+            let turn_join = (self.tail_turn.is_some() || block.is_in_place())
+                && self.tail_turn != block.orientation;
+            let v = if self.tail_exact_stop || switch || turn_join {
                 // (A change of frame is a rest point: the machine stands
                 // while tool-centre-point control goes on or off.)
                 0.0
@@ -638,7 +648,7 @@ impl BlockPlanner {
             self.tail_derivs,
             self.tail_exact_stop,
         );
-        let saved_five = self.five;
+        let saved_five = (self.five, self.tail_turn);
         if block.orientation.is_none() {
             // A three-axis block: X Y Z of the machine, rotary axes kept.
             let e = block.path.end_point();
@@ -649,12 +659,13 @@ impl BlockPlanner {
             tcp: block.is_tcp(),
             q_s: q_s_end,
         };
-        out.end = block.path.end_point();
+        out.end = block.end_position();
         out.s1 = s;
         self.tail = out.end;
         self.tail_s = s;
         self.tail_derivs = Some(last.eval(windows[n_pieces - 1].1, 3));
         self.tail_exact_stop = block.blending == Blending::ExactStop;
+        self.tail_turn = block.orientation.filter(|o| o.fixed().is_some());
         self.window.set_tail(s);
         // The speed is planned when the queue passes a chunk mark (to that
         // mark, a provisional rest point), so the plan depends on the path
@@ -682,7 +693,7 @@ impl BlockPlanner {
                 self.tail_derivs,
                 self.tail_exact_stop,
             ) = saved;
-            self.five = saved_five;
+            (self.five, self.tail_turn) = saved_five;
             self.window.set_tail(saved.1);
         }
         r
@@ -795,6 +806,13 @@ fn sample_laws(
     let (g_first, g_last) = (index_of(seg.s0, h), index_of(seg.s1(), h));
     let feed_top = block.feed.min(cfg.max_path_speed);
     lower(w, seg.s0, seg.s1(), 1, feed_top);
+    if block.is_in_place() {
+        // A turn in place: its path is the turn's measure in degrees, no
+        // axis of the machine; the joints' limits come from
+        // `fiveaxis::sample_joints`.
+        lower(w, seg.s0, seg.s1(), 0, cfg.max_path_speed);
+        return;
+    }
     if let Path::Line(_) = path {
         // Constant tangent: the axes' jerk limits bound the tangential jerk.
         let t = path.eval(path.u_start(), 1).d1;

@@ -259,7 +259,8 @@ impl<const W: usize> Smoother<W> {
             return Err(SmoothError::Finished);
         }
         let path = &block.path;
-        let (p0, p1) = (path.start_point(), path.end_point());
+        // (A turn in place starts and ends where the tool stands.)
+        let (p0, p1) = (block.start_position(), block.end_position());
         if self.tail.is_none() {
             self.start = p0;
         }
@@ -287,7 +288,7 @@ impl<const W: usize> Smoother<W> {
             return Err(SmoothError::Full);
         }
         let (dir, len) = match path {
-            Path::Line(_) => {
+            Path::Line(_) if !block.is_in_place() => {
                 let d = p1 - from;
                 let l = d.norm();
                 (d / l, l)

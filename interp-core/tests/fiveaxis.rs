@@ -713,3 +713,182 @@ fn leaving_the_pole_needs_c_where_the_axis_goes() {
         }
     }
 }
+
+/// The largest angle (rad) of `a` off the plane of the great circle
+/// through `a0` and `a1`.
+fn off_great_circle(a0: Vec3, a1: Vec3, a: Vec3) -> f64 {
+    let n = a0.cross(&a1);
+    libm::asin((a.dot(&n) / (n.norm() * a.norm())).abs())
+}
+
+/// `G0 A30 C-45` alone, TCP off: X Y Z stand bit for bit while A and C
+/// turn in proportion, at the programmed rate in degrees, within every
+/// joint's limits; a fast turn is slowed by the rotary joints, not by the
+/// path's axes.
+#[test]
+fn rotary_axes_turn_in_place_without_tcp() {
+    let cfg = InterpConfig::default();
+    let at = Vec3::new(10.0, 0.0, 0.0);
+    let first = Block::new(
+        1,
+        Path::Line(Line::new(Vec3::zeros(), at).expect("line")),
+        50.0,
+    );
+    let (a, c) = (30.0, -45.0);
+    let turn = libm::hypot(a, c);
+    let measure = Path::Line(Line::new(at, at + Vec3::x() * turn).expect("measure"));
+    let o = Orientation::axes(&measure, [0.0; 3], [a, 0.0, c])
+        .expect("axes")
+        .in_place(at);
+    let after = Block::new(
+        3,
+        Path::Line(Line::new(at, Vec3::new(10.0, 5.0, 0.0)).expect("line")),
+        50.0,
+    );
+    for feed in [20.0, 1000.0] {
+        let turn_block = Block::new(2, measure, feed).with_orientation(o);
+        let sps = run(&cfg, [0.0; 6], &[first, turn_block, after]);
+        let mut q = vec![[0.0; 6]; 3];
+        q.extend(sps.iter().map(|s| s.axes));
+        let mut seen = 0;
+        let mut fastest = 0.0f64;
+        for (i, sp) in sps.iter().enumerate() {
+            if sp.block_id == 2 {
+                seen += 1;
+                assert_eq!(&sp.axes[..3], &[10.0, 0.0, 0.0], "tick {}", sp.seq);
+                assert!(
+                    (sp.axes[3] / a - sp.axes[5] / c).abs() < 1e-12,
+                    "{:?}",
+                    sp.axes
+                );
+                assert_eq!(sp.axes[4], 0.0);
+            }
+            let prev = q[i + 2];
+            let rate = libm::hypot(sp.axes[3] - prev[3], sp.axes[5] - prev[5]) / cfg.period;
+            fastest = fastest.max(rate);
+        }
+        assert!(seen > 10, "the turn took {seen} ticks");
+        let end = sps.last().expect("setpoints").axes;
+        assert_eq!(end, [10.0, 5.0, 0.0, a, 0.0, c]);
+        // A program that ends with the turn: the executor's point (where a
+        // new program starts) is where the tool stands, not on the measure.
+        let mut ip: Box<Interpolator> = Box::new(Interpolator::new(cfg, [0.0; 6]).expect("config"));
+        for b in [first, turn_block] {
+            ip.push(&b).expect("queued");
+        }
+        ip.finish();
+        while ip.tick().state != RunState::Done {}
+        let st = ip.executor().status();
+        assert_eq!(
+            (st.point, ip.executor().axes()),
+            ([10.0, 0.0, 0.0], [10.0, 0.0, 0.0, a, 0.0, c])
+        );
+        let ratio = joint_ratios(&cfg, &q);
+        for (j, r) in ratio.iter().enumerate() {
+            assert!(
+                r.iter().all(|&x| x <= 1.0 + LIMIT_REL_TOL),
+                "feed {feed}: joint {j}: velocity, acceleration, jerk {r:?} of its limits"
+            );
+        }
+        eprintln!(
+            "feed {feed} deg/s: fastest {fastest} deg/s, C at {:?}",
+            ratio[5]
+        );
+        if feed < 100.0 {
+            // The programmed rate binds (F in degrees per second here).
+            assert!(
+                fastest <= feed * (1.0 + 1e-9) && fastest > 0.9 * feed,
+                "{fastest}"
+            );
+        } else {
+            // The rotary joints bind: C turns near its speed limit.
+            assert!(ratio[5][0] > 0.9, "{:?}", ratio[5]);
+        }
+    }
+}
+
+/// Under TCP a turn in place keeps the tool tip on its point at every
+/// setpoint and, with the drives' linear joint interpolation, between
+/// them within the chord tolerance, while the tool axis turns on its great
+/// circle within the angular tolerance; every joint (the linear ones too,
+/// which swing the table's offset) within its limits; a TCP move goes on
+/// from the same point.
+#[test]
+fn the_tool_turns_about_a_fixed_tip_under_tcp() {
+    for (chain, centre) in [
+        ("W/caxyBz/T", (0, [0.0, 0.0, -50.0])),
+        ("W/abxyBz/T", (1, [0.0, 0.0, -30.0])),
+    ] {
+        let spec = machine(chain, 100.0, centre);
+        let cfg = config(spec);
+        let m = Machine::new(spec).expect("machine");
+        let at = Vec3::new(30.0, 10.0, 5.0);
+        let (a0, a1) = (tilted(10.0, Vec3::x()), tilted(40.0, Vec3::y()));
+        let start = joints_at(&m, at, a0);
+        let theta = libm::acos(a0.dot(&a1)).to_degrees();
+        let measure = Path::Line(Line::new(at, at + Vec3::x() * theta).expect("measure"));
+        let o = Orientation::tool_axis(&measure, a0, a1)
+            .expect("axis")
+            .in_place(at);
+        let line = Path::Line(Line::new(at, at + Vec3::new(5.0, 0.0, 0.0)).expect("line"));
+        let blocks = [
+            Block::new(1, measure, 1000.0).with_orientation(o),
+            Block::new(2, line, 20.0)
+                .with_orientation(Orientation::tool_axis(&line, a1, a1).expect("axis")),
+        ];
+        let sps = run(&cfg, start, &blocks);
+        let angle = |a: Vec3, b: Vec3| libm::atan2(a.cross(&b).norm(), a.dot(&b));
+        let (mut tip, mut axis, mut between_tip, mut between_axis) =
+            (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+        let mut q = vec![start; 3];
+        q.extend(sps.iter().map(|s| s.axes));
+        let mut turned = 0.0f64;
+        for (i, sp) in sps.iter().enumerate().filter(|(_, s)| s.block_id == 1) {
+            let pose = m.forward(&sp.axes);
+            tip = tip.max((pose.tip - at).norm());
+            axis = axis.max(off_great_circle(a0, a1, pose.axis));
+            // Monotone from a0 to a1.
+            let t = angle(a0, pose.axis);
+            assert!(
+                t >= turned - 1e-12,
+                "the axis turned back at tick {}",
+                sp.seq
+            );
+            turned = t;
+            let prev = q[i + 2];
+            for k in 1..BETWEEN {
+                let l = k as f64 / BETWEEN as f64;
+                let mut j = prev;
+                for (n, v) in j.iter_mut().enumerate() {
+                    *v += (sp.axes[n] - prev[n]) * l;
+                }
+                let p = m.forward(&j);
+                between_tip = between_tip.max((p.tip - at).norm());
+                between_axis = between_axis.max(off_great_circle(a0, a1, p.axis));
+            }
+        }
+        eprintln!(
+            "{chain}: tip {tip:e}, axis {axis:e}, between {between_tip:e} mm {between_axis:e} rad"
+        );
+        assert!((turned - theta.to_radians()).abs() < 1e-9, "{turned}");
+        assert!(tip <= ON_PATH_TOL && axis <= ON_AXIS_TOL, "{tip} {axis}");
+        assert!(
+            between_tip <= cfg.chord_tolerance * (1.0 + LIMIT_REL_TOL),
+            "{between_tip}"
+        );
+        assert!(
+            between_axis <= cfg.angular_tolerance * (1.0 + LIMIT_REL_TOL),
+            "{between_axis}"
+        );
+        let ratio = joint_ratios(&cfg, &q);
+        for (j, r) in ratio.iter().enumerate() {
+            assert!(
+                r.iter().all(|&x| x <= 1.0 + LIMIT_REL_TOL),
+                "{chain}: joint {j} {r:?} of its limits"
+            );
+        }
+        let end = m.forward(&sps.last().expect("setpoints").axes);
+        assert!((end.tip - (at + Vec3::new(5.0, 0.0, 0.0))).norm() < 1e-9);
+        assert!(angle(end.axis, a1) < 1e-12);
+    }
+}

@@ -124,3 +124,270 @@ fn the_frustum_example_runs_on_its_machine_within_its_program_and_limits() {
         check.measured
     );
 }
+
+/// Rotary-only moves end to end (G-code text → `traces::Program` →
+/// `traces::sim::run`, the `interpd simulate` pipeline with its `G64 P`
+/// stage): without TCP `G0 A.. C..` and `G1 A.. F..` turn the rotary axes
+/// with X Y Z standing bit for bit, F in deg/min; under G43.4 `G1 A..`
+/// alone keeps the tool tip on its point while the table tilts and X Y Z
+/// follow; every setpoint through the setpoint checker (every joint's
+/// velocity, acceleration and jerk), and the rotary axes end where the
+/// program puts them.
+#[test]
+fn rotary_only_moves_turn_in_place_through_simulate() {
+    let dir = example_dir();
+    let spec = machine_from_toml(&std::fs::read_to_string(dir.join("machine.toml")).unwrap())
+        .expect("machine");
+    let cfg = InterpConfig {
+        machine: Some(spec),
+        ..InterpConfig::default()
+    };
+    let text = "G21 G90 G94 G61\n\
+        G0 X20 Y0 Z60 A0 C0\n\
+        G0 A30 C-60\n\
+        G1 C-30 F1800\n\
+        G1 X25\n\
+        G43.4\n\
+        G1 X25 Y0 Z10 F600\n\
+        G1 A10\n\
+        G1 X30\n\
+        G49\n\
+        G0 X0 Y0 Z100\n\
+        M2\n";
+    let g = gcode::parse(text).unwrap();
+    let opts = gcode::CoreOptions::for_config(&cfg);
+    let program = traces::Program::from_gcode(&g, &opts, [0.0; 6]).expect("converts");
+    let config = traces::sim::config_for(
+        &program,
+        cfg,
+        &traces::sim::SimSettings::default(),
+        "test",
+        "rotary-only",
+    );
+    let mut sps = Vec::new();
+    traces::sim::run(&config, &program, 600.0, |item| {
+        if let traces::sim::SimItem::Tick { setpoint, .. } = item {
+            sps.push(*setpoint);
+        }
+        Ok::<(), std::convert::Infallible>(())
+    })
+    .expect("runs");
+    let m = Machine::new(spec).unwrap();
+    let last = sps.last().unwrap();
+    assert_eq!(last.state, RunState::Done);
+    assert_eq!(&last.axes[..3], &[0.0, 0.0, 100.0]);
+
+    // Setpoints name segments; their source lines (G61: the `G64 P` stage
+    // passes every block, numbered as cut).
+    let expanded = program
+        .expand(
+            traces::sim::SimSettings::default().max_ctrl_per_block,
+            traces::sim::FIRST_BLOCK_ID,
+        )
+        .unwrap();
+    let mut line_of = std::collections::HashMap::new();
+    let mut tcp = std::collections::HashMap::new();
+    for b in &expanded.blocks {
+        for seg in &b.segments {
+            line_of.insert(seg.id, b.input.source_line.unwrap());
+            tcp.insert(seg.id, seg.is_tcp());
+        }
+    }
+    let line_of = &line_of;
+    let on = |line: u32| {
+        sps.iter()
+            .filter(move |s| line_of.get(&s.block_id) == Some(&line))
+    };
+    // Line 3, G0 A30 C-60: X Y Z stand; A and C in proportion.
+    assert!(on(3).count() > 10);
+    for sp in on(3) {
+        assert_eq!(&sp.axes[..3], &[20.0, 0.0, 60.0]);
+        assert!(
+            (sp.axes[3] / 30.0 - sp.axes[5] / -60.0).abs() < 1e-12,
+            "{:?}",
+            sp.axes
+        );
+    }
+    // Line 4, G1 C-30 F1800: 30 deg/s at most, and C ends at -30.
+    let mut prev = None;
+    for sp in on(4) {
+        assert_eq!(&sp.axes[..4], &[20.0, 0.0, 60.0, 30.0]);
+        if let Some(p) = prev {
+            let rate = (sp.axes[5] - p) / cfg.period;
+            assert!(rate <= 30.0 * (1.0 + 1e-9), "C at {rate} deg/s");
+        }
+        prev = Some(sp.axes[5]);
+    }
+    assert_eq!(prev, Some(-30.0));
+    // Line 8, G1 A10 under G43.4: the tip stands where line 7 left it
+    // while A tilts from 30 to 10 (and X Y Z follow the table).
+    let tip = Vec3::new(25.0, 0.0, 10.0);
+    assert!(on(8).count() > 10);
+    let mut moved = 0.0f64;
+    for sp in on(8) {
+        let pose = m.forward(&sp.axes);
+        assert!((pose.tip - tip).norm() < 1e-9, "tip {:?}", pose.tip);
+        moved = moved.max((sp.axes[2] - on(8).next().unwrap().axes[2]).abs());
+    }
+    assert!(moved > 1.0, "Z followed the table by {moved} mm");
+    let end8 = on(8).next_back().unwrap().axes;
+    assert!(
+        (end8[3] - 10.0).abs() < 1e-9 && (end8[5] + 30.0).abs() < 1e-9,
+        "{end8:?}"
+    );
+
+    let start = [0.0; 6];
+    let mut check = Checker::five_axis(cfg.period, Limits::new(&cfg, cfg.max_path_speed), m, start);
+    for sp in &sps {
+        check.check_in_frame(sp, tcp.get(&sp.block_id).copied().unwrap_or(false));
+    }
+    check.finish(Some([0.0, 0.0, 100.0]));
+    check.assert_clean("rotary-only moves");
+    // The trace summary measures a turn's chord error on the point the
+    // tool stands on (not on the turn's measure, degrees away).
+    let segments = traces::sim::smoothed_segments(&expanded, &config.interp).unwrap();
+    let mut analyzer = traces::analysis::Analyzer::new(&config, expanded.blocks.len(), &segments);
+    for sp in &sps {
+        analyzer.push(sp);
+    }
+    let summary = analyzer.summary();
+    assert!(
+        summary.max_chord_error_mm <= cfg.chord_tolerance,
+        "chord error {} mm at tick {}",
+        summary.max_chord_error_mm,
+        summary.max_chord_error_seq
+    );
+}
+
+/// G6.2 with A and C on its control points (TCP off) from G-code text
+/// through `traces::sim::run` (the JSON block form and the `simulate`
+/// pipeline): at every setpoint the rotary joints are the program's
+/// rotary NURBS at the setpoint's parameter (`Σ Nᵢ·wᵢ·rᵢ / Σ Nᵢ·wᵢ`,
+/// within 1e-9°), X Y Z its curve, every joint within its limits (the
+/// setpoint checker), and the axes end on the last control point.
+#[test]
+fn g6_2_rotary_coordinates_run_as_coordinates_of_the_curve() {
+    use std::fmt::Write as _;
+    let (n, p) = (12, 3);
+    let pts: Vec<[f64; 2]> = (0..n)
+        .map(|i| {
+            let t = i as f64;
+            [6.0 * t, 10.0 * (0.5 * t).sin()]
+        })
+        .collect();
+    let rot: Vec<[f64; 2]> = (0..n)
+        .map(|i| {
+            let t = i as f64;
+            [8.0 * (0.4 * t).sin(), 5.0 * t]
+        })
+        .collect();
+    let ws: Vec<f64> = (0..n)
+        .map(|i| 1.0 + 0.4 * (1.3 * i as f64).cos().abs())
+        .collect();
+    let mut knots = vec![0.0; p + 1];
+    for j in 0..n - p - 1 {
+        knots.push(j as f64 + 1.0 + 0.25 * (j % 3) as f64);
+    }
+    let end = knots[knots.len() - 1] + 1.0;
+    knots.extend([end; 4]);
+    let mut text = format!("G21 G90 G94 G61\nG0 X0 Y0 Z20\nG1 Z0 F600\nG6.2 P{}", p + 1);
+    for i in 0..n {
+        if i > 0 {
+            text.push('\n');
+        }
+        write!(
+            text,
+            " X{} Y{} A{} C{} R{} K{}",
+            pts[i][0], pts[i][1], rot[i][0], rot[i][1], ws[i], knots[i]
+        )
+        .unwrap();
+    }
+    text.push('\n');
+    for k in &knots[n..] {
+        writeln!(text, "G6.2 K{k}").unwrap();
+    }
+    text.push_str("M2\n");
+    let dir = example_dir();
+    let spec = machine_from_toml(&std::fs::read_to_string(dir.join("machine.toml")).unwrap())
+        .expect("machine");
+    let cfg = InterpConfig {
+        machine: Some(spec),
+        ..InterpConfig::default()
+    };
+    let g = gcode::parse(&text).unwrap();
+    let program = traces::Program::from_gcode(&g, &gcode::CoreOptions::for_config(&cfg), [0.0; 6])
+        .expect("converts");
+    let config = traces::sim::config_for(
+        &program,
+        cfg,
+        &traces::sim::SimSettings::default(),
+        "test",
+        "g6.2 rotary",
+    );
+    let mut sps = Vec::new();
+    traces::sim::run(&config, &program, 600.0, |item| {
+        if let traces::sim::SimItem::Tick { setpoint, .. } = item {
+            sps.push(*setpoint);
+        }
+        Ok::<(), std::convert::Infallible>(())
+    })
+    .expect("runs");
+    let expanded = program
+        .expand(
+            traces::sim::SimSettings::default().max_ctrl_per_block,
+            traces::sim::FIRST_BLOCK_ID,
+        )
+        .unwrap();
+    let curve_ids: std::collections::HashSet<u32> = expanded
+        .segments()
+        .filter(|b| matches!(b.path, interp_core::Path::Nurbs(_)))
+        .map(|b| b.id)
+        .collect();
+    assert_eq!(curve_ids.len(), n - p, "one block per knot span");
+    let (mut worst, mut on_curve) = (0.0f64, 0);
+    for sp in sps.iter().filter(|s| curve_ids.contains(&s.block_id)) {
+        let (span, nb) = interp_core::nurbs::basis_functions(p, &knots, sp.u);
+        let (mut num, mut den, mut xy) = ([0.0; 2], 0.0, [0.0; 2]);
+        for k in 0..=p {
+            let i = span - p + k;
+            let wn = nb[k] * ws[i];
+            for j in 0..2 {
+                num[j] += wn * rot[i][j];
+                xy[j] += wn * pts[i][j];
+            }
+            den += wn;
+        }
+        worst = worst
+            .max((sp.axes[3] - num[0] / den).abs())
+            .max((sp.axes[5] - num[1] / den).abs())
+            .max((sp.axes[0] - xy[0] / den).abs())
+            .max((sp.axes[1] - xy[1] / den).abs());
+        on_curve += 1;
+    }
+    assert!(on_curve > 500, "{on_curve}");
+    assert!(worst < 1e-9, "joints off the program's curves by {worst}");
+    let last = sps.last().unwrap();
+    assert_eq!(last.state, RunState::Done);
+    assert_eq!(
+        [last.axes[3], last.axes[5]],
+        rot[n - 1],
+        "the axes end on the last control point"
+    );
+    let m = Machine::new(spec).unwrap();
+    let mut check = Checker::five_axis(
+        cfg.period,
+        Limits::new(&cfg, cfg.max_path_speed),
+        m,
+        [0.0; 6],
+    );
+    for sp in &sps {
+        check.check_in_frame(sp, false);
+    }
+    check.finish(Some([pts[n - 1][0], pts[n - 1][1], 0.0]));
+    check.assert_clean("G6.2 with rotary coordinates");
+    assert!(
+        check.measured.rotary_velocity_deg_s[2] > 1.0,
+        "{:?}",
+        check.measured
+    );
+}

@@ -201,6 +201,12 @@ impl Analyzer {
             } else {
                 seg.path.u_end()
             };
+            if let Some(at) = seg.orientation.and_then(|o| o.fixed()) {
+                // A turn in place: the path is the point the tool stands
+                // on (the block's own path is the turn's measure).
+                worst = worst.max((pa - at).norm()).max((pb - at).norm());
+                continue;
+            }
             worst = worst.max(chord_error_between(
                 &seg.path,
                 u0,

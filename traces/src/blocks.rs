@@ -194,6 +194,11 @@ pub enum PathSpec {
         weights: Option<Vec<f64>>,
         /// `points.len() + degree + 1` knots, clamped at both ends.
         knots: Vec<f64>,
+        /// A B C (degrees) of each control point: the rotary axes as
+        /// coordinates of the curve (G6.2 with A B C, tool-centre-point
+        /// control off), with its weights and knots.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        rotary: Option<Vec<[f64; 3]>>,
     },
 }
 
@@ -586,11 +591,13 @@ impl InputBlock {
                     points,
                     weights,
                     knots,
+                    rotary,
                 } => PathSpec::Nurbs {
                     degree,
                     points: points.to_vec(),
                     weights: weights.map(<[f64]>::to_vec),
                     knots: knots.to_vec(),
+                    rotary: rotary.map(<[[f64; 3]]>::to_vec),
                 },
             },
         }
@@ -646,11 +653,13 @@ impl InputBlock {
                     points,
                     weights,
                     knots,
+                    rotary,
                 } => MovePath::Nurbs {
                     degree: *degree,
                     points,
                     weights: weights.as_deref(),
                     knots,
+                    rotary: rotary.as_deref(),
                 },
             },
             orientation: self.orientation.map(gcode::MoveOrientation::from),

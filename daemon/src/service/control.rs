@@ -18,7 +18,7 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use heapless::spsc::{Consumer, Producer};
-use interp_core::{Curve, RunState};
+use interp_core::RunState;
 use serde::{Deserialize, Serialize};
 use tokio::io::{AsyncBufRead, AsyncBufReadExt, AsyncRead, AsyncWrite, AsyncWriteExt, BufReader};
 
@@ -645,7 +645,7 @@ impl Control {
         let n = pieces.len();
         for (i, piece) in pieces.into_iter().enumerate() {
             let id = piece.id;
-            let end = piece.path.end_point();
+            let end = piece.end_position();
             let mut item = Segment {
                 program,
                 block: piece,

@@ -1,0 +1,148 @@
+//! Criterion bench: the cost of one `Executor::tick()` on a five-axis
+//! program against the very same path as a three-axis one (plans made
+//! beforehand and committed at their ticks, as on the RT thread; see
+//! `benches/tick.rs`).
+//!
+//! The path is a helical arc (radius 30 mm, three quarters of a turn,
+//! rising 12 mm: ≈ 142 mm, the helix of `interp-core/tests/fiveaxis.rs`)
+//! at 100 mm/s, corrected update, on the example's C,A table
+//! (`examples/five_axis/machine.toml`: tool 100 mm, A 50 mm below the gauge
+//! point, A within ±110°), the same configuration in every case:
+//!
+//! - `three-axis`: no orientation (the rotary axes stand);
+//! - `plain-rotary`: A and C move with the path as plain axes (TCP off);
+//! - `tcp`: the path is the tool tip and the tool axis turns on its great
+//!   circle from 20° towards +x to 35° towards −y (G43.5), the joints from
+//!   the inverse transform every tick (C follows the tool's azimuth).
+//!
+//! Each case is measured twice, interleaved (A B C A B C), so that a change
+//! of the machine's load shows as a difference between the two rounds.
+//!
+//! ```text
+//! cargo bench -p interp-run --bench tick_five
+//! ```
+
+#[path = "common/mod.rs"]
+mod common;
+
+use core::hint::black_box;
+use core::time::Duration;
+use std::time::Instant;
+
+use common::{on_big_stack, run_to_end, start_of};
+use criterion::{Criterion, criterion_group};
+use interp_core::fiveaxis::Orientation;
+use interp_core::kinematics::{Machine, MachineSpec, RotaryRange, ToolPose};
+use interp_core::path::Arc;
+use interp_core::{Block, Curve, InterpConfig, Path, RunState, Vec3};
+use interp_run::Replay;
+
+/// The example's C,A table-table.
+fn machine() -> MachineSpec {
+    let mut spec = MachineSpec::new("W/caxyBz/T".parse().expect("chain"));
+    spec.tool_length = 100.0;
+    spec.rotary_centres[0] = [0.0, 0.0, -50.0];
+    spec.rotary_ranges[0] = RotaryRange {
+        min: -110.0,
+        max: 110.0,
+    };
+    spec
+}
+
+fn tilted(deg: f64, towards: Vec3) -> Vec3 {
+    let t = deg.to_radians();
+    Vec3::z() * t.cos() + towards * t.sin()
+}
+
+/// The three programs on the same path, with where each starts.
+fn cases(cfg: &InterpConfig) -> Vec<(&'static str, [f64; 6], Vec<Block>)> {
+    let (r, z0, rise, sweep) = (30.0, -5.0, 12.0, 1.5 * core::f64::consts::PI);
+    let at = |t: f64| Vec3::new(r * t.cos(), r * t.sin(), z0 + rise * t / sweep);
+    let arc =
+        Arc::from_centre(at(0.0), at(sweep), Vec3::new(0.0, 0.0, z0), Vec3::z(), 0).expect("helix");
+    let path = Path::Arc(arc);
+    let three = vec![Block::new(1, path, 100.0)];
+    let plain = Orientation::axes(&path, [0.0; 3], [20.0, 0.0, 90.0]).expect("axes");
+    let (a0, a1) = (tilted(20.0, Vec3::x()), tilted(35.0, -Vec3::y()));
+    let tcp = Orientation::tool_axis(&path, a0, a1).expect("tool axis");
+    let m = Machine::new(cfg.machine.expect("machine")).expect("machine");
+    let tcp_start = m
+        .inverse(
+            &ToolPose {
+                tip: path.start_point(),
+                axis: a0,
+            },
+            &[0.0; 6],
+        )
+        .expect("reachable")
+        .joints;
+    vec![
+        ("three-axis", start_of(&three), three.clone()),
+        (
+            "plain-rotary",
+            start_of(&three),
+            vec![three[0].with_orientation(plain)],
+        ),
+        ("tcp", tcp_start, vec![three[0].with_orientation(tcp)]),
+    ]
+}
+
+fn ticks(c: &mut Criterion) {
+    let cfg = InterpConfig {
+        machine: Some(machine()),
+        ..InterpConfig::default()
+    };
+    let mut loaded: Vec<(&str, Box<Replay>)> = cases(&cfg)
+        .into_iter()
+        .map(|(name, start, blocks)| {
+            let mut ip =
+                Box::new(interp_run::plan(cfg, start, &blocks, 50_000_000).expect("program plans"));
+            eprintln!("{name}: {} ticks to the end", run_to_end(&mut ip));
+            ip.rewind();
+            (name, ip)
+        })
+        .collect();
+    let mut group = c.benchmark_group("tick-five/helix");
+    for round in 1..=2 {
+        for (name, ip) in loaded.iter_mut() {
+            group.bench_function(format!("{name}/{round}"), |b| {
+                b.iter_custom(|iters| {
+                    let mut total = Duration::ZERO;
+                    let mut left = iters;
+                    while left > 0 {
+                        let t0 = Instant::now();
+                        let mut done = false;
+                        while left > 0 {
+                            left -= 1;
+                            if black_box(ip.tick()).state == RunState::Done {
+                                done = true;
+                                break;
+                            }
+                        }
+                        total += t0.elapsed();
+                        if done {
+                            ip.rewind();
+                        }
+                    }
+                    total
+                })
+            });
+        }
+    }
+    group.finish();
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default()
+        .warm_up_time(Duration::from_secs(1))
+        .measurement_time(Duration::from_secs(5))
+        .sample_size(50);
+    targets = ticks
+}
+fn main() {
+    on_big_stack(|| {
+        benches();
+        Criterion::default().configure_from_args().final_summary();
+    });
+}
