@@ -14,7 +14,10 @@
 //!    occluder, and one whose triangles are all occluders facing the patch
 //!    the same way (bounded by a cone of normals and a sphere, with a
 //!    margin that keeps the signs of the edge tests certain), with no
-//!    border and no edge of inconsistent orientation, holds no contour.
+//!    border and no edge of inconsistent orientation, holds no contour;
+//!    when the plane cuts such a subtree, only edges between an occluder
+//!    and a triangle wholly behind with an end in front of the plane can
+//!    be contour ([`Facing::Cut`]).
 //!    Each contour arc (clipped to the front half) carries its weight: how
 //!    many cones a path enters when it crosses it.
 //! 2. **Boundary cells**: the cells the arcs cross. No arc meets any other
