@@ -14,7 +14,10 @@
 //!    occluder, and one whose triangles are all occluders facing the patch
 //!    the same way (bounded by a cone of normals and a sphere, with a
 //!    margin that keeps the signs of the edge tests certain), with no
-//!    border and no edge of inconsistent orientation, holds no contour.
+//!    border and no edge of inconsistent orientation, holds no contour;
+//!    when the plane cuts such a subtree, only edges between an occluder
+//!    and a triangle wholly behind with an end in front of the plane can
+//!    be contour ([`Facing::Cut`]).
 //!    Each contour arc (clipped to the front half) carries its weight: how
 //!    many cones a path enters when it crosses it.
 //! 2. **Boundary cells**: the cells the arcs cross. No arc meets any other
@@ -53,8 +56,10 @@ type V3 = Vector3<f64>;
 /// Edges per leaf of [`ContourTree`].
 const LEAF_EDGES: usize = 4;
 
-/// One node of [`ContourTree`], bounding the triangles of its edges.
+/// One node of [`ContourTree`], bounding the triangles of its edges: two
+/// cache lines (the walk is bound by reading them).
 #[derive(Debug, Clone, Copy)]
+#[repr(C, align(64))]
 struct Node {
     /// Box of the corners.
     lo: V3,
@@ -64,26 +69,50 @@ struct Node {
     axis: V3,
     cos_a: f64,
     sin_a: f64,
-    /// The corners along `axis` (least, most); their largest distance from
-    /// the line along `axis` through `mid` (a point of it); and the
-    /// bounding sphere (centre `mid`, radius `radius`).
+    /// The corners along `axis` (least, most), and their largest distance
+    /// from the line along `axis` through the box's centre
+    /// ([`Node::mid`]).
     along: (f64, f64),
     across: f64,
-    mid: V3,
-    /// `axis·mid`.
-    axis_mid: f64,
-    radius: f64,
     /// Smallest twice-area of a triangle.
     min_area2: f64,
-    /// Index of the first node after this subtree (pre-order).
-    end: u32,
-    /// A leaf's edges `edges[first..first + count]` (count 0: inner node,
-    /// its children at `i + 1` and after that child's subtree).
-    first: u32,
+    /// An inner node (`count` 0): the index of the first node after its
+    /// subtree (pre-order; its children are at `i + 1` and after that
+    /// child's subtree). A leaf: its first edge, of `count`
+    /// ([`Node::edges`]); the next node is `i + 1`.
+    link: u32,
     count: u8,
     /// Every edge has a triangle on each side, run the opposite ways: with
     /// all triangles occluders facing the patch one way, none is contour.
     plain: bool,
+}
+
+const _: () = assert!(std::mem::size_of::<Node>() == 128);
+
+impl Node {
+    /// The centre of the box (a point of the axis line).
+    fn mid(&self) -> V3 {
+        (self.lo + self.hi) * 0.5
+    }
+
+    /// The radius of a sphere around [`Node::mid`] holding the box.
+    fn radius(&self) -> f64 {
+        (self.hi - self.lo).norm() * 0.5
+    }
+
+    /// The index of the first node after node `i`'s subtree.
+    fn end(&self, i: usize) -> usize {
+        if self.count == 0 {
+            self.link as usize
+        } else {
+            i + 1
+        }
+    }
+
+    /// A leaf's edges (indices into [`ContourTree::edges`]).
+    fn edges(&self) -> std::ops::Range<usize> {
+        self.link as usize..self.link as usize + self.count as usize
+    }
 }
 
 /// One undirected edge: triangle `t`, its edge `k` (corner `k` to `k + 1`),
@@ -117,6 +146,12 @@ enum Facing {
     Mixed,
     /// Every triangle is an occluder, all facing the patch one way.
     Uniform,
+    /// Every triangle faces the patch one way with a cone, and the patch's
+    /// plane cuts the subtree: the occluders are those with a corner in
+    /// front, and the only contour edges are those between an occluder and
+    /// a triangle wholly behind with an end just over the plane
+    /// ([`Exact::mark_cut`]).
+    Cut,
 }
 
 impl ContourTree {
@@ -244,18 +279,14 @@ impl Build<'_> {
             sin_a,
             along: (below, above),
             across,
-            mid,
-            axis_mid: axis.dot(&mid),
-            radius: (hi - lo).norm() * 0.5,
             min_area2,
-            end: 0,
-            first: 0,
+            link: 0,
             count: 0,
             plain,
         });
         if set.len() <= LEAF_EDGES {
             let node = &mut tree.nodes[index];
-            node.first = tree.edges.len() as u32;
+            node.link = tree.edges.len() as u32;
             node.count = set.len() as u8;
             tree.edges
                 .extend(set.iter().map(|&e| self.edges[e as usize]));
@@ -271,73 +302,96 @@ impl Build<'_> {
             self.node(left, tree);
             self.node(right, tree);
         }
-        tree.nodes[index].end = tree.nodes.len() as u32;
+        if set.len() > LEAF_EDGES {
+            tree.nodes[index].link = tree.nodes.len() as u32;
+        }
         index
     }
 }
 
 impl ContourTree {
-    /// Whether every triangle of node `i` is an occluder facing the patch
-    /// the same way, with a margin that keeps the edge tests' signs and
-    /// [`Cone::new`] certain; `None` when the node lies behind the plane.
-    fn facing(&self, i: usize, p: &PatchFrame, level: f64, t_min: f64) -> Option<Facing> {
-        // Well above the round-off of n·x, well below t_min.
-        let slack = t_min * 1e-3;
-        let b = &self.nodes[i];
-        let n = p.normal;
-        // Bounds of n·x over the corners: from the box, and from the
-        // extent along the axis of the normals (much tighter than the box
-        // for a curved piece of surface).
-        let corner = |hi: bool| {
-            let mut sum = 0.0;
-            for k in 0..3 {
-                let up = (n[k] > 0.0) == hi;
-                sum += n[k] * if up { b.hi[k] } else { b.lo[k] };
-            }
-            sum
-        };
+    /// Bounds (least, most) of `n·x` over the corners of node `b`: from
+    /// the box, and from the extent along the axis of the normals (much
+    /// tighter than the box for a curved piece of surface).
+    fn heights(b: &Node, n: &V3) -> (f64, f64) {
+        let (mut box_lo, mut box_hi) = (0.0, 0.0);
+        for k in 0..3 {
+            let (lo, hi) = (n[k] * b.lo[k], n[k] * b.hi[k]);
+            box_lo += lo.min(hi);
+            box_hi += lo.max(hi);
+        }
         // n = na·axis + perp: n·x = na·(axis·x) + perp·x, and perp·x is
         // perp·mid within |perp|·across.
         let na = n.dot(&b.axis);
-        let base = n.dot(&b.mid) - na * b.axis_mid;
+        let mid = b.mid();
+        let base = n.dot(&mid) - na * b.axis.dot(&mid);
         let spread = (1.0 - na * na).max(0.0).sqrt() * b.across;
         let (h_far, h_near) = if na >= 0.0 {
             (b.along.1, b.along.0)
         } else {
             (b.along.0, b.along.1)
         };
-        let far = na * h_far + base + spread;
-        if far <= level - slack || corner(true) <= level - slack {
+        (
+            box_lo.max(na * h_near + base - spread),
+            box_hi.min(na * h_far + base + spread),
+        )
+    }
+
+    /// Whether every triangle of node `i` faces the patch the same way,
+    /// with a margin that keeps the edge tests' signs and [`Cone::new`]
+    /// certain, and whether all are occluders; `None` when the node lies
+    /// behind the plane.
+    fn facing(&self, i: usize, p: &PatchFrame, level: f64, t_min: f64) -> Option<Facing> {
+        let b = &self.nodes[i];
+        let (near, far) = Self::heights(b, p.normal);
+        if far <= level - Self::slack(t_min) {
             return None;
         }
         if !b.plain || b.cos_a <= 0.0 || b.min_area2 <= 0.0 {
             return Some(Facing::Mixed);
         }
-        let near = corner(false).max(na * h_near + base - spread);
-        if near <= level + slack {
-            return Some(Facing::Mixed);
-        }
-        let u = p.origin.coords - b.mid;
+        let mid = b.mid();
+        let radius = b.radius();
+        let axis_mid = b.axis.dot(&mid);
+        let u = p.origin.coords - mid;
         let dist = u.norm();
-        if dist <= b.radius {
+        if dist == 0.0 {
             return Some(Facing::Mixed);
         }
-        // Each triangle's n̂·(o − x) is at least |u|·cos(β + α) − R (β the
-        // angle from the cone's axis to u), and at most the opposite.
+        // Each triangle's n̂·(o − x) = n̂·u − n̂·(x − mid): n̂·u is at least
+        // |u|·cos(β + α) (β the angle from the cone's axis to u; positive
+        // only when β + α < 90°), and n̂·(x − mid) at most the corners' reach
+        // along the axis past mid plus sin α times their distance from it
+        // (n̂ = cos θ·axis + sin θ·e, θ ≤ α), or the radius. The opposite
+        // for triangles facing away.
+        let side = b.sin_a * b.across;
+        let up = radius.min((b.along.1 - axis_mid).max(0.0) + side);
+        let down = radius.min((axis_mid - b.along.0).max(0.0) + side);
         let cos_b = b.axis.dot(&u) / dist;
         let sin_b = (1.0 - cos_b * cos_b).max(0.0).sqrt();
-        let front = dist * (cos_b * b.cos_a - sin_b * b.sin_a) - b.radius;
-        let back = dist * (-cos_b * b.cos_a - sin_b * b.sin_a) - b.radius;
+        let front = dist * (cos_b * b.cos_a - sin_b * b.sin_a) - up;
+        let back = dist * (-cos_b * b.cos_a - sin_b * b.sin_a) - down;
         // The edge tests' products and the cone's distance test carry
         // round-off of about ε·|corner − o|³; each triangle's n̂·(o − x) times
         // its twice-area must stay well above it.
-        let reach = dist + b.radius;
+        let reach = dist + radius;
         let margin = 2.0 * t_min + 64.0 * f64::EPSILON * reach * reach * reach / b.min_area2;
         if front > margin || back > margin {
-            Some(Facing::Uniform)
+            // Every triangle has a cone; those with a corner in front are
+            // the occluders.
+            if near > level + Self::slack(t_min) {
+                Some(Facing::Uniform)
+            } else {
+                Some(Facing::Cut)
+            }
         } else {
             Some(Facing::Mixed)
         }
+    }
+
+    /// Well above the round-off of `n·x`, well below `t_min`.
+    fn slack(t_min: f64) -> f64 {
+        t_min * 1e-3
     }
 }
 
@@ -446,7 +500,7 @@ const SIDE_TOL: f64 = 1e-12;
 /// One contour arc seen from the patch: its ends (clipped to the front
 /// half), the unit normal of its great circle, and how many cones a path
 /// enters when it crosses from `d·m < 0` to `d·m > 0`.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) struct Arc {
     u: V3,
     v: V3,
@@ -1028,75 +1082,138 @@ impl Exact<'_> {
     /// cells their arcs cross (`w.candidate`, `w.list`).
     fn mark_contour(&self, tree: &ContourTree, p: &PatchFrame, level: f64, w: &mut ExactScratch) {
         let caster = self.caster;
-        if tree.nodes.is_empty() {
-            return;
-        }
-        let o = p.origin;
-        let n = p.normal;
         let mut i = 0;
         while i < tree.nodes.len() {
             let node = &tree.nodes[i];
-            if tree.facing(i, p, level, caster.t_min) != Some(Facing::Mixed) {
+            match tree.facing(i, p, level, caster.t_min) {
                 // Behind the plane, or every edge interior.
-                i = node.end as usize;
-                continue;
+                None | Some(Facing::Uniform) => {
+                    i = node.end(i);
+                    continue;
+                }
+                Some(Facing::Cut) => {
+                    self.mark_cut(tree, i, p, level, w);
+                    i = node.end(i);
+                    continue;
+                }
+                Some(Facing::Mixed) => {}
             }
-            if node.count == 0 {
-                i += 1;
-                continue;
-            }
-            i = node.end as usize;
-            for e in &tree.edges[node.first as usize..node.first as usize + node.count as usize] {
-                let (t, t2) = (e.t as usize, e.t2);
-                let [ca, cb, c1, c2] = e.corners.map(|v| &tree.points[v as usize]);
-                // Occluders have a corner in front (checked here before the
-                // cached test that also wants a cone).
-                let ends = n.dot(ca) > level || n.dot(cb) > level;
-                let q1 = (ends || n.dot(c1) > level) && w.occluder(caster, p, level, t);
-                let q2 = t2 != NONE
-                    && (ends || n.dot(c2) > level)
-                    && w.occluder(caster, p, level, t2 as usize);
-                if !q1 && !q2 {
-                    continue;
-                }
-                let (a, b) = (ca - o.coords, cb - o.coords);
-                let m = a.cross(&b);
-                let s1 = m.dot(&(c1 - o.coords));
-                let s2 = if t2 == NONE {
-                    0.0
-                } else {
-                    m.dot(&(c2 - o.coords))
-                };
-                if q1 && q2 && s1 * s2 < 0.0 {
-                    // Interior: the two cones meet along the edge.
-                    continue;
-                }
-                if a.dot(n) <= 0.0 && b.dot(n) <= 0.0 {
-                    continue;
-                }
-                // Crossing toward +m enters the cones on that side.
-                let side = |s: f64| if s > 0.0 { 1 } else { -1 };
-                let weight = if q1 { side(s1) } else { 0 } + if q2 { side(s2) } else { 0 };
-                let unit = m.normalize();
-                let (ua, ub) = (a.normalize(), b.normalize());
-                let (mut cu, mut cv) = (ua, ub);
-                let (da, db) = (ua.dot(n), ub.dot(n));
-                if da < 0.0 {
-                    cu = (ua * db - ub * da).normalize();
-                } else if db < 0.0 {
-                    cv = (ub * da - ua * db).normalize();
-                }
-                w.recording = w.arcs.len() as u32;
-                w.arcs.push(Arc {
-                    u: cu,
-                    v: cv,
-                    m: unit,
-                    weight,
-                });
-                self.mark_arc(ua, ub, n, |_| true, w);
-                w.recording = NONE;
+            i += 1;
+            for e in &tree.edges[node.edges()] {
+                self.mark_edge(tree, e, p, level, w);
             }
         }
+    }
+
+    /// [`Exact::mark_contour`] over the subtree `i`, which is
+    /// [`Facing::Cut`]: every triangle has a cone and faces the patch the
+    /// same way, so an edge between two occluders is interior, and one
+    /// between an occluder and a triangle wholly behind the plane is
+    /// contour only when an end lies in front of the patch's plane (though
+    /// not past `level`). Only the subtrees the plane cuts are walked, and
+    /// only such edges are passed to [`Exact::mark_edge`]: the same arcs,
+    /// in the same order, as walking every edge of the subtree.
+    fn mark_cut(
+        &self,
+        tree: &ContourTree,
+        i: usize,
+        p: &PatchFrame,
+        level: f64,
+        w: &mut ExactScratch,
+    ) {
+        let (o, n) = (p.origin, p.normal);
+        let slack = ContourTree::slack(self.caster.t_min);
+        let end = tree.nodes[i].end(i);
+        let mut j = i;
+        while j < end {
+            let node = &tree.nodes[j];
+            if j != i {
+                // Wholly behind (no occluder) or wholly in front (all
+                // occluders): no contour.
+                let (near, far) = ContourTree::heights(node, n);
+                if far <= level - slack || near > level + slack {
+                    j = node.end(j);
+                    continue;
+                }
+            }
+            j += 1;
+            for e in &tree.edges[node.edges()] {
+                let [ca, cb, c1, c2] = e.corners.map(|v| &tree.points[v as usize]);
+                // An end in front: both triangles are occluders. Every edge
+                // of a `Cut` subtree has a triangle on each side.
+                if n.dot(ca) > level || n.dot(cb) > level {
+                    continue;
+                }
+                if (n.dot(c1) > level) == (n.dot(c2) > level) {
+                    continue;
+                }
+                if (ca - o.coords).dot(n) <= 0.0 && (cb - o.coords).dot(n) <= 0.0 {
+                    continue;
+                }
+                self.mark_edge(tree, e, p, level, w);
+            }
+        }
+    }
+
+    /// Records edge `e`'s arc and marks the cells it crosses when it is a
+    /// contour edge of the patch.
+    fn mark_edge(
+        &self,
+        tree: &ContourTree,
+        e: &Edge,
+        p: &PatchFrame,
+        level: f64,
+        w: &mut ExactScratch,
+    ) {
+        let caster = self.caster;
+        let (o, n) = (p.origin, p.normal);
+        let (t, t2) = (e.t as usize, e.t2);
+        let [ca, cb, c1, c2] = e.corners.map(|v| &tree.points[v as usize]);
+        // Occluders have a corner in front (checked here before the
+        // cached test that also wants a cone).
+        let ends = n.dot(ca) > level || n.dot(cb) > level;
+        let q1 = (ends || n.dot(c1) > level) && w.occluder(caster, p, level, t);
+        let q2 =
+            t2 != NONE && (ends || n.dot(c2) > level) && w.occluder(caster, p, level, t2 as usize);
+        if !q1 && !q2 {
+            return;
+        }
+        let (a, b) = (ca - o.coords, cb - o.coords);
+        let m = a.cross(&b);
+        let s1 = m.dot(&(c1 - o.coords));
+        let s2 = if t2 == NONE {
+            0.0
+        } else {
+            m.dot(&(c2 - o.coords))
+        };
+        if q1 && q2 && s1 * s2 < 0.0 {
+            // Interior: the two cones meet along the edge.
+            return;
+        }
+        if a.dot(n) <= 0.0 && b.dot(n) <= 0.0 {
+            return;
+        }
+        // Crossing toward +m enters the cones on that side.
+        let side = |s: f64| if s > 0.0 { 1 } else { -1 };
+        let weight = if q1 { side(s1) } else { 0 } + if q2 { side(s2) } else { 0 };
+        let unit = m.normalize();
+        let (ua, ub) = (a.normalize(), b.normalize());
+        let (mut cu, mut cv) = (ua, ub);
+        let (da, db) = (ua.dot(n), ub.dot(n));
+        if da < 0.0 {
+            cu = (ua * db - ub * da).normalize();
+        } else if db < 0.0 {
+            cv = (ub * da - ua * db).normalize();
+        }
+        w.recording = w.arcs.len() as u32;
+        w.arcs.push(Arc {
+            u: cu,
+            v: cv,
+            m: unit,
+            weight,
+        });
+        self.mark_arc(ua, ub, n, |_| true, w);
+        w.recording = NONE;
     }
 
     /// Settles the boundary cells in `w.pending` (no count reached them),
@@ -1147,5 +1264,117 @@ impl Exact<'_> {
             }
         }
         opened
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::Point3;
+
+    use super::*;
+    use crate::mesh::WeldOptions;
+    use crate::setup::samples::{pocket, rotated, step, teapot, z_to};
+    use crate::setup::sphere::GeodesicSphere;
+    use crate::setup::visibility::CellGrid;
+    use crate::setup::visibility::exact::CellShapes;
+
+    /// A floor (`z = 0`, 2 triangles) and, beside it, a sheet leaning at
+    /// 45° from `z = −5` to `z = 5` with a row of 21 vertices at `z = 0`:
+    /// from the floor, the sheet faces one way and its edges along that row
+    /// lie in the floor's plane (tilted, some an ulp in front of it).
+    fn ramp() -> Vec<[Point3<f64>; 3]> {
+        let p = Point3::new;
+        let mut soup = vec![
+            [
+                p(-10.0, -10.0, 0.0),
+                p(10.0, -10.0, 0.0),
+                p(10.0, 10.0, 0.0),
+            ],
+            [
+                p(-10.0, -10.0, 0.0),
+                p(10.0, 10.0, 0.0),
+                p(-10.0, 10.0, 0.0),
+            ],
+        ];
+        let at = |i: usize, j: usize| {
+            let s = -5.0 + 5.0 * i as f64;
+            p(17.0 + s, -10.0 + j as f64, s)
+        };
+        for i in 0..2 {
+            for j in 0..20 {
+                let (a, b, c, d) = (at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
+                soup.push([a, b, c]);
+                soup.push([a, c, d]);
+            }
+        }
+        soup
+    }
+
+    /// The hierarchy's walk skips only subtrees without contour: it finds
+    /// the arcs that testing every edge of the mesh finds, in the same
+    /// order, for every patch of parts whose patches' planes cut uniform
+    /// subtrees (the teapot's spout cutting the body; floors with the
+    /// walls' lower corners in their plane), as built (those corners
+    /// exactly in the plane) and tilted (off it by round-off).
+    #[test]
+    fn the_walk_finds_the_arcs_of_every_edge() {
+        let tilt = z_to(&V3::new(0.3, -0.2, 0.9).normalize());
+        let sphere = GeodesicSphere::with_at_least(320).unwrap();
+        let (grid, cells) = (CellGrid::new(&sphere), CellShapes::new(&sphere));
+        let (mut arcs, mut cut) = (0, 0);
+        for (name, soup) in [
+            ("ramp through a floor's plane", ramp()),
+            ("teapot", teapot(20, 32, 9, 16)),
+            ("drafted pocket", pocket(20.0, 30.0, 15.0, 0.5, 5.0, 4)),
+            ("overhanging step", step(20.0, 20.0, 15.0, 20.0, 30.0, 3)),
+        ] {
+            for soup in [soup.clone(), rotated(&soup, &tilt)] {
+                let mesh = TriMesh::from_triangles(&soup, WeldOptions::default()).unwrap();
+                let caster = RayCaster::new(&mesh);
+                let tree = ContourTree::new(&mesh, &caster);
+                let exact = Exact {
+                    caster: &caster,
+                    grid: &grid,
+                    cells: &cells,
+                    sphere: &sphere,
+                    flood: true,
+                };
+                let mut w = ExactScratch::default();
+                for t in 0..mesh.triangles.len() {
+                    let [a, b, c] = mesh.corners(t);
+                    let origin = Point3::from((a.coords + b.coords + c.coords) / 3.0);
+                    let p = PatchFrame {
+                        origin: &origin,
+                        normal: &mesh.normals[t],
+                        min_dot: 0.0,
+                        skip: t,
+                    };
+                    let level = p.normal.dot(&origin.coords) + caster.t_min;
+                    cut += (0..tree.nodes.len())
+                        .filter(|&i| tree.facing(i, &p, level, caster.t_min) == Some(Facing::Cut))
+                        .count();
+                    let mut found = |walk: bool| {
+                        w.begin(mesh.triangles.len(), sphere.len());
+                        w.arcs.clear();
+                        w.arc_of.clear();
+                        if walk {
+                            exact.mark_contour(&tree, &p, level, &mut w);
+                        } else {
+                            for e in &tree.edges {
+                                exact.mark_edge(&tree, e, &p, level, &mut w);
+                            }
+                        }
+                        (w.arcs.clone(), w.arc_of.clone())
+                    };
+                    let (walked, all) = (found(true), found(false));
+                    assert!(walked == all, "{name}: patch {t}");
+                    arcs += all.0.len();
+                }
+            }
+        }
+        assert!(
+            arcs > 10_000 && cut > 1_000,
+            "{arcs} arcs, {cut} cut subtrees"
+        );
     }
 }
