@@ -16,13 +16,13 @@
 #[path = "common/mod.rs"]
 mod common;
 
-use core::hint::black_box;
 use core::time::Duration;
-use std::time::Instant;
 
-use common::{MODES, butterfly_blocks, config_with, cubic_blocks, loaded, mode_name, reload};
+use common::{
+    MODES, butterfly_blocks, config_with, cubic_blocks, loaded, mode_name, reload, time_ticks,
+};
 use criterion::{Criterion, criterion_group};
-use interp_core::{Block, RunState};
+use interp_core::Block;
 
 fn bench_curve(c: &mut Criterion, curve: &str, blocks: &[Block]) {
     let mut group = c.benchmark_group(format!("tick/{curve}"));
@@ -30,26 +30,7 @@ fn bench_curve(c: &mut Criterion, curve: &str, blocks: &[Block]) {
         let cfg = config_with(mode);
         let mut ip = loaded(cfg, blocks);
         group.bench_function(mode_name(mode), |b| {
-            b.iter_custom(|iters| {
-                let mut total = Duration::ZERO;
-                let mut left = iters;
-                while left > 0 {
-                    let t0 = Instant::now();
-                    let mut done = false;
-                    while left > 0 {
-                        left -= 1;
-                        if black_box(ip.tick()).state == RunState::Done {
-                            done = true;
-                            break;
-                        }
-                    }
-                    total += t0.elapsed();
-                    if done {
-                        reload(&mut ip, cfg, blocks);
-                    }
-                }
-                total
-            })
+            b.iter_custom(|iters| time_ticks(iters, &mut ip, |ip| reload(ip, cfg, blocks)));
         });
     }
     group.finish();

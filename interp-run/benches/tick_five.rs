@@ -25,16 +25,14 @@
 #[path = "common/mod.rs"]
 mod common;
 
-use core::hint::black_box;
 use core::time::Duration;
-use std::time::Instant;
 
-use common::{on_big_stack, run_to_end, start_of};
+use common::{on_big_stack, run_to_end, start_of, time_ticks};
 use criterion::{Criterion, criterion_group};
 use interp_core::fiveaxis::Orientation;
 use interp_core::kinematics::{Machine, MachineSpec, RotaryRange, ToolPose};
 use interp_core::path::Arc;
-use interp_core::{Block, Curve, InterpConfig, Path, RunState, Vec3};
+use interp_core::{Block, Curve, InterpConfig, Path, Vec3};
 use interp_run::Replay;
 
 /// The example's C,A table-table.
@@ -106,26 +104,7 @@ fn ticks(c: &mut Criterion) {
     for round in 1..=2 {
         for (name, ip) in loaded.iter_mut() {
             group.bench_function(format!("{name}/{round}"), |b| {
-                b.iter_custom(|iters| {
-                    let mut total = Duration::ZERO;
-                    let mut left = iters;
-                    while left > 0 {
-                        let t0 = Instant::now();
-                        let mut done = false;
-                        while left > 0 {
-                            left -= 1;
-                            if black_box(ip.tick()).state == RunState::Done {
-                                done = true;
-                                break;
-                            }
-                        }
-                        total += t0.elapsed();
-                        if done {
-                            ip.rewind();
-                        }
-                    }
-                    total
-                })
+                b.iter_custom(|iters| time_ticks(iters, ip, |ip| ip.rewind()));
             });
         }
     }

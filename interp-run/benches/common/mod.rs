@@ -6,6 +6,10 @@
 //! on any machine drive the interpolator through exactly the same ticks.
 #![allow(dead_code)]
 
+use core::hint::black_box;
+use core::time::Duration;
+use std::time::Instant;
+
 use interp_core::nurbs::{MAX_CTRL, MAX_DEGREE, Nurbs};
 use interp_core::samples::butterfly;
 use interp_core::{Block, InterpConfig, ParamUpdate, Path, RunState};
@@ -119,6 +123,30 @@ pub fn run_to_end(ip: &mut Replay) -> u64 {
         }
         assert!(n < 50_000_000, "run does not end");
     }
+}
+
+/// Time of `iters` ticks of `ip` (criterion's `iter_custom`), restarting
+/// it with `restart` whenever it reaches the end; the restarts are not
+/// timed.
+pub fn time_ticks(iters: u64, ip: &mut Replay, mut restart: impl FnMut(&mut Replay)) -> Duration {
+    let mut total = Duration::ZERO;
+    let mut left = iters;
+    while left > 0 {
+        let t0 = Instant::now();
+        let mut done = false;
+        while left > 0 {
+            left -= 1;
+            if black_box(ip.tick()).state == RunState::Done {
+                done = true;
+                break;
+            }
+        }
+        total += t0.elapsed();
+        if done {
+            restart(ip);
+        }
+    }
+    total
 }
 
 /// Short human name of an update mode.
