@@ -36,6 +36,50 @@ pub struct FiveAxisRun {
     pub setpoints: Vec<Setpoint>,
 }
 
+/// A program run through `simulate`'s pipeline (`traces::sim::run`): the
+/// converted program, the run's configuration record and every setpoint.
+#[derive(Debug, Clone)]
+pub struct SimulatedRun {
+    /// The program as `simulate` converts it (machine at the origin).
+    pub program: traces::Program,
+    /// The configuration record of the run.
+    pub config: traces::ConfigMsg,
+    /// Every setpoint, to the end.
+    pub setpoints: Vec<Setpoint>,
+}
+
+/// Parses `text` and runs it as `interpd simulate` does (for `cfg.machine`,
+/// from the origin, at most 600 s); `source` names it in the record.
+pub fn simulate_program(
+    cfg: InterpConfig,
+    text: &str,
+    source: &str,
+) -> Result<SimulatedRun, String> {
+    let g = gcode::parse(text).map_err(|e| e.to_string())?;
+    let program = traces::Program::from_gcode(&g, &CoreOptions::for_config(&cfg), [0.0; 6])
+        .map_err(|e| e.to_string())?;
+    let config = traces::sim::config_for(
+        &program,
+        cfg,
+        &traces::sim::SimSettings::default(),
+        "test",
+        source,
+    );
+    let mut setpoints = Vec::new();
+    traces::sim::run(&config, &program, 600.0, |item| {
+        if let traces::sim::SimItem::Tick { setpoint, .. } = item {
+            setpoints.push(*setpoint);
+        }
+        Ok::<(), std::convert::Infallible>(())
+    })
+    .map_err(|e| e.to_string())?;
+    Ok(SimulatedRun {
+        program,
+        config,
+        setpoints,
+    })
+}
+
 /// Parses `text`, converts it for `cfg.machine` and interpolates it from
 /// its first point to its end.
 pub fn run_program(cfg: InterpConfig, text: &str) -> Result<FiveAxisRun, String> {

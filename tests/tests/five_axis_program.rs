@@ -11,7 +11,9 @@ use interp_core::InterpConfig;
 use interp_core::kinematics::Machine;
 use interp_core::{RunState, Vec3};
 use interp_run::check::{Checker, Limits};
-use interpd_tests::five_axis::{example_dir, machine_from_toml, run_program};
+use interpd_tests::five_axis::{
+    SimulatedRun, example_dir, machine_from_toml, run_program, simulate_program,
+};
 
 #[test]
 fn the_frustum_example_runs_on_its_machine_within_its_program_and_limits() {
@@ -154,24 +156,11 @@ fn rotary_only_moves_turn_in_place_through_simulate() {
         G49\n\
         G0 X0 Y0 Z100\n\
         M2\n";
-    let g = gcode::parse(text).unwrap();
-    let opts = gcode::CoreOptions::for_config(&cfg);
-    let program = traces::Program::from_gcode(&g, &opts, [0.0; 6]).expect("converts");
-    let config = traces::sim::config_for(
-        &program,
-        cfg,
-        &traces::sim::SimSettings::default(),
-        "test",
-        "rotary-only",
-    );
-    let mut sps = Vec::new();
-    traces::sim::run(&config, &program, 600.0, |item| {
-        if let traces::sim::SimItem::Tick { setpoint, .. } = item {
-            sps.push(*setpoint);
-        }
-        Ok::<(), std::convert::Infallible>(())
-    })
-    .expect("runs");
+    let SimulatedRun {
+        program,
+        config,
+        setpoints: sps,
+    } = simulate_program(cfg, text, "rotary-only").expect("runs");
     let m = Machine::new(spec).unwrap();
     let last = sps.last().unwrap();
     assert_eq!(last.state, RunState::Done);
@@ -314,24 +303,11 @@ fn g6_2_rotary_coordinates_run_as_coordinates_of_the_curve() {
         machine: Some(spec),
         ..InterpConfig::default()
     };
-    let g = gcode::parse(&text).unwrap();
-    let program = traces::Program::from_gcode(&g, &gcode::CoreOptions::for_config(&cfg), [0.0; 6])
-        .expect("converts");
-    let config = traces::sim::config_for(
-        &program,
-        cfg,
-        &traces::sim::SimSettings::default(),
-        "test",
-        "g6.2 rotary",
-    );
-    let mut sps = Vec::new();
-    traces::sim::run(&config, &program, 600.0, |item| {
-        if let traces::sim::SimItem::Tick { setpoint, .. } = item {
-            sps.push(*setpoint);
-        }
-        Ok::<(), std::convert::Infallible>(())
-    })
-    .expect("runs");
+    let SimulatedRun {
+        program,
+        setpoints: sps,
+        ..
+    } = simulate_program(cfg, &text, "g6.2 rotary").expect("runs");
     let expanded = program
         .expand(
             traces::sim::SimSettings::default().max_ctrl_per_block,
