@@ -24,6 +24,19 @@ const ON_AXIS_TOL: f64 = 1e-9;
 /// Points of the drives' linear joint interpolation checked between two setpoints.
 const BETWEEN: usize = 8;
 
+/// The poses the drives pass between two setpoints' joints (`BETWEEN − 1`
+/// points of their linear interpolation, ends excluded).
+fn poses_between(m: &Machine, prev: Joints, next: Joints) -> impl Iterator<Item = ToolPose> + '_ {
+    (1..BETWEEN).map(move |k| {
+        let l = k as f64 / BETWEEN as f64;
+        let mut j = prev;
+        for (n, v) in j.iter_mut().enumerate() {
+            *v += (next[n] - prev[n]) * l;
+        }
+        m.forward(&j)
+    })
+}
+
 fn machine(chain: &str, tool_length: f64, centre: (usize, [f64; 3])) -> MachineSpec {
     let mut spec = MachineSpec::new(chain.parse().expect("chain"));
     spec.tool_length = tool_length;
@@ -97,13 +110,7 @@ fn check(cfg: &InterpConfig, start: Joints, sps: &[Setpoint], r: &dyn Reference)
         rep.on_path = rep.on_path.max(d);
         rep.on_axis = rep.on_axis.max(angle(pose.axis, axis));
         let prev = q[i + 2];
-        for k in 1..BETWEEN {
-            let l = k as f64 / BETWEEN as f64;
-            let mut j = prev;
-            for (n, v) in j.iter_mut().enumerate() {
-                *v += (sp.axes[n] - prev[n]) * l;
-            }
-            let p = m.forward(&j);
+        for p in poses_between(&m, prev, sp.axes) {
             let (d, axis) = r.at(p.tip);
             rep.between_tip = rep.between_tip.max(d);
             rep.between_axis = rep.between_axis.max(angle(p.axis, axis));
@@ -856,13 +863,7 @@ fn the_tool_turns_about_a_fixed_tip_under_tcp() {
             );
             turned = t;
             let prev = q[i + 2];
-            for k in 1..BETWEEN {
-                let l = k as f64 / BETWEEN as f64;
-                let mut j = prev;
-                for (n, v) in j.iter_mut().enumerate() {
-                    *v += (sp.axes[n] - prev[n]) * l;
-                }
-                let p = m.forward(&j);
+            for p in poses_between(&m, prev, sp.axes) {
                 between_tip = between_tip.max((p.tip - at).norm());
                 between_axis = between_axis.max(off_great_circle(a0, a1, p.axis));
             }
