@@ -108,20 +108,11 @@ fn plan_raster_refuses_bad_feeds_clearances_and_tolerances_naming_the_flag() {
 fn plan_setup_json_prints_the_certificate_equivalents_and_rotary_positions() {
     use interp_core::kinematics::{Machine, MachineSpec};
     use planner::setup::MachineConfig;
-    use std::fmt::Write as _;
     let dir = std::env::temp_dir().join(format!("interpd-plan-setup-cli-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let stl = dir.join("teapot.stl");
-    let mut text = String::from("solid teapot\n");
-    for t in planner::setup::samples::teapot(10, 12, 5, 6) {
-        text.push_str("facet normal 0 0 0\nouter loop\n");
-        for p in t {
-            writeln!(text, "vertex {} {} {}", p.x, p.y, p.z).unwrap();
-        }
-        text.push_str("endloop\nendfacet\n");
-    }
-    text.push_str("endsolid teapot\n");
-    std::fs::write(&stl, text).unwrap();
+    let teapot = planner::setup::samples::teapot(10, 12, 5, 6);
+    std::fs::write(&stl, planner::mesh::ascii_stl("teapot", &teapot)).unwrap();
     for (machine, names) in [("W/caxyBz/T", ["C", "A"]), ("W/baxzBy/T", ["B", "A"])] {
         let out = Command::new(env!("CARGO_BIN_EXE_interpd"))
             .args([
@@ -220,16 +211,8 @@ fn plan_setup_positions_the_rotary_axes_for_a_three_axis_cut() {
     let dir = std::env::temp_dir().join(format!("interpd-plan-setup-32-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let stl = dir.join("teapot.stl");
-    let mut text = String::from("solid teapot\n");
-    for t in planner::setup::samples::teapot(10, 12, 5, 6) {
-        text.push_str("facet normal 0 0 0\nouter loop\n");
-        for p in t {
-            writeln!(text, "vertex {} {} {}", p.x, p.y, p.z).unwrap();
-        }
-        text.push_str("endloop\nendfacet\n");
-    }
-    text.push_str("endsolid teapot\n");
-    std::fs::write(&stl, text).unwrap();
+    let teapot = planner::setup::samples::teapot(10, 12, 5, 6);
+    std::fs::write(&stl, planner::mesh::ascii_stl("teapot", &teapot)).unwrap();
     let out = Command::new(env!("CARGO_BIN_EXE_interpd"))
         .args(["plan", "setup", "--machine", "W/caxyBz/T"])
         .args(["--ranges", "90,90,180,180", "--json", "--stl"])

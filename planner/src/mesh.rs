@@ -107,6 +107,24 @@ fn unnamed_ascii_solid<R: Read + Seek>(reader: &mut R) -> std::io::Result<Option
     Ok(Some(text))
 }
 
+/// A triangle soup as ASCII STL text (normals left zero: readers,
+/// [`TriMesh::from_stl_reader`] among them, take the corners' order), for
+/// tests and tools that hand a generated part to `interpd plan`. STL holds
+/// `f32`: the file reads back as the corners rounded to `f32`.
+pub fn ascii_stl(name: &str, soup: &[[P3; 3]]) -> String {
+    use std::fmt::Write as _;
+    let mut text = format!("solid {name}\n");
+    for t in soup {
+        text.push_str("facet normal 0 0 0\nouter loop\n");
+        for p in t {
+            let _ = writeln!(text, "vertex {} {} {}", p.x, p.y, p.z);
+        }
+        text.push_str("endloop\nendfacet\n");
+    }
+    let _ = writeln!(text, "endsolid {name}");
+    text
+}
+
 impl TriMesh {
     /// Reads a binary or ASCII STL file.
     pub fn from_stl_path(path: impl AsRef<Path>, options: WeldOptions) -> Result<Self, MeshError> {
@@ -506,6 +524,25 @@ mod tests {
             )
             .expect("bare solid reads");
             assert_eq!(m.triangles.len(), 1);
+        }
+    }
+
+    #[test]
+    fn ascii_stl_text_reads_back_to_the_same_corners() {
+        let soup = [
+            [p(0.1, 0.0, 0.0), p(1.0, 1.0 / 3.0, 0.0), p(0.0, 1.0, 1e-7)],
+            [p(0.1, 0.0, 0.0), p(0.0, 1.0, 1e-7), p(-2.5, 0.5, 3.0)],
+        ];
+        let text = ascii_stl("t", &soup);
+        let m = TriMesh::from_stl_reader(
+            &mut std::io::Cursor::new(text.into_bytes()),
+            WeldOptions::default(),
+        )
+        .unwrap();
+        assert_eq!(m.triangles.len(), 2);
+        let f32_of = |q: &P3| p(q.x as f32 as f64, q.y as f32 as f64, q.z as f32 as f64);
+        for (t, want) in soup.iter().enumerate() {
+            assert_eq!(m.corners(t), want.map(|q| f32_of(&q)));
         }
     }
 

@@ -327,8 +327,8 @@ fn compute(args: &SetupOptions) -> Result<PlanOut> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use planner::mesh::ascii_stl;
     use planner::setup::samples::teapot;
-    use std::fmt::Write as _;
 
     fn args(stl: PathBuf, machine: &str, ranges: &str) -> SetupOptions {
         SetupOptions {
@@ -344,17 +344,8 @@ mod tests {
     fn teapot_stl_plans_end_to_end_and_bad_stl_is_an_error() {
         let dir = std::env::temp_dir().join(format!("interpd-plan-setup-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
-        let mut text = String::from("solid teapot\n");
-        for t in teapot(10, 12, 5, 6) {
-            text.push_str("facet normal 0 0 0\nouter loop\n");
-            for p in t {
-                writeln!(text, "vertex {} {} {}", p.x, p.y, p.z).unwrap();
-            }
-            text.push_str("endloop\nendfacet\n");
-        }
-        text.push_str("endsolid teapot\n");
         let stl = dir.join("teapot.stl");
-        std::fs::write(&stl, text).unwrap();
+        std::fs::write(&stl, ascii_stl("teapot", &teapot(10, 12, 5, 6))).unwrap();
         let out = compute(&args(stl.clone(), "W/caxyBz/T", "90,90,180,180")).unwrap();
         assert!(out.feasible && !out.three_axis);
         assert_eq!(
