@@ -180,6 +180,24 @@ fn blocks(origin: &Point3<f64>, tri: &[Point3<f64>; 3], t_min: f64) -> bool {
     det != 0.0 && twice_area != 0.0 && det.abs() / twice_area > t_min
 }
 
+/// The first of a cell's nine test points (its corners, the midpoints of
+/// its edges, the points half-way from its centre to its corners) that is
+/// in front of the patch (`d·n > min_dot`) and that `reaches` accepts.
+pub(super) fn nine_point_witness(
+    corners: &[V3; 3],
+    centre: V3,
+    n: &V3,
+    min_dot: f64,
+    mut reaches: impl FnMut(&V3) -> bool,
+) -> Option<V3> {
+    (0..3)
+        .flat_map(|k| {
+            let (a, b) = (corners[k], corners[(k + 1) % 3]);
+            [a, (a + b).normalize(), (a + centre).normalize()]
+        })
+        .find(|d| d.dot(n) > min_dot && reaches(d))
+}
+
 /// A cap holding the directions of `dirs` (corners seen from the origin):
 /// centre and cosine of the radius. A cap wider than a hemisphere is not
 /// convex and may miss part of the triangle between its corners: then the
@@ -844,22 +862,9 @@ impl Exact<'_> {
             }
             // An outline crosses the cell: nearly always part of it is
             // open, and one of the nine points of the exact test shows it.
-            let corners = &self.cells.corners[ci];
-            let nine = (0..3).flat_map(|k| {
-                let (a, b) = (corners[k], corners[(k + 1) % 3]);
-                [a, (a + b).normalize(), (a + centre).normalize()]
+            let reached = nine_point_witness(&self.cells.corners[ci], centre, n, p.min_dot, |d| {
+                caster.first_hit(p.origin, d, p.skip, &mut w.rays).is_none()
             });
-            let mut reached = None;
-            for d in nine {
-                if d.dot(n) > p.min_dot
-                    && caster
-                        .first_hit(p.origin, &d, p.skip, &mut w.rays)
-                        .is_none()
-                {
-                    reached = Some(d);
-                    break;
-                }
-            }
             if let Some(d) = reached {
                 row[ci / 64] |= 1 << (ci % 64);
                 w.witnesses.push((c, d));

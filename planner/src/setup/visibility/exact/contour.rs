@@ -47,7 +47,7 @@
 use bvh::bvh::BvhNode;
 use nalgebra::Vector3;
 
-use super::{Curve, Exact, ExactScratch, NONE, PatchFrame};
+use super::{Curve, Exact, ExactScratch, NONE, PatchFrame, nine_point_witness};
 use crate::mesh::TriMesh;
 use crate::setup::visibility::{RayCaster, hits_triangle, is_open};
 
@@ -1243,18 +1243,9 @@ impl Exact<'_> {
                 w.certified += 1;
                 continue;
             }
-            let corners = self.cells.corners[ci];
-            let nine = (0..3).flat_map(|k| {
-                let (a, b) = (corners[k], corners[(k + 1) % 3]);
-                [a, (a + b).normalize(), (a + centre).normalize()]
+            let reached = nine_point_witness(&self.cells.corners[ci], centre, n, p.min_dot, |d| {
+                self.reaches(p, level, d, w)
             });
-            let mut reached = None;
-            for d in nine {
-                if d.dot(n) > p.min_dot && self.reaches(p, level, &d, w) {
-                    reached = Some(d);
-                    break;
-                }
-            }
             if let Some(d) = reached {
                 row[ci / 64] |= 1 << (ci % 64);
                 w.witnesses.push((c, d));
