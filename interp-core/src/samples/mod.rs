@@ -3,3 +3,4 @@
 //! Data only (no I/O): the demo, the benches and the tests all read the same copy.
 
 pub mod butterfly;
+pub mod rational_cubic;
