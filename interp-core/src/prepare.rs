@@ -1014,11 +1014,17 @@ pub(crate) fn axis_jerk_may_bind(smp: &AxisSample, ax: usize, l2: f64, cfg: &Int
 /// The largest axis jerk of axis `ax` at this sample under the bounds of
 /// [`axis_jerk_may_bind`], as a fraction of its limit.
 pub(crate) fn axis_jerk_load(smp: &AxisSample, ax: usize, l2: f64, cfg: &InterpConfig) -> f64 {
+    axis_jerk_load_at(smp, ax, l2, cfg, cfg.max_path_jerk)
+}
+
+/// [`axis_jerk_load`] with the path's tangential jerk at most `jerk`
+/// (before the planning margin) instead of `max_path_jerk`.
+fn axis_jerk_load_at(smp: &AxisSample, ax: usize, l2: f64, cfg: &InterpConfig, jerk: f64) -> f64 {
     let keep = 1.0 - cfg.planning_margin;
     let v = libm::sqrt(l2).max(1e-9);
     let worst = libm::fabs(smp.csss[ax]) * l2
         + 3.0 * libm::fabs(smp.css[ax]) * cfg.planned_accel()
-        + libm::fabs(smp.t[ax]) * cfg.max_path_jerk * keep / v;
+        + libm::fabs(smp.t[ax]) * jerk * keep / v;
     worst * v / (cfg.axis_max_jerk[ax] * keep)
 }
 
@@ -1037,9 +1043,24 @@ pub(crate) fn keep_axis_sample(
     if let Some(it) = w.interval_mut(sample_interval(smp.s, h))
         && !it.add_sample(smp)
     {
+        // The tangential part of an axis' jerk, `|t|·J`, does not fall with
+        // the speed. Where it alone would take more than half an axis' limit
+        // (a five-axis joint, whose rate in arc length `|t|` may exceed 1, or
+        // a path jerk above half the axis'), no speed bounds the load and a
+        // zero limit would stall the run: the interval's tangential jerk is
+        // lowered to leave the other half to the speed's terms.
+        let mut jerk = cfg.max_path_jerk;
+        let room = (0..3)
+            .filter(|&ax| smp.t[ax] != 0.0)
+            .map(|ax| 0.5 * cfg.axis_max_jerk[ax] / libm::fabs(smp.t[ax]))
+            .fold(f64::INFINITY, f64::min);
+        if jerk > room {
+            jerk = room;
+            it.jerk = it.jerk.min(room * (1.0 - cfg.planning_margin));
+        }
         let load = |v: f64| {
             (0..3)
-                .map(|ax| axis_jerk_load(&smp, ax, v * v, cfg))
+                .map(|ax| axis_jerk_load_at(&smp, ax, v * v, cfg, jerk))
                 .fold(0.0, f64::max)
         };
         // The load grows with the speed: bisect for the highest safe one.

@@ -10,12 +10,13 @@ mod common;
 use common::{LIMIT_REL_TOL, push_what_fits};
 
 use core::f64::consts::PI;
-use interp_core::fiveaxis::{JointError, Orientation};
+use interp_core::fiveaxis::{JointError, Orientation, OrientationAt};
 use interp_core::geom::Vec3;
 use interp_core::interp::PushError;
 use interp_core::kinematics::{Joints, Machine, MachineSpec, RotaryRange, ToolPose};
 use interp_core::path::{Arc, Block, Line, Path};
-use interp_core::{InterpConfig, Interpolator, RunState, Setpoint};
+use interp_core::samples::rational_cubic::rational_cubic;
+use interp_core::{Curve, InterpConfig, Interpolator, RunState, Setpoint};
 
 /// Setpoints put the tip on the programmed path within this, mm.
 const ON_PATH_TOL: f64 = 1e-9;
@@ -53,10 +54,20 @@ fn config(spec: MachineSpec) -> InterpConfig {
 
 /// Runs `blocks` from `start` to the end; every setpoint.
 fn run(cfg: &InterpConfig, start: Joints, blocks: &[Block]) -> Vec<Setpoint> {
+    run_within(cfg, start, blocks, 2_000_000)
+}
+
+/// [`run`], failing if the run takes more than `max_ticks`.
+fn run_within(
+    cfg: &InterpConfig,
+    start: Joints,
+    blocks: &[Block],
+    max_ticks: u64,
+) -> Vec<Setpoint> {
     let mut ip: Box<Interpolator> = Box::new(Interpolator::new(*cfg, start).expect("config"));
     let mut out = Vec::new();
     let mut next = 0;
-    for _ in 0..2_000_000 {
+    for _ in 0..max_ticks {
         if next < blocks.len() {
             next += push_what_fits(&mut ip, &blocks[next..]);
             if next == blocks.len() {
@@ -70,7 +81,11 @@ fn run(cfg: &InterpConfig, start: Joints, blocks: &[Block]) -> Vec<Setpoint> {
             return out;
         }
     }
-    panic!("did not finish");
+    let last = out.last().expect("setpoints");
+    panic!(
+        "did not finish within {max_ticks} ticks: at s = {} mm, feed {} mm/s, joints {:?}",
+        last.s, last.feed, last.axes
+    );
 }
 
 /// The joints at rest at `pose`, from home.
@@ -256,6 +271,82 @@ fn helix_with_a_turning_tool_on_a_ca_table() {
     let span =
         c.iter().cloned().fold(f64::MIN, f64::max) - c.iter().cloned().fold(f64::MAX, f64::min);
     assert!(span > 60.0, "C spans {span} degrees");
+}
+
+/// Regression (issue 19): the rational cubic of the tick benches, the tool
+/// turning on its great circle from (A 10°, C 90°) to (A 35°, C 0°), on
+/// the example's C,A table stalled at s = 36.906 mm (A 9.71°, C 73.44°):
+/// a look-ahead interval there held more per-axis samples (the tip's and
+/// the joints') than it can, and the one that did not fit lowered the speed
+/// limit where it lies until its worst-case axis jerk fit, but the
+/// tangential part of C's jerk, `|q_s|·J` (1.5 of C's limit), does not fall
+/// with the speed: the limit became 0, the feed fell to 0, the run never
+/// ended. It must end at rest on its end pose, the tip on the curve and the
+/// axis on its program at every setpoint, every joint within its limits.
+#[test]
+fn rational_cubic_with_a_turning_tool_ends() {
+    let mut spec = machine("W/caxyBz/T", 100.0, (0, [0.0, 0.0, -50.0]));
+    spec.rotary_ranges[0] = RotaryRange {
+        min: -110.0,
+        max: 110.0,
+    };
+    let cfg = config(spec);
+    let m = Machine::new(spec).expect("machine");
+    let path = Path::Nurbs(rational_cubic());
+    let axis = |a: f64, c: f64| m.forward(&[0.0, 0.0, 0.0, a, 0.0, c]).axis;
+    let (a0, a1) = (axis(10.0, 90.0), axis(35.0, 0.0));
+    let o = Orientation::tool_axis(&path, a0, a1).expect("orientation");
+    let start = m
+        .inverse(
+            &ToolPose {
+                tip: path.start_point(),
+                axis: a0,
+            },
+            &[0.0, 0.0, 0.0, 10.0, 0.0, 90.0],
+        )
+        .expect("reachable")
+        .joints;
+    // ≈ 3700 ticks when it runs; the stall never ends.
+    let sps = run_within(
+        &cfg,
+        start,
+        &[Block::new(1, path, 100.0).with_orientation(o)],
+        20_000,
+    );
+    let last = sps.last().expect("setpoints");
+    let end = m.forward(&last.axes);
+    assert!(
+        (end.tip - path.end_point()).norm() < ON_PATH_TOL,
+        "{last:?}"
+    );
+    assert!((end.axis - a1).norm() < ON_AXIS_TOL, "{last:?}");
+    assert_eq!(last.feed, 0.0);
+    let mut on_path = 0.0f64;
+    let mut on_axis = 0.0f64;
+    for sp in &sps {
+        let pose = m.forward(&sp.axes);
+        on_path = on_path.max((pose.tip - path.eval(sp.u, 0).p).norm());
+        let OrientationAt::ToolAxis(a) = o.at(sp.u) else {
+            unreachable!("a tool axis");
+        };
+        on_axis = on_axis.max(libm::atan2(pose.axis.cross(&a).norm(), pose.axis.dot(&a)));
+    }
+    assert!(on_path <= ON_PATH_TOL, "tip off the curve by {on_path} mm");
+    assert!(
+        on_axis <= ON_AXIS_TOL,
+        "axis off its program by {on_axis} rad"
+    );
+    let mut q = vec![start; 3];
+    q.extend(sps.iter().map(|s| s.axes));
+    for (j, r) in joint_ratios(&cfg, &q).iter().enumerate() {
+        for (k, x) in r.iter().enumerate() {
+            assert!(
+                *x <= 1.0 + LIMIT_REL_TOL,
+                "joint {j} {} {x} of its limit",
+                ["velocity", "acceleration", "jerk"][k]
+            );
+        }
+    }
 }
 
 /// The flank of a cone frustum in the manner of NAS 979: the tip runs
