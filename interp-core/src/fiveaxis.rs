@@ -89,13 +89,18 @@ pub enum Orientation {
         /// The tool tip stands here while the tool turns (a turn in place).
         fixed: Option<Vec3>,
     },
-    /// Tool-centre-point control off: the rotary joints A B C (degrees) are
-    /// coordinates of the path's NURBS (G6.2 with A B C on its control
-    /// points, as Fanuc allows: the same weights and knots), over one knot
-    /// span of it: a rational Bézier curve in `t = (u − u0)/(u1 − u0)` with
-    /// these control values and the weights the path has on that span
-    /// ([`Orientation::axes_curve`]). A program curve is cut into its spans
-    /// (`gcode::Cutter`), each a block with its own piece of the curve.
+    /// The rotary joints A B C (degrees) are coordinates of the path's
+    /// NURBS (G6.2 with A B C on its control points, as Fanuc allows: the
+    /// same weights and knots), over one knot span of it: a rational Bézier
+    /// curve in `t = (u − u0)/(u1 − u0)` with these control values and the
+    /// weights the path has on that span ([`Orientation::axes_curve`]). A
+    /// program curve is cut into its spans (`gcode::Cutter`), each a block
+    /// with its own piece of the curve. With `tcp` off the path is X Y Z of
+    /// the machine; with it on (G43.4, [`Orientation::under_tcp`]) the path
+    /// is the tool tip in the workpiece frame, the rotary joints are the
+    /// curve's and the linear ones put the tip on the path
+    /// ([`Machine::place_tip`]): the tool axis is the machine's at those
+    /// rotary positions ([`Orientation::axis_at`]).
     AxesCurve {
         /// A B C of the control points, degrees.
         values: [[f64; 3]; BEZIER],
@@ -107,6 +112,8 @@ pub enum Orientation {
         u0: f64,
         /// See `u0`.
         u1: f64,
+        /// Under tool-centre-point control (G43.4): the path is the tool tip.
+        tcp: bool,
     },
 }
 
@@ -215,7 +222,18 @@ impl Orientation {
             degree: degree as u8,
             u0,
             u1,
+            tcp: false,
         })
+    }
+
+    /// The same rotary curve under tool-centre-point control (G43.4): the
+    /// path is the tool tip and the rotary joints follow the curve (see
+    /// [`Orientation::AxesCurve`]). Other orientations are returned as they are.
+    pub fn under_tcp(mut self) -> Self {
+        if let Orientation::AxesCurve { tcp, .. } = &mut self {
+            *tcp = true;
+        }
+        self
     }
 
     /// The same turn with the tool tip (or X Y Z) standing at `at`: a turn
@@ -255,7 +273,25 @@ impl Orientation {
 
     /// Under tool-centre-point control (the path is the tool tip)?
     pub fn is_tcp(&self) -> bool {
-        matches!(self, Orientation::ToolAxis { .. })
+        matches!(
+            self,
+            Orientation::ToolAxis { .. } | Orientation::AxesCurve { tcp: true, .. }
+        )
+    }
+
+    /// The tool axis in the workpiece frame at parameter `u` under
+    /// tool-centre-point control: the programmed one, or, for a rotary
+    /// curve, the machine's at the curve's rotary positions (which needs
+    /// `machine`). `None` without tool-centre-point control.
+    pub fn axis_at(&self, machine: Option<&Machine>, u: f64) -> Option<Vec3> {
+        match (self.at(u), self) {
+            (OrientationAt::ToolAxis(a), _) => Some(a),
+            (OrientationAt::Axes(abc), Orientation::AxesCurve { tcp: true, .. }) => {
+                // (The linear joints do not turn the tool.)
+                machine.map(|m| m.forward(&[0.0, 0.0, 0.0, abc[0], abc[1], abc[2]]).axis)
+            }
+            _ => None,
+        }
     }
 
     fn fraction(u: f64, u0: f64, u1: f64) -> f64 {
@@ -298,6 +334,7 @@ impl Orientation {
                 degree,
                 u0,
                 u1,
+                ..
             } => {
                 let p = degree as usize;
                 let t = Self::fraction(u, u0, u1);
@@ -352,6 +389,12 @@ impl Orientation {
     ) -> Result<(Joints, bool), JointError> {
         let p = self.fixed().unwrap_or(p);
         match self.at(u) {
+            OrientationAt::Axes(abc) if self.is_tcp() => {
+                let m = machine.ok_or(JointError::NoMachine)?;
+                m.place_tip(&p, abc, prev)
+                    .map(|q| (q, false))
+                    .map_err(JointError::Inverse)
+            }
             OrientationAt::Axes(abc) => Ok(([p.x, p.y, p.z, abc[0], abc[1], abc[2]], false)),
             OrientationAt::ToolAxis(axis) => {
                 let m = machine.ok_or(JointError::NoMachine)?;
@@ -461,7 +504,7 @@ impl JointSample {
             q[(k + 2) as usize] = orientation.joints(machine, p, uk, &q0)?;
         }
         for (k, a) in axes.iter_mut().enumerate() {
-            if let OrientationAt::ToolAxis(v) = orientation.at(uc + (k as f64 - 2.0) * du) {
+            if let Some(v) = orientation.axis_at(machine, uc + (k as f64 - 2.0) * du) {
                 *a = v;
             }
         }

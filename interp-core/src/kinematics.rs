@@ -871,12 +871,53 @@ impl Machine {
             joints[first.joint()] = q1.to_degrees();
         }
         joints[second.joint()] = q2.to_degrees();
+        self.place_linear(&mut joints, &pose.tip)?;
+        Ok(Solution { joints, at_pole })
+    }
+
+    /// The joints with the machine's rotary joints at `rotary` (A B C,
+    /// degrees; the axis the machine lacks keeps its `current` value) and
+    /// the linear joints that put the tool tip at `tip`: tool-centre-point
+    /// control with the rotary positions given (G43.4), not a tool axis.
+    pub fn place_tip(
+        &self,
+        tip: &Vec3,
+        rotary: [f64; 3],
+        current: &Joints,
+    ) -> Result<Joints, InverseError> {
+        if !current.iter().all(|v| v.is_finite()) {
+            return Err(InverseError::BadJoints);
+        }
+        if !(tip.iter().all(|v| v.is_finite()) && rotary.iter().all(|v| v.is_finite())) {
+            return Err(InverseError::BadPose);
+        }
+        let (first, second) = self.spec.chain.roles();
+        let mut joints = *current;
+        for (axis, (lo, hi)) in [first, second].into_iter().zip(self.ranges) {
+            let q = rotary[axis.index()];
+            let r = q.to_radians();
+            if !(r >= lo - RANGE_SLACK && r <= hi + RANGE_SLACK) {
+                return Err(InverseError::OutOfRange {
+                    axis,
+                    needed: q,
+                    range: self.spec.rotary_ranges[axis.index()],
+                });
+            }
+            joints[axis.joint()] = q;
+        }
+        self.place_linear(&mut joints, tip)?;
+        Ok(joints)
+    }
+
+    /// Sets the linear joints of `joints` (its rotary ones kept) so that the
+    /// tool tip is at `tip`.
+    fn place_linear(&self, joints: &mut Joints, tip: &Vec3) -> Result<(), InverseError> {
         // The tip is affine in the linear joints: p = p0 + D·(x, y, z).
         for j in joints.iter_mut().take(3) {
             *j = 0.0;
         }
         let mut d = Matrix3::zeros();
-        let (r, t) = self.walk(&joints, |link, r, _| {
+        let (r, t) = self.walk(joints, |link, r, _| {
             if link.rotary.is_none() {
                 d.set_column(link.joint, &(r * link.dir));
             }
@@ -885,9 +926,9 @@ impl Machine {
         if libm::fabs(d.determinant()) < LINEAR_DET_MIN {
             return Err(InverseError::LinearSingular);
         }
-        let xyz = d.try_inverse().ok_or(InverseError::LinearSingular)? * (pose.tip - p0);
+        let xyz = d.try_inverse().ok_or(InverseError::LinearSingular)? * (tip - p0);
         joints[..3].copy_from_slice(xyz.as_slice());
-        Ok(Solution { joints, at_pole })
+        Ok(())
     }
 
     /// The rotary joints (rad) for unit tool axis `a`: `(first, second, at_pole)`.
@@ -1217,6 +1258,32 @@ mod tests {
                 let v = sol.joints[axis.joint()];
                 let r = lo[axis.index()];
                 prop_assert!(v >= r.min - 1e-9 && v <= r.max + 1e-9);
+            }
+        }
+
+        /// `place_tip` with the rotary joints of a pose gives back its
+        /// linear joints (the tip to the inverse's precision), for every
+        /// ordering, layout, offset and range; the axis the machine lacks
+        /// keeps its current value.
+        #[test]
+        fn place_tip_round_trips(c in case_strategy(), nudge in prop::array::uniform3(-5.0..5.0f64)) {
+            let m = &c.machine;
+            let pose = m.forward(&c.joints);
+            let mut current = c.joints;
+            for i in 0..3 {
+                current[i] += 10.0 * nudge[i];
+                current[3 + i] += nudge[i];
+            }
+            let rotary = [c.joints[3], c.joints[4], c.joints[5]];
+            let q = m.place_tip(&pose.tip, rotary, &current).unwrap();
+            let back = m.forward(&q);
+            let tol = 1e-12 / linear_det(m, &c.joints).min(1.0);
+            prop_assert!((back.tip - pose.tip).norm() <= tol,
+                "{}: tip off by {:e}", m.chain(), (back.tip - pose.tip).norm());
+            prop_assert!((back.axis - pose.axis).norm() <= 1e-13);
+            for axis in RotaryAxis::ALL {
+                let expect = if m.chain().has(axis) { rotary[axis.index()] } else { current[axis.joint()] };
+                prop_assert_eq!(q[axis.joint()], expect);
             }
         }
 
@@ -1557,6 +1624,22 @@ mod tests {
             e => panic!("{e:?}"),
         }
         assert!(err.to_string().contains("A would need 45"), "{err}");
+        // Rotary positions given (G43.4) out of range: refused the same way.
+        assert_eq!(
+            m.place_tip(&pose.tip, [45.0, 0.0, 60.0], &ac(0.0, 50.0)),
+            Err(InverseError::OutOfRange {
+                axis: RotaryAxis::A,
+                needed: 45.0,
+                range: RotaryRange {
+                    min: -20.0,
+                    max: 20.0
+                },
+            })
+        );
+        assert_eq!(
+            m.place_tip(&pose.tip, [f64::NAN, 0.0, 60.0], &ac(0.0, 50.0)),
+            Err(InverseError::BadPose)
+        );
         // C limited to [0, 90] and A to [0, 90]: (45, 240) and (−45, 60) both fail.
         let m = ca_machine(
             RotaryRange {

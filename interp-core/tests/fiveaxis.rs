@@ -349,6 +349,112 @@ fn rational_cubic_with_a_turning_tool_ends() {
     }
 }
 
+/// A G6.2 under G43.4: the tip on three quarters of a circle (radius 30 mm
+/// at z = −5, an exact rational quadratic, cut into its knot spans as
+/// `gcode::Cutter` cuts it) and A C as coordinates of the same NURBS,
+/// `A_k = 15 + 0.3·x_k`, `C_k = 20 + 0.9·y_k`: a rational curve keeps an
+/// affine map of its control points, so at every tip the programmed rotary
+/// positions are `A = 15 + 0.3·x`, `C = 20 + 0.9·y` and the tool axis the
+/// machine's there, in closed form.
+struct RotaryCircle {
+    m: Machine,
+}
+
+impl RotaryCircle {
+    const R: f64 = 30.0;
+    const Z: f64 = -5.0;
+    fn rotary(p: [f64; 3]) -> [f64; 3] {
+        [15.0 + 0.3 * p[0], 0.0, 20.0 + 0.9 * p[1]]
+    }
+    fn axis(&self, tip: Vec3) -> Vec3 {
+        let [a, b, c] = Self::rotary([tip.x, tip.y, tip.z]);
+        self.m.forward(&[0.0, 0.0, 0.0, a, b, c]).axis
+    }
+    fn blocks(&self, feed: f64) -> Vec<Block> {
+        let (r, z, w) = (Self::R, Self::Z, core::f64::consts::FRAC_1_SQRT_2);
+        let pts = [
+            [r, 0.0, z],
+            [r, r, z],
+            [0.0, r, z],
+            [-r, r, z],
+            [-r, 0.0, z],
+            [-r, -r, z],
+            [0.0, -r, z],
+        ];
+        let ws = [1.0, w, 1.0, w, 1.0, w, 1.0];
+        let knots = [0.0, 0.0, 0.0, 1.0, 1.0, 2.0, 2.0, 3.0, 3.0, 3.0];
+        common::split_segments(2, &pts, &ws, &knots, 3)
+            .into_iter()
+            .map(|n| {
+                let values: Vec<[f64; 3]> = (0..n.control_count())
+                    .map(|k| Self::rotary(n.control_point(k)))
+                    .collect();
+                let w: Vec<f64> = (0..n.control_count()).map(|k| n.weight(k)).collect();
+                let o = Orientation::axes_curve(2, &values, &w, n.u_start(), n.u_end())
+                    .expect("rotary curve")
+                    .under_tcp();
+                Block::new(1, Path::Nurbs(n), feed).with_orientation(o)
+            })
+            .collect()
+    }
+}
+
+impl Reference for RotaryCircle {
+    fn at(&self, tip: Vec3) -> (f64, Vec3) {
+        let d = libm::hypot(libm::hypot(tip.x, tip.y) - Self::R, tip.z - Self::Z);
+        (d, self.axis(tip))
+    }
+}
+
+#[test]
+fn g6_2_rotary_curve_under_tcp_keeps_the_tip_on_the_nurbs() {
+    let spec = machine("W/caxyBz/T", 80.0, (0, [0.0, 0.0, -40.0]));
+    let cfg = config(spec);
+    let m = Machine::new(spec).expect("machine");
+    let c = RotaryCircle { m };
+    let blocks = c.blocks(80.0);
+    assert_eq!(blocks.len(), 3, "one block per knot span");
+    assert!(blocks.iter().all(|b| b.is_tcp()));
+    let [a, b, cc] = RotaryCircle::rotary([RotaryCircle::R, 0.0, RotaryCircle::Z]);
+    let start = m
+        .place_tip(
+            &Vec3::new(RotaryCircle::R, 0.0, RotaryCircle::Z),
+            [a, b, cc],
+            &[0.0; 6],
+        )
+        .expect("reachable");
+    let sps = run_within(&cfg, start, &blocks, 50_000);
+    let rep = check(&cfg, start, &sps, &c);
+    assert_within(&cfg, &rep, "G6.2 rotary curve under TCP");
+    // The rotary joints are the program's curve at every setpoint.
+    let mut off = 0.0f64;
+    for sp in &sps {
+        let tip = m.forward(&sp.axes).tip;
+        let want = RotaryCircle::rotary([tip.x, tip.y, tip.z]);
+        off = off.max(
+            (sp.axes[3] - want[0])
+                .abs()
+                .max((sp.axes[5] - want[2]).abs()),
+        );
+    }
+    assert!(off < 1e-9, "rotary joints off the curve by {off} degrees");
+    let last = sps.last().expect("setpoints");
+    let end = m.forward(&last.axes);
+    assert!((end.tip - Vec3::new(0.0, -RotaryCircle::R, RotaryCircle::Z)).norm() < ON_PATH_TOL);
+    assert_eq!(last.feed, 0.0);
+    // A and C really turn: A by 18 degrees, C by 54.
+    let span = |j: usize| {
+        let v = sps.iter().map(|s| s.axes[j]);
+        v.clone().fold(f64::MIN, f64::max) - v.fold(f64::MAX, f64::min)
+    };
+    assert!(
+        span(3) > 17.0 && span(5) > 50.0,
+        "A {} C {}",
+        span(3),
+        span(5)
+    );
+}
+
 /// The flank of a cone frustum in the manner of NAS 979: the tip runs
 /// round the bottom circle (radius `r`) in eight exact arcs, and the tool
 /// axis, along the cone's generatrix (leaning `alpha` inwards) at the arcs'
