@@ -288,9 +288,6 @@ impl Program {
                         Feed::PerMinute(_) => 0.0,
                     };
                     let feed = feed_mm_min(m.feed, length, line).map_err(convert)?;
-                    if !m.rotary.is_empty() && tcp {
-                        return Err(five_err(FiveAxisReason::RotaryNurbs));
-                    }
                     // A B C of each control point, an axis left out where
                     // the machine has it: coordinates of the curve.
                     rotary_values = m

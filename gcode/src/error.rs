@@ -152,12 +152,6 @@ pub enum FiveAxisReason {
         "under tool-centre-point control the rotary axes turn but the tool axis does not (at the pole, where the first rotary axis is undefined): nothing to interpolate"
     )]
     RotaryOnly,
-    /// Rotary coordinates on a NURBS (G6.2 A B C) under G43.4 (without
-    /// tool-centre-point control they are coordinates of the curve).
-    #[error(
-        "rotary coordinates on a NURBS under tool-centre-point control (G43.4) are not interpolated yet (give the moves as G1, or the tool axis with G43.5)"
-    )]
-    RotaryNurbs,
     /// The first move after G43.4/G43.5/G49 is not a straight move.
     #[error(
         "the first move after tool-centre-point control goes on or off must be G0 or G1 (it starts where the machine stands: the tool tip, or X Y Z, of its joints)"

@@ -346,7 +346,7 @@ impl Cutter {
                     &ones
                 }
             };
-            rotary_pieces(degree, w, knots, rotary, &mut out)?;
+            rotary_pieces(degree, w, knots, rotary, m.is_tcp(), &mut out)?;
         } else if let (Some(o), Some(first), Some(last)) = (m.orientation, out.first(), out.last())
         {
             // One orientation over the whole move: a split NURBS keeps its
@@ -384,11 +384,14 @@ impl Cutter {
 /// a constant factor), so that is a polynomial of the degree, matched
 /// exactly up to round-off; its ends are the program curve's values there, shared
 /// bit for bit by neighbouring spans, the first and last the given ones.
+/// Under tool-centre-point control (`tcp`, G43.4) the path is the tool tip
+/// and the rotary joints follow the curve ([`CoreOrientation::under_tcp`]).
 fn rotary_pieces(
     degree: usize,
     weights: &[f64],
     knots: &[f64],
     rotary: &[[f64; 3]],
+    tcp: bool,
     out: &mut [Block],
 ) -> Result<(), CutError> {
     let p = degree;
@@ -453,7 +456,7 @@ fn rotary_pieces(
         values[p] = rb;
         let o =
             CoreOrientation::axes_curve(p, &values, &w, ua, ub).map_err(CutError::Orientation)?;
-        b.orientation = Some(o);
+        b.orientation = Some(if tcp { o.under_tcp() } else { o });
         prev_end = Some((ub, rb));
     }
     Ok(())

@@ -200,12 +200,6 @@ fn five_axis_moves_that_cannot_be_converted_are_refused_naming_the_line() {
             2,
             FiveAxisReason::NoMachine,
         ),
-        (
-            "G0 X0 Y0 Z0\nG43.4\nG1 X0 Y0 Z0 F100\nG6.2 P3 X0 Y0 R1 K0\nX1 Y1 C10 R1 K0\nX2 Y0 R1 K0\nG6.2 K1\nG6.2 K1\nG6.2 K1\n",
-            ca,
-            9,
-            FiveAxisReason::RotaryNurbs,
-        ),
         // Under TCP the first move after G43.4 starts where the machine's
         // tool tip is: an arc cannot.
         (

@@ -248,6 +248,110 @@ fn rotary_only_moves_turn_in_place_through_simulate() {
     );
 }
 
+/// A G6.2 with A and C on its control points: 12 control points in the XY
+/// plane at Z0, rational, cubic, uneven knots, A and C changing along it,
+/// starting at X0 Y0 A0 C0. Its program lines (`G6.2 … K…`) and data.
+struct RotaryCurve {
+    p: usize,
+    pts: Vec<[f64; 2]>,
+    rot: Vec<[f64; 2]>,
+    ws: Vec<f64>,
+    knots: Vec<f64>,
+}
+
+impl RotaryCurve {
+    fn new() -> Self {
+        let (n, p) = (12, 3);
+        let pts: Vec<[f64; 2]> = (0..n)
+            .map(|i| {
+                let t = i as f64;
+                [6.0 * t, 10.0 * (0.5 * t).sin()]
+            })
+            .collect();
+        let rot: Vec<[f64; 2]> = (0..n)
+            .map(|i| {
+                let t = i as f64;
+                [8.0 * (0.4 * t).sin(), 5.0 * t]
+            })
+            .collect();
+        let ws: Vec<f64> = (0..n)
+            .map(|i| 1.0 + 0.4 * (1.3 * i as f64).cos().abs())
+            .collect();
+        let mut knots = vec![0.0; p + 1];
+        for j in 0..n - p - 1 {
+            knots.push(j as f64 + 1.0 + 0.25 * (j % 3) as f64);
+        }
+        let end = knots[knots.len() - 1] + 1.0;
+        knots.extend([end; 4]);
+        RotaryCurve {
+            p,
+            pts,
+            rot,
+            ws,
+            knots,
+        }
+    }
+
+    fn text(&self) -> String {
+        use std::fmt::Write as _;
+        let n = self.pts.len();
+        let mut text = format!("G6.2 P{}", self.p + 1);
+        for i in 0..n {
+            if i > 0 {
+                text.push('\n');
+            }
+            write!(
+                text,
+                " X{} Y{} A{} C{} R{} K{}",
+                self.pts[i][0],
+                self.pts[i][1],
+                self.rot[i][0],
+                self.rot[i][1],
+                self.ws[i],
+                self.knots[i]
+            )
+            .unwrap();
+        }
+        text.push('\n');
+        for k in &self.knots[n..] {
+            writeln!(text, "G6.2 K{k}").unwrap();
+        }
+        text
+    }
+
+    /// X Y and A C of the program's curves at `u`, by the definition of a
+    /// NURBS (`Σ Nᵢ·wᵢ·Pᵢ / Σ Nᵢ·wᵢ`).
+    fn at(&self, u: f64) -> ([f64; 2], [f64; 2]) {
+        let p = self.p;
+        let (span, nb) = interp_core::nurbs::basis_functions(p, &self.knots, u);
+        let (mut rot, mut den, mut xy) = ([0.0; 2], 0.0, [0.0; 2]);
+        for k in 0..=p {
+            let i = span - p + k;
+            let wn = nb[k] * self.ws[i];
+            for j in 0..2 {
+                rot[j] += wn * self.rot[i][j];
+                xy[j] += wn * self.pts[i][j];
+            }
+            den += wn;
+        }
+        (xy.map(|v| v / den), rot.map(|v| v / den))
+    }
+}
+
+/// The ids of the blocks of `program` that are pieces of its NURBS.
+fn curve_ids(program: &traces::Program) -> std::collections::HashSet<u32> {
+    program
+        .expand(
+            traces::sim::SimSettings::default().max_ctrl_per_block,
+            traces::sim::FIRST_BLOCK_ID,
+        )
+        .unwrap()
+        .segments()
+        .filter(|b| matches!(b.path, interp_core::Path::Nurbs(_)))
+        .map(|b| b.id)
+        .collect()
+}
+
 /// G6.2 with A and C on its control points (TCP off) from G-code text
 /// through `traces::sim::run` (the JSON block form and the `simulate`
 /// pipeline): at every setpoint the rotary joints are the program's
@@ -256,46 +360,13 @@ fn rotary_only_moves_turn_in_place_through_simulate() {
 /// setpoint checker), and the axes end on the last control point.
 #[test]
 fn g6_2_rotary_coordinates_run_as_coordinates_of_the_curve() {
-    use std::fmt::Write as _;
-    let (n, p) = (12, 3);
-    let pts: Vec<[f64; 2]> = (0..n)
-        .map(|i| {
-            let t = i as f64;
-            [6.0 * t, 10.0 * (0.5 * t).sin()]
-        })
-        .collect();
-    let rot: Vec<[f64; 2]> = (0..n)
-        .map(|i| {
-            let t = i as f64;
-            [8.0 * (0.4 * t).sin(), 5.0 * t]
-        })
-        .collect();
-    let ws: Vec<f64> = (0..n)
-        .map(|i| 1.0 + 0.4 * (1.3 * i as f64).cos().abs())
-        .collect();
-    let mut knots = vec![0.0; p + 1];
-    for j in 0..n - p - 1 {
-        knots.push(j as f64 + 1.0 + 0.25 * (j % 3) as f64);
-    }
-    let end = knots[knots.len() - 1] + 1.0;
-    knots.extend([end; 4]);
-    let mut text = format!("G21 G90 G94 G61\nG0 X0 Y0 Z20\nG1 Z0 F600\nG6.2 P{}", p + 1);
-    for i in 0..n {
-        if i > 0 {
-            text.push('\n');
-        }
-        write!(
-            text,
-            " X{} Y{} A{} C{} R{} K{}",
-            pts[i][0], pts[i][1], rot[i][0], rot[i][1], ws[i], knots[i]
-        )
-        .unwrap();
-    }
-    text.push('\n');
-    for k in &knots[n..] {
-        writeln!(text, "G6.2 K{k}").unwrap();
-    }
-    text.push_str("M2\n");
+    let c = RotaryCurve::new();
+    let (n, p) = (c.pts.len(), c.p);
+    let (pts, rot) = (&c.pts, &c.rot);
+    let text = format!(
+        "G21 G90 G94 G61\nG0 X0 Y0 Z20\nG1 Z0 F600\n{}M2\n",
+        c.text()
+    );
     let dir = example_dir();
     let spec = machine_from_toml(&std::fs::read_to_string(dir.join("machine.toml")).unwrap())
         .expect("machine");
@@ -308,36 +379,16 @@ fn g6_2_rotary_coordinates_run_as_coordinates_of_the_curve() {
         setpoints: sps,
         ..
     } = simulate_program(cfg, &text, "g6.2 rotary").expect("runs");
-    let expanded = program
-        .expand(
-            traces::sim::SimSettings::default().max_ctrl_per_block,
-            traces::sim::FIRST_BLOCK_ID,
-        )
-        .unwrap();
-    let curve_ids: std::collections::HashSet<u32> = expanded
-        .segments()
-        .filter(|b| matches!(b.path, interp_core::Path::Nurbs(_)))
-        .map(|b| b.id)
-        .collect();
+    let curve_ids = curve_ids(&program);
     assert_eq!(curve_ids.len(), n - p, "one block per knot span");
     let (mut worst, mut on_curve) = (0.0f64, 0);
     for sp in sps.iter().filter(|s| curve_ids.contains(&s.block_id)) {
-        let (span, nb) = interp_core::nurbs::basis_functions(p, &knots, sp.u);
-        let (mut num, mut den, mut xy) = ([0.0; 2], 0.0, [0.0; 2]);
-        for k in 0..=p {
-            let i = span - p + k;
-            let wn = nb[k] * ws[i];
-            for j in 0..2 {
-                num[j] += wn * rot[i][j];
-                xy[j] += wn * pts[i][j];
-            }
-            den += wn;
-        }
+        let (xy, r) = c.at(sp.u);
         worst = worst
-            .max((sp.axes[3] - num[0] / den).abs())
-            .max((sp.axes[5] - num[1] / den).abs())
-            .max((sp.axes[0] - xy[0] / den).abs())
-            .max((sp.axes[1] - xy[1] / den).abs());
+            .max((sp.axes[3] - r[0]).abs())
+            .max((sp.axes[5] - r[1]).abs())
+            .max((sp.axes[0] - xy[0]).abs())
+            .max((sp.axes[1] - xy[1]).abs());
         on_curve += 1;
     }
     assert!(on_curve > 500, "{on_curve}");
@@ -361,6 +412,83 @@ fn g6_2_rotary_coordinates_run_as_coordinates_of_the_curve() {
     }
     check.finish(Some([pts[n - 1][0], pts[n - 1][1], 0.0]));
     check.assert_clean("G6.2 with rotary coordinates");
+    assert!(
+        check.measured.rotary_velocity_deg_s[2] > 1.0,
+        "{:?}",
+        check.measured
+    );
+}
+
+/// The same G6.2 under G43.4 (issue 19): X Y Z are the tool tip in the
+/// workpiece frame and A C the rotary positions, both coordinates of the
+/// one NURBS. Through `traces::sim::run`, at every setpoint on the curve
+/// the tip (the forward transform of the joints) is the program's curve at
+/// the setpoint's parameter and A C its rotary curve there (within 1e-9),
+/// every joint within its limits and the tip's chord speed within the
+/// path's (the setpoint checker, in the tip's frame), the run done.
+#[test]
+fn g6_2_rotary_coordinates_under_g43_4_move_the_tip_on_the_curve() {
+    let c = RotaryCurve::new();
+    let (n, p) = (c.pts.len(), c.p);
+    let text = format!(
+        "G21 G90 G94 G61\nG0 X0 Y0 Z120 A0 C0\nG43.4 H1\nG1 X0 Y0 Z0 F600\n{}G49\nG0 X0 Y0 Z150\nM2\n",
+        c.text()
+    );
+    let spec =
+        machine_from_toml(&std::fs::read_to_string(example_dir().join("machine.toml")).unwrap())
+            .expect("machine");
+    let cfg = InterpConfig {
+        machine: Some(spec),
+        ..InterpConfig::default()
+    };
+    let SimulatedRun {
+        program,
+        setpoints: sps,
+        ..
+    } = simulate_program(cfg, &text, "g6.2 rotary under G43.4").expect("runs");
+    let m = Machine::new(spec).unwrap();
+    let curve_ids = curve_ids(&program);
+    assert_eq!(curve_ids.len(), n - p, "one block per knot span");
+    let (mut tip_off, mut rot_off, mut on_curve) = (0.0f64, 0.0f64, 0);
+    for sp in sps.iter().filter(|s| curve_ids.contains(&s.block_id)) {
+        let (xy, r) = c.at(sp.u);
+        let tip = m.forward(&sp.axes).tip;
+        tip_off = tip_off.max((tip - Vec3::new(xy[0], xy[1], 0.0)).norm());
+        rot_off = rot_off
+            .max((sp.axes[3] - r[0]).abs())
+            .max((sp.axes[5] - r[1]).abs());
+        on_curve += 1;
+    }
+    assert!(on_curve > 500, "{on_curve}");
+    assert!(
+        tip_off < 1e-9,
+        "tip off the program's curve by {tip_off} mm"
+    );
+    assert!(
+        rot_off < 1e-9,
+        "A C off the rotary curve by {rot_off} degrees"
+    );
+    assert_eq!(sps.last().unwrap().state, RunState::Done);
+    let expanded = program
+        .expand(
+            traces::sim::SimSettings::default().max_ctrl_per_block,
+            traces::sim::FIRST_BLOCK_ID,
+        )
+        .unwrap();
+    let tcp: std::collections::HashMap<u32, bool> =
+        expanded.segments().map(|b| (b.id, b.is_tcp())).collect();
+    assert!(curve_ids.iter().all(|id| tcp[id]), "the curve is under TCP");
+    let mut check = Checker::five_axis(
+        cfg.period,
+        Limits::new(&cfg, cfg.max_path_speed),
+        m,
+        [0.0; 6],
+    );
+    for sp in &sps {
+        check.check_in_frame(sp, tcp.get(&sp.block_id).copied().unwrap_or(false));
+    }
+    check.finish(Some([0.0, 0.0, 150.0]));
+    check.assert_clean("G6.2 with rotary coordinates under G43.4");
     assert!(
         check.measured.rotary_velocity_deg_s[2] > 1.0,
         "{:?}",
