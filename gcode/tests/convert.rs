@@ -509,3 +509,49 @@ fn g6_2_rotary_coordinates_are_coordinates_of_the_curve() {
         OrientationAt::Axes(rot[0])
     );
 }
+
+/// Under G43.4 a NURBS is the tool tip and its rotary coordinates (given,
+/// or the ones in force) the rotary positions: each knot span a block
+/// under TCP whose rotary curve is the program's (a G6.2 with A and C on
+/// its points) or constant (a G5.2 without them: the tool kept).
+#[test]
+fn nurbs_under_g43_4_are_tip_paths_with_rotary_curves() {
+    use interp_core::fiveaxis::OrientationAt;
+    let ca = ca_options();
+    let text = "G0 X0 Y0 Z120 A10 C30\nG43.4\nG1 X0 Y0 Z0 F600\n\
+                G6.2 P3 X0 Y0 R1 K0\nX5 Y5 A20 C40 R1 K0\nX10 Y0 A10 C50 R1 K0\nG6.2 K1\nG6.2 K1\nG6.2 K1\n\
+                G5.2 X10 Y0 P1 L3\nX15 Y-5 P1\nX20 Y0 P1\nG5.3\n";
+    let blocks = parse(text).unwrap().to_core_blocks(&ca).unwrap();
+    let curves: Vec<_> = blocks
+        .iter()
+        .filter(|b| matches!(b.path, Path::Nurbs(_)))
+        .collect();
+    // The G6.2 is one span, the G5.2 two.
+    assert_eq!(curves.len(), 3, "{blocks:?}");
+    for b in &curves {
+        let o = b.orientation.expect("rotary curve");
+        assert!(o.is_tcp() && b.is_tcp(), "{o:?}");
+    }
+    let g6 = curves[0];
+    let o6 = g6.orientation.unwrap();
+    assert_eq!(
+        o6.at(g6.path.u_start()),
+        OrientationAt::Axes([10.0, 0.0, 30.0])
+    );
+    assert_eq!(
+        o6.at(g6.path.u_end()),
+        OrientationAt::Axes([10.0, 0.0, 50.0])
+    );
+    for g5 in &curves[1..] {
+        let o5 = g5.orientation.unwrap();
+        for k in 0..=4 {
+            let u = g5.path.u_start() + (g5.path.u_end() - g5.path.u_start()) * k as f64 / 4.0;
+            let OrientationAt::Axes(abc) = o5.at(u) else {
+                panic!("axes")
+            };
+            for (got, want) in abc.iter().zip([10.0, 0.0, 50.0]) {
+                assert!((got - want).abs() < 1e-12, "{abc:?}");
+            }
+        }
+    }
+}
