@@ -80,11 +80,13 @@ pub struct Setpoint {
     pub time: f64,
     /// X Y Z A B C (mm; rotary axes in degrees).
     pub axes: [f64; 6],
-    /// Commanded path speed over the tick that ended here, `Δ/Ts`, mm/s.
+    /// Commanded path speed over the tick that ended here, `Δ/Ts`, mm/s;
+    /// deg/s in a turn in place, whose path is the turn's measure in degrees.
     pub feed: f64,
     /// Path parameter of the block at this point.
     pub u: f64,
-    /// Arc length of the run at this point, mm.
+    /// Arc length of the run at this point, mm (a turn in place adds its
+    /// measure, degrees).
     pub s: f64,
     /// Id of the block the point is on (0 before any block).
     pub block_id: u32,

@@ -246,6 +246,24 @@ fn rotary_only_moves_turn_in_place_through_simulate() {
         summary.max_chord_error_mm,
         summary.max_chord_error_seq
     );
+    // A turn's speed is deg/s: the summary keeps it apart from the paths'
+    // mm/s (each the largest of its own setpoints' feeds).
+    let in_place: std::collections::HashSet<u32> = segments
+        .iter()
+        .filter(|b| b.is_in_place())
+        .map(|b| b.id)
+        .collect();
+    let largest = |turns: bool| {
+        sps.iter()
+            .filter(|s| in_place.contains(&s.block_id) == turns)
+            .map(|s| s.feed)
+            .fold(0.0, f64::max)
+    };
+    assert_eq!(summary.max_feed_mm_s, largest(false));
+    assert_eq!(summary.max_turn_speed_deg_s, Some(largest(true)));
+    // (The G0 turn runs at C's speed limit, well above the G1 paths' feeds.)
+    assert!(largest(true) > 100.0, "{summary:?}");
+    assert!(summary.to_string().contains("deg/s"), "{summary}");
 }
 
 /// A G6.2 with A and C on its control points: 12 control points in the XY

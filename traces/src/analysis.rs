@@ -61,7 +61,8 @@ pub struct Summary {
     pub duration_s: f64,
     /// Path length travelled, mm.
     pub length_mm: f64,
-    /// Largest commanded feed, mm/s.
+    /// Largest commanded feed on a path, mm/s (turns in place, whose speed
+    /// is in deg/s, are in [`Summary::max_turn_speed_deg_s`]).
     pub max_feed_mm_s: f64,
     /// The same, mm/min.
     pub max_feed_mm_min: f64,
@@ -71,9 +72,13 @@ pub struct Summary {
     pub max_chord_error_seq: u64,
     /// The configured chord tolerance, mm.
     pub chord_tolerance_mm: f64,
-    /// Largest |tangential acceleration|, mm/s².
+    /// Largest turning speed of a turn in place (its path is the turn's
+    /// measure in degrees), deg/s; absent when the run has none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_turn_speed_deg_s: Option<f64>,
+    /// Largest |tangential acceleration| on a path, mm/s².
     pub max_tangential_accel_mm_s2: f64,
-    /// Largest |tangential jerk|, mm/s³.
+    /// Largest |tangential jerk| on a path, mm/s³.
     pub max_tangential_jerk_mm_s3: f64,
     /// Largest centripetal acceleration, mm/s².
     pub max_centripetal_accel_mm_s2: f64,
@@ -138,6 +143,7 @@ impl Analyzer {
                 max_chord_error_mm: 0.0,
                 max_chord_error_seq: 0,
                 chord_tolerance_mm: config.interp.chord_tolerance,
+                max_turn_speed_deg_s: None,
                 max_tangential_accel_mm_s2: 0.0,
                 max_tangential_jerk_mm_s3: 0.0,
                 max_centripetal_accel_mm_s2: 0.0,
@@ -262,19 +268,32 @@ impl Analyzer {
         };
         let tcp = self.tcp_at(sp);
         let step = (self.path_point(sp, tcp) - self.path_point(&self.prev, tcp)).norm();
+        let turning = self
+            .segments
+            .get(&sp.block_id)
+            .and_then(|b| b.orientation)
+            .is_some_and(|o| o.fixed().is_some());
         let m = &mut self.summary;
         m.setpoints += 1;
         m.missing_setpoints += ticks - 1;
         m.duration_s = sp.time;
         m.length_mm += step;
-        m.max_feed_mm_s = m.max_feed_mm_s.max(sp.feed);
-        m.max_feed_mm_min = m.max_feed_mm_s * 60.0;
+        if turning {
+            // Degrees, not millimetres: kept apart from the path's maxima.
+            let t = m.max_turn_speed_deg_s.get_or_insert(0.0);
+            *t = t.max(sp.feed);
+        } else {
+            m.max_feed_mm_s = m.max_feed_mm_s.max(sp.feed);
+            m.max_feed_mm_min = m.max_feed_mm_s * 60.0;
+        }
         if chord_error > m.max_chord_error_mm {
             m.max_chord_error_mm = chord_error;
             m.max_chord_error_seq = sp.seq;
         }
-        m.max_tangential_accel_mm_s2 = m.max_tangential_accel_mm_s2.max(accel.abs());
-        m.max_tangential_jerk_mm_s3 = m.max_tangential_jerk_mm_s3.max(jerk.abs());
+        if !turning {
+            m.max_tangential_accel_mm_s2 = m.max_tangential_accel_mm_s2.max(accel.abs());
+            m.max_tangential_jerk_mm_s3 = m.max_tangential_jerk_mm_s3.max(jerk.abs());
+        }
         m.max_centripetal_accel_mm_s2 = m.max_centripetal_accel_mm_s2.max(s.centripetal_accel);
         if let (Some(r), true) = (mrr, sp.feed > 0.0) {
             let range = self.mrr_range.get_or_insert([r, r]);
@@ -474,6 +493,13 @@ impl fmt::Display for Summary {
             "  feed          max {:.6} mm/s ({:.3} mm/min)",
             self.max_feed_mm_s, self.max_feed_mm_min
         )?;
+        if let Some(t) = self.max_turn_speed_deg_s {
+            writeln!(
+                f,
+                "  turns         max {t:.6} deg/s ({:.3} deg/min) turning in place",
+                t * 60.0
+            )?;
+        }
         writeln!(
             f,
             "  chord error   max {:.6e} mm at seq {} (tolerance {} mm)",

@@ -166,7 +166,8 @@ pub struct SetpointMsg {
     pub b: f64,
     /// C, degrees.
     pub c: f64,
-    /// Commanded path speed over the tick that ended here, mm/s.
+    /// Commanded path speed over the tick that ended here, mm/s (deg/s in a
+    /// turn in place, whose path is the turn's measure in degrees).
     pub feed: f64,
     /// Path parameter of the block at this point.
     pub u: f64,

@@ -251,7 +251,7 @@ fn figures(trace: &Trace, samples: &[Sample], summary: &Summary) -> (Vec<Figure>
             file: "feed",
             title: "Feed vs time (Fig. 8)".into(),
             x_label: "time [s]",
-            y_label: "feed [mm/min]",
+            y_label: "feed [mm/min; deg/min turning in place]",
             kind: Kind::Lines,
             series: vec![series("feed", BLUE_, t(&|s| s.feed * 60.0))],
         },
