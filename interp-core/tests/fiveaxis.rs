@@ -171,11 +171,17 @@ fn assert_within(cfg: &InterpConfig, rep: &Report, what: &str) {
         rep.between_axis <= cfg.angular_tolerance * (1.0 + LIMIT_REL_TOL),
         "{what}: axis between setpoints {rep:?}"
     );
-    for (j, r) in rep.ratio.iter().enumerate() {
+    assert_joints_within(&rep.ratio, &format!("{what} {rep:?}"));
+}
+
+/// Every joint's velocity, acceleration and jerk within its limit
+/// ([`joint_ratios`]).
+fn assert_joints_within(ratio: &[[f64; 3]; 6], what: &str) {
+    for (j, r) in ratio.iter().enumerate() {
         for (k, x) in r.iter().enumerate() {
             assert!(
                 *x <= 1.0 + LIMIT_REL_TOL,
-                "{what}: joint {j} {} {x} of its limit {rep:?}",
+                "{what}: joint {j} {} {x} of its limit",
                 ["velocity", "acceleration", "jerk"][k]
             );
         }
@@ -338,15 +344,7 @@ fn rational_cubic_with_a_turning_tool_ends() {
     );
     let mut q = vec![start; 3];
     q.extend(sps.iter().map(|s| s.axes));
-    for (j, r) in joint_ratios(&cfg, &q).iter().enumerate() {
-        for (k, x) in r.iter().enumerate() {
-            assert!(
-                *x <= 1.0 + LIMIT_REL_TOL,
-                "joint {j} {} {x} of its limit",
-                ["velocity", "acceleration", "jerk"][k]
-            );
-        }
-    }
+    assert_joints_within(&joint_ratios(&cfg, &q), "rational cubic");
 }
 
 /// A G6.2 under G43.4: the tip on three quarters of a circle (radius 30 mm

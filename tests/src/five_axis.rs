@@ -23,6 +23,16 @@ pub fn machine_from_toml(text: &str) -> Result<MachineSpec, String> {
     Ok(spec)
 }
 
+/// The default configuration on the example's machine
+/// (`examples/five_axis/machine.toml`).
+pub fn example_config() -> InterpConfig {
+    let text = std::fs::read_to_string(example_dir().join("machine.toml")).expect("machine.toml");
+    InterpConfig {
+        machine: Some(machine_from_toml(&text).expect("machine")),
+        ..InterpConfig::default()
+    }
+}
+
 /// A program run to its end.
 #[derive(Debug, Clone)]
 pub struct FiveAxisRun {

@@ -7,24 +7,19 @@
 //! program finished.
 
 use gcode::{BlockKind, Orientation};
-use interp_core::InterpConfig;
 use interp_core::kinematics::Machine;
 use interp_core::{RunState, Vec3};
 use interp_run::check::{Checker, Limits};
 use interpd_tests::five_axis::{
-    SimulatedRun, example_dir, machine_from_toml, run_program, simulate_program,
+    SimulatedRun, example_config, example_dir, run_program, simulate_program,
 };
 
 #[test]
 fn the_frustum_example_runs_on_its_machine_within_its_program_and_limits() {
     let dir = example_dir();
-    let spec = machine_from_toml(&std::fs::read_to_string(dir.join("machine.toml")).unwrap())
-        .expect("machine");
+    let cfg = example_config();
+    let spec = cfg.machine.expect("machine");
     let text = std::fs::read_to_string(dir.join("frustum.ngc")).unwrap();
-    let cfg = InterpConfig {
-        machine: Some(spec),
-        ..InterpConfig::default()
-    };
     let run = run_program(cfg, &text).expect("runs");
     let m = Machine::new(spec).unwrap();
     let last = run.setpoints.last().unwrap();
@@ -137,13 +132,8 @@ fn the_frustum_example_runs_on_its_machine_within_its_program_and_limits() {
 /// program puts them.
 #[test]
 fn rotary_only_moves_turn_in_place_through_simulate() {
-    let dir = example_dir();
-    let spec = machine_from_toml(&std::fs::read_to_string(dir.join("machine.toml")).unwrap())
-        .expect("machine");
-    let cfg = InterpConfig {
-        machine: Some(spec),
-        ..InterpConfig::default()
-    };
+    let cfg = example_config();
+    let spec = cfg.machine.expect("machine");
     let text = "G21 G90 G94 G61\n\
         G0 X20 Y0 Z60 A0 C0\n\
         G0 A30 C-60\n\
@@ -385,13 +375,8 @@ fn g6_2_rotary_coordinates_run_as_coordinates_of_the_curve() {
         "G21 G90 G94 G61\nG0 X0 Y0 Z20\nG1 Z0 F600\n{}M2\n",
         c.text()
     );
-    let dir = example_dir();
-    let spec = machine_from_toml(&std::fs::read_to_string(dir.join("machine.toml")).unwrap())
-        .expect("machine");
-    let cfg = InterpConfig {
-        machine: Some(spec),
-        ..InterpConfig::default()
-    };
+    let cfg = example_config();
+    let spec = cfg.machine.expect("machine");
     let SimulatedRun {
         program,
         setpoints: sps,
@@ -452,13 +437,8 @@ fn g6_2_rotary_coordinates_under_g43_4_move_the_tip_on_the_curve() {
         "G21 G90 G94 G61\nG0 X0 Y0 Z120 A0 C0\nG43.4 H1\nG1 X0 Y0 Z0 F600\n{}G49\nG0 X0 Y0 Z150\nM2\n",
         c.text()
     );
-    let spec =
-        machine_from_toml(&std::fs::read_to_string(example_dir().join("machine.toml")).unwrap())
-            .expect("machine");
-    let cfg = InterpConfig {
-        machine: Some(spec),
-        ..InterpConfig::default()
-    };
+    let cfg = example_config();
+    let spec = cfg.machine.expect("machine");
     let SimulatedRun {
         program,
         setpoints: sps,
