@@ -542,6 +542,7 @@ fn trace_sink(tx: traces::RecordTx, period: f64) -> TickSink {
                     ..ev(EventKind::Override)
                 },
                 Applied::Abort => ev(EventKind::Abort),
+                Applied::NextProgram => ev(EventKind::NextProgram),
                 Applied::Finish => ev(EventKind::Finish),
             };
             let _ = tx.try_push(traces::Record::Event(ev));
