@@ -67,6 +67,50 @@ fn a_program_belongs_to_one_connection_and_others_may_still_hold_abort_and_ask()
     assert_eq!(s["blocks_accepted"], 2);
 }
 
+/// The program fields of a status: number, phase, owner.
+fn program_of(s: &serde_json::Value) -> serde_json::Value {
+    serde_json::json!([s["program"], s["program_phase"], s["program_owner"]])
+}
+
+#[test]
+fn a_refused_block_claims_nothing_and_keeps_nobody_out() {
+    let srv = Server::start(&service_name("refused-claim"), &["--no-socket"]);
+    let mut a = srv.connect();
+    let mut b = srv.connect();
+    // A line to where the machine is (the origin) has no length: refused.
+    let zero = line_to([0.0, 0.0, 0.0], 1200.0, 1);
+    let before = a.status();
+    let r = a.ask(&zero);
+    assert!(r.starts_with("err 2 "), "{r}");
+    // Nothing claimed: no program, no owner; B is not kept out.
+    assert_eq!(program_of(&a.status()), program_of(&before));
+    assert_eq!(program_of(&before), serde_json::json!([0, "none", null]));
+    assert_eq!(
+        b.ask(&line_to([5.0, 0.0, 0.0], 1200.0, 1)),
+        "ok block 1 segments 1..=1"
+    );
+    assert_eq!(b.ask("end"), "ok end");
+    assert_eq!(b.ask("start"), "ok start");
+    let done = b.wait_for("done", |s| s["program_phase"] == "done");
+    // After a finished program too: A's refused first block leaves program
+    // 1 B's and done.
+    let r = a.ask(&line_to([5.0, 0.0, 0.0], 1200.0, 2));
+    assert!(r.starts_with("err 4 "), "{r}");
+    assert_eq!(program_of(&a.status()), program_of(&done));
+    // Nothing lost: B's next program is program 2, from where B's first ended.
+    assert_eq!(
+        b.ask(&line_to([5.0, 5.0, 0.0], 1200.0, 1)),
+        "ok block 1 segments 1..=1"
+    );
+    assert_eq!(b.ask("end"), "ok end");
+    assert_eq!(b.ask("start"), "ok start");
+    let s = b.wait_for("done", |s| {
+        s["program"] == 2 && s["program_phase"] == "done"
+    });
+    assert_eq!(s["position"], serde_json::json!([5.0, 5.0, 0.0]));
+    assert_eq!(s["blocks_accepted"], 2);
+}
+
 #[test]
 fn send_follows_its_own_program_and_fails_unless_it_reached_done() {
     let dir = temp_dir("send-own");
