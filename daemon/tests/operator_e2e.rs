@@ -439,3 +439,94 @@ fn the_rt_thread_makes_no_system_allocation_in_a_session_of_several_programs() {
     );
     assert_eq!(summary["rt_pool_fallbacks"], 0, "{summary}");
 }
+
+#[test]
+fn a_numeric_flag_out_of_range_is_refused_naming_it() {
+    let dir = temp_dir("flag-ranges");
+    let prog = write(&dir, "p.ngc", "G1 X5 F3000\n");
+    let p = prog.to_str().unwrap();
+    let stl = write(&dir, "p.stl", "solid p\nendsolid p\n");
+    let stl = stl.to_str().unwrap();
+    for (args, says) in [
+        (
+            &["demo", "--no-service", "--feed", "1e308"][..],
+            "'--feed <MM_PER_MIN>': 1e308 is outside (0, 120000] mm/min",
+        ),
+        (
+            &["demo", "--no-service", "--accel=-1"][..],
+            "'--accel <MM_PER_S2>': -1 is outside (0, 1000000] mm/s²",
+        ),
+        (
+            &["simulate", p, "--max-speed", "inf"][..],
+            "'--max-speed <MM_PER_S>': inf is outside (0, 2000] mm/s",
+        ),
+        (
+            &["simulate", p, "--period-us", "1e-300"][..],
+            "'--period-us <US>': 1e-300 is outside [1, 1000000] µs",
+        ),
+        // A configuration key names itself.
+        (
+            &["simulate", p, "--set", "max-path-speed=1e308"][..],
+            "interp.max-path-speed 1e308 is out of range: it must be a number in (0, 2000] mm/s",
+        ),
+        (
+            &["simulate", p, "--set", "axis-max-jerk=[1e300, 1e6, 1e6]"][..],
+            "interp.axis-max-jerk 1e300 is out of range: it must be a number in (0, 1000000000] mm/s³",
+        ),
+        (
+            &[
+                "serve",
+                "--no-socket",
+                "--port",
+                "0",
+                "--set",
+                "max-path-accel=1e12",
+            ][..],
+            "interp.max-path-accel 1e12 is out of range",
+        ),
+        (
+            &[
+                "serve",
+                "--no-socket",
+                "--port",
+                "0",
+                "--position",
+                "0",
+                "0",
+                "nan",
+            ][..],
+            "--position Z NaN is out of range: it must be a number in [-1000000, 1000000] mm",
+        ),
+        (
+            &["watch", "--seconds", "inf"][..],
+            "'--seconds <SECONDS>': inf is outside (0, 86400] s",
+        ),
+        (
+            &["watch", "--check-feed", "0"][..],
+            "'--check-feed <MM_PER_MIN>': 0 is outside (0, 120000] mm/min",
+        ),
+        (
+            &["jitter", "--seconds", "nan"][..],
+            "'--seconds <SECONDS>': nan is outside (0, 86400] s",
+        ),
+        (
+            &[
+                "plan", "gouge", "--stl", stl, "--path", p, "--tool", "ball:6", "--out", p,
+                "--tol", "1e308",
+            ][..],
+            "'--tol <TOL>': 1e308 is outside (0, 10] mm",
+        ),
+        (
+            &["plan", "fit", "--path", p, "--out", p, "--degree", "9"][..],
+            "'--degree <DEGREE>': 9 is not in 1..=5",
+        ),
+    ] {
+        let out = std::process::Command::new(interpd())
+            .args(args)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} accepted");
+        assert!(err.contains(says), "{args:?}: {err}");
+    }
+}

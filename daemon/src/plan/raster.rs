@@ -80,26 +80,25 @@ struct Summary {
     out: Option<String>,
 }
 
+/// Refuses a flag out of its range (`crate::flags`): rapids cross at the
+/// part's top plus `--clearance`, never below it; `--blend-tolerance` 0 is
+/// no G64.
+fn check_ranges(args: &RasterOptions) -> Result<()> {
+    use crate::flags::{CLEARANCE, FEED, PASS_ANGLE, PLAN_TOLERANCE, PLAN_TOLERANCE_OR_ZERO, STEP};
+    FEED.check("--feed", args.feed)?;
+    FEED.check("--plunge-feed", args.plunge_feed)?;
+    PLAN_TOLERANCE_OR_ZERO.check("--blend-tolerance", args.blend_tolerance)?;
+    PLAN_TOLERANCE_OR_ZERO.check("--weld-tolerance", args.weld_tolerance)?;
+    CLEARANCE.check("--clearance", args.clearance)?;
+    STEP.check("--stepover", args.stepover)?;
+    PASS_ANGLE.check("--angle", args.angle)?;
+    PLAN_TOLERANCE.check("--chord-tolerance", args.chord_tolerance)?;
+    Ok(())
+}
+
 /// Runs `interpd plan raster`.
 pub fn main(args: &RasterOptions) -> Result<()> {
-    for (flag, v) in [("--feed", args.feed), ("--plunge-feed", args.plunge_feed)] {
-        if !(v.is_finite() && v > 0.0) {
-            bail!("{flag} must be a positive number of mm/min, got {v}");
-        }
-    }
-    if !(args.blend_tolerance.is_finite() && args.blend_tolerance >= 0.0) {
-        bail!(
-            "--blend-tolerance must be a finite number of mm >= 0 (0: no G64), got {}",
-            args.blend_tolerance
-        );
-    }
-    if !(args.clearance.is_finite() && args.clearance >= 0.0) {
-        bail!(
-            "--clearance must be a finite number >= 0 (rapids cross at the part's top plus it, \
-             never below the top), got {}",
-            args.clearance
-        );
-    }
+    check_ranges(args)?;
     let t0 = Instant::now();
     let mesh = TriMesh::from_stl_path(
         &args.stl,

@@ -168,9 +168,7 @@ fn program(loops: usize) -> Vec<String> {
 
 /// Runs `jitter`.
 pub fn main(args: &JitterOptions) -> Result<()> {
-    if !(args.seconds.is_finite() && args.seconds > 0.0) {
-        bail!("--seconds must be positive");
-    }
+    crate::flags::SECONDS.check("--seconds", args.seconds)?;
     let load_before = load_average();
     let opts = args.rt.options("", false)?;
     let never = Arc::new(AtomicBool::new(false));
