@@ -80,6 +80,11 @@ pub struct SendArgs {
     /// Do not wait for the program to finish.
     #[arg(long)]
     pub no_wait: bool,
+    /// When another connection's program holds the machine, wait for it to
+    /// end and take the next turn (without it, `send` is refused at once,
+    /// naming the program's owner and how long it has held it).
+    #[arg(long)]
+    pub wait_turn: bool,
     /// Print the final status as JSON.
     #[arg(long)]
     pub json: bool,
@@ -96,6 +101,7 @@ impl From<SendArgs> for SendOptions {
             socket: a.socket,
             token: a.token,
             no_wait: a.no_wait,
+            wait_turn: a.wait_turn,
             json: a.json,
             quiet: a.quiet,
         }

@@ -159,6 +159,63 @@ fn send_follows_its_own_program_and_fails_unless_it_reached_done() {
 }
 
 #[test]
+fn a_busy_send_is_refused_naming_the_owner_or_waits_its_turn() {
+    let dir = temp_dir("send-turn");
+    let srv = Server::start(&service_name("send-turn"), &["--no-socket"]);
+    // A: 20 mm at 1200 mm/min, a second of motion.
+    let a = write(&dir, "a.ngc", "G1 X20 F1200\n");
+    let b = write(&dir, "b.ngc", "G1 X20 Y5 F3000\n");
+    let spawn = |prog: &std::path::Path, extra: &[&str]| {
+        std::process::Command::new(interpd())
+            .args(["send", "--json", "--quiet", "--addr"])
+            .arg(format!("127.0.0.1:{}", srv.port))
+            .args(extra)
+            .arg(prog)
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap()
+    };
+    let first = spawn(&a, &[]);
+    let mut c = srv.connect();
+    c.wait_for("A moving", |s| {
+        s["program"] == 1 && s["s"].as_f64().unwrap() > 0.5
+    });
+    // Without --wait-turn: refused at once, naming the owner and how long.
+    let (st, _, err) = send(srv.port, &b, &[]);
+    assert!(!st.success(), "a busy send succeeded");
+    assert!(
+        err.contains("busy: program 1 belongs to connection ")
+            && err.contains("(running to its end, claimed ")
+            && err.contains("send --wait-turn waits for it to end"),
+        "{err}"
+    );
+    // With it: B waits for A's end, then runs as program 2 from A's end.
+    let second = spawn(&b, &["--wait-turn"]);
+    let out_a = wait_child(first, "send A");
+    let out_b = wait_child(second, "send B --wait-turn");
+    let err_b = String::from_utf8_lossy(&out_b.stderr);
+    assert!(
+        out_a.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out_a.stderr)
+    );
+    assert!(out_b.status.success(), "{err_b}");
+    assert!(
+        err_b.contains("busy: program 1 belongs to connection")
+            && err_b.contains("waiting for its end (--wait-turn)")
+            && err_b.contains("our turn after "),
+        "{err_b}"
+    );
+    let status: serde_json::Value = serde_json::from_slice(&out_b.stdout).unwrap();
+    assert_eq!(status["program"], 2, "{status}");
+    assert_eq!(status["program_phase"], "done", "{status}");
+    assert_eq!(status["position"], serde_json::json!([20.0, 5.0, 0.0]));
+    // Nothing was lost or merged: one block each.
+    assert_eq!(status["blocks_accepted"], 2, "{status}");
+}
+
+#[test]
 fn programs_are_converted_from_where_the_machine_is() {
     let dir = temp_dir("from-here");
     let srv = Server::start(

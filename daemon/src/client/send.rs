@@ -29,6 +29,8 @@ pub const WINDOW: usize = 8;
 pub const STALL: Duration = Duration::from_millis(100);
 /// Status poll interval while waiting for the end.
 const POLL: Duration = Duration::from_millis(50);
+/// How often `--wait-turn` asks for a program again while the server is busy.
+pub const TURN_POLL: Duration = Duration::from_millis(100);
 
 /// Options of `interpd send`.
 #[derive(Clone, Debug, PartialEq)]
@@ -44,6 +46,10 @@ pub struct SendOptions {
     pub token: Option<String>,
     /// Do not wait for the program to finish.
     pub no_wait: bool,
+    /// When the server is busy with another connection's program, wait
+    /// for it to end and take the next turn (polling `begin` every
+    /// [`TURN_POLL`]) instead of failing at once.
+    pub wait_turn: bool,
     /// Print the final status as JSON.
     pub json: bool,
     /// No progress output.
@@ -213,11 +219,44 @@ pub async fn stream<S: AsyncRead + AsyncWrite + Unpin>(
             bail!("authentication failed: {problem}");
         }
     }
-    send(&mut wr, "begin").await?;
-    let (program, at) = match next_reply(&mut rd).await? {
-        Reply::Begin { program, at } => (program, at),
-        Reply::Err { problem, .. } => bail!("the server refused a new program: {problem}"),
-        other => bail!("unexpected reply to begin: {other}"),
+    let mut sigint = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::interrupt())
+        .context("installing the Ctrl-C handler")?;
+    // A busy server names the program that holds the machine: without
+    // `--wait-turn` that is the answer; with it, ask again until our turn.
+    let waiting_since = Instant::now();
+    let mut told = false;
+    let (program, at) = loop {
+        send(&mut wr, "begin").await?;
+        match next_reply(&mut rd).await? {
+            Reply::Begin { program, at } => {
+                // Said even with --quiet: two lines, not progress.
+                if told {
+                    eprintln!(
+                        "interpd send: our turn after {:.1} s: program {program}",
+                        waiting_since.elapsed().as_secs_f64()
+                    );
+                }
+                break (program, at);
+            }
+            Reply::Err { problem, .. } if problem.starts_with("busy") && args.wait_turn => {
+                if !told {
+                    eprintln!("interpd send: {problem}; waiting for its end (--wait-turn)");
+                }
+                told = true;
+                tokio::select! {
+                    _ = tokio::time::sleep(TURN_POLL) => {}
+                    _ = sigint.recv() => bail!(
+                        "interrupted while waiting for the turn (nothing was sent)"
+                    ),
+                }
+            }
+            Reply::Err { problem, .. } if problem.starts_with("busy") => bail!(
+                "the server refused a new program: {problem} \
+                 (send --wait-turn waits for it to end)"
+            ),
+            Reply::Err { problem, .. } => bail!("the server refused a new program: {problem}"),
+            other => bail!("unexpected reply to begin: {other}"),
+        }
     };
     send(&mut wr, "status").await?;
     let Reply::Status(st) = next_reply(&mut rd).await? else {
@@ -227,8 +266,6 @@ pub async fn stream<S: AsyncRead + AsyncWrite + Unpin>(
     if lines.is_empty() {
         bail!("{} has no blocks", args.program.display());
     }
-    let mut sigint = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::interrupt())
-        .context("installing the Ctrl-C handler")?;
     let mut progress = Progress {
         tty: std::io::stderr().is_terminal(),
         quiet: args.quiet,
@@ -328,6 +365,16 @@ pub async fn stream<S: AsyncRead + AsyncWrite + Unpin>(
     }
     loop {
         let st = status(&mut wr, &mut rd, &mut expect).await?;
+        // The next program (a `--wait-turn` client's) may be claimed the
+        // moment ours is over: the status still says how ours ended.
+        if st.program != program && st.previous_program == program {
+            progress.done();
+            let outcome = match st.previous_phase {
+                Phase::Done => Outcome::Done,
+                phase => Outcome::Ended { program, phase },
+            };
+            return Ok((outcome, json(&st)));
+        }
         if st.program != program {
             progress.done();
             return Ok((

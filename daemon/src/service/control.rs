@@ -113,6 +113,11 @@ pub struct Programs {
     pub started: bool,
     /// Blocks accepted into it.
     pub blocks: u32,
+    /// When it was claimed (a busy refusal says how long it has held the machine).
+    pub since: Option<std::time::Instant>,
+    /// The program before it and how it ended (0, `None`: none), so that
+    /// its client learns its fate after the next one was claimed.
+    pub previous: (u32, Phase),
 }
 
 impl Programs {
@@ -124,6 +129,8 @@ impl Programs {
             owner: None,
             started: false,
             blocks: 0,
+            since: None,
+            previous: (0, Phase::None),
         }
     }
 }
@@ -240,6 +247,12 @@ pub struct StatusReply {
     pub program_phase: Phase,
     /// The connection it belongs to, if one does.
     pub program_owner: Option<String>,
+    /// The program before it (0: none) ...
+    #[serde(default)]
+    pub previous_program: u32,
+    /// ... and how it ended (`done`, `aborted`, `faulted`).
+    #[serde(default = "no_phase")]
+    pub previous_phase: Phase,
     /// The program the interpolator runs (its last commit; 0: none yet).
     pub machine_program: u32,
     /// Interpolator ticks.
@@ -358,22 +371,32 @@ impl Control {
             // Its own ended program still runs: the next one queues behind it.
             Phase::Ended if mine => {}
             Phase::Open | Phase::Ended => {
+                let held = s.since.map_or(0.0, |t| t.elapsed().as_secs_f64());
+                let what = match phase {
+                    Phase::Open => "open",
+                    _ => "running to its end",
+                };
                 return Err(match &s.owner {
-                    Some(o) => format!("busy: program {} belongs to {o}", s.program),
+                    Some(o) => format!(
+                        "busy: program {} belongs to {o} ({what}, claimed {held:.1} s ago)",
+                        s.program
+                    ),
                     None => format!(
-                        "busy: program {} is running to its end (its connection left); \
-                         wait for done or abort it",
+                        "busy: program {} is {what} (its connection left, claimed {held:.1} s \
+                         ago); wait for done or abort it",
                         s.program
                     ),
                 });
             }
             Phase::None | Phase::Done | Phase::Aborted | Phase::Fault => {}
         }
+        s.previous = (s.program, phase);
         s.program += 1;
         s.phase = Phase::Open;
         s.owner = Some(peer.clone());
         s.started = false;
         s.blocks = 0;
+        s.since = Some(std::time::Instant::now());
         Ok(s.program)
     }
 
@@ -423,12 +446,13 @@ impl Control {
                 }
             }
         }
-        let (program, program_phase, program_owner) = {
+        let (program, program_phase, program_owner, (previous_program, previous_phase)) = {
             let s = self.lock_programs();
             (
                 s.program,
                 self.phase(&s),
                 s.owner.as_ref().map(ToString::to_string),
+                s.previous,
             )
         };
         let s = &self.status;
@@ -440,6 +464,8 @@ impl Control {
             program,
             program_phase,
             program_owner,
+            previous_program,
+            previous_phase,
             machine_program: s.program.load(Ordering::Acquire),
             ticks: s.ticks.load(Ordering::Acquire),
             published: s.published.load(Ordering::Acquire),
@@ -771,6 +797,10 @@ impl Control {
             }
         }
     }
+}
+
+fn no_phase() -> Phase {
+    Phase::None
 }
 
 /// Lower-case name of a phase, as errors print it.

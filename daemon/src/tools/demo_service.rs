@@ -209,6 +209,7 @@ pub fn run(args: &DemoOptions, direct: &Summary) -> Result<ServiceRun> {
         socket: None,
         token: None,
         no_wait: false,
+        wait_turn: false,
         json: false,
         quiet: true,
     };

@@ -208,6 +208,7 @@ pub fn main(args: &JitterOptions) -> Result<()> {
         socket: None,
         token: None,
         no_wait: false,
+        wait_turn: false,
         json: false,
         quiet: true,
     };
