@@ -145,8 +145,9 @@ fn send_follows_its_own_program_and_fails_unless_it_reached_done() {
         .spawn()
         .unwrap();
     let mut c = srv.connect();
+    // (`s` is the session's arc length: the program moves once the machine runs it.)
     c.wait_for("motion", |s| {
-        s["program"] == 4 && s["s"].as_f64().unwrap() > 1.0
+        s["machine_program"] == 4 && s["feed"].as_f64().unwrap() > 0.0
     });
     assert_eq!(c.ask("abort"), "ok abort");
     let out = wait_child(child, "interpd send of an aborted program");
@@ -277,6 +278,8 @@ fn hold_is_for_motion_and_every_refused_start_says_why() {
         "{r}"
     );
     assert_eq!(c.ask("resume"), "ok resume");
+    // A command acts a planning lead later: resumed once it moves again.
+    c.wait_for("moving again", |s| s["state"] == "running");
     let r = c.ask("resume");
     assert!(r.contains("resume: the machine is not holding"), "{r}");
     assert_eq!(c.ask("end"), "ok end");
@@ -336,8 +339,7 @@ fn serve_does_not_take_over_a_path_that_is_not_its_socket() {
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("another server answers on"), "{err}");
-    let u = std::os::unix::net::UnixStream::connect(&sock).expect("the first server's socket");
-    let mut c = Conn::new_unix(u);
+    let mut c = Conn::unix(&sock);
     assert!(c.ask("status").starts_with("status {"));
     // A stale socket (its server was killed) is taken over.
     signal(srv.child.id(), 9);
@@ -346,8 +348,7 @@ fn serve_does_not_take_over_a_path_that_is_not_its_socket() {
         &service_name("socket-stale"),
         &["--socket", sock.to_str().unwrap()],
     );
-    let u = std::os::unix::net::UnixStream::connect(&sock).expect("the new server's socket");
-    assert!(Conn::new_unix(u).ask("status").starts_with("status {"));
+    assert!(Conn::unix(&sock).ask("status").starts_with("status {"));
     drop(srv);
 }
 
@@ -472,7 +473,9 @@ fn the_rt_thread_makes_no_system_allocation_in_a_session_of_several_programs() {
     );
     assert!(b.ask(&line_to([0.0, 3.0, 0.0], 1800.0, 1)).contains("busy"));
     assert_eq!(b.ask("start"), "ok start");
-    b.wait_for("motion", |s| s["s"].as_f64().unwrap() > 1.0);
+    b.wait_for("motion", |s| {
+        s["state"] == "running" && s["feed"].as_f64().unwrap() > 0.0
+    });
     assert_eq!(b.ask("hold"), "ok hold");
     b.wait_for("held", |s| s["state"] == "holding");
     assert_eq!(b.ask("resume"), "ok resume");

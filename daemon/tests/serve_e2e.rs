@@ -209,13 +209,7 @@ fn bad_lines_get_an_error_naming_the_problem_and_the_connection_stays_up() {
     // The Unix socket: mode 0600, same protocol.
     let mode = std::fs::metadata(&sock).unwrap().permissions().mode() & 0o777;
     assert_eq!(mode, 0o600);
-    let u = std::os::unix::net::UnixStream::connect(&sock).unwrap();
-    u.set_read_timeout(Some(WAIT)).unwrap();
-    let mut ur = BufReader::new(u.try_clone().unwrap());
-    let mut uw = u;
-    uw.write_all(b"status\n").unwrap();
-    let mut line = String::new();
-    ur.read_line(&mut line).unwrap();
+    let line = Conn::unix(&sock).ask("status");
     assert!(line.starts_with("status {"), "{line}");
 
     // Run it to the end.

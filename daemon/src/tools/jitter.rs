@@ -217,11 +217,11 @@ pub fn main(args: &JitterOptions) -> Result<()> {
             .enable_all()
             .build()?
             .block_on(async {
-                let s = tokio::net::TcpStream::connect(addr).await?;
+                let conn = crate::client::conn::connect(&send_args.endpoint()).await?;
                 // Aborted at shutdown: the outcome does not matter here.
                 let load =
                     |_: [f64; 6], _: &crate::service::control::StatusReply| Ok(lines.clone());
-                let _ = crate::client::send::stream(s, &load, &send_args).await;
+                let _ = crate::client::send::stream(conn, &load, &send_args).await;
                 Ok(())
             })
     });
