@@ -136,14 +136,7 @@ fn send_follows_its_own_program_and_fails_unless_it_reached_done() {
     }
     // A program aborted by someone else is not a success.
     let long = write(&dir, "long.ngc", "G1 X80 F1200\n");
-    let child = std::process::Command::new(interpd())
-        .args(["send", "--json", "--quiet", "--addr"])
-        .arg(format!("127.0.0.1:{}", srv.port))
-        .arg(&long)
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
+    let child = spawn_send(srv.port, &long, &[]);
     let mut c = srv.connect();
     // (`s` is the session's arc length: the program moves once the machine runs it.)
     c.wait_for("motion", |s| {
@@ -166,18 +159,7 @@ fn a_busy_send_is_refused_naming_the_owner_or_waits_its_turn() {
     // A: 20 mm at 1200 mm/min, a second of motion.
     let a = write(&dir, "a.ngc", "G1 X20 F1200\n");
     let b = write(&dir, "b.ngc", "G1 X20 Y5 F3000\n");
-    let spawn = |prog: &std::path::Path, extra: &[&str]| {
-        std::process::Command::new(interpd())
-            .args(["send", "--json", "--quiet", "--addr"])
-            .arg(format!("127.0.0.1:{}", srv.port))
-            .args(extra)
-            .arg(prog)
-            .stdout(std::process::Stdio::piped())
-            .stderr(std::process::Stdio::piped())
-            .spawn()
-            .unwrap()
-    };
-    let first = spawn(&a, &[]);
+    let first = spawn_send(srv.port, &a, &[]);
     let mut c = srv.connect();
     c.wait_for("A moving", |s| {
         s["program"] == 1 && s["s"].as_f64().unwrap() > 0.5
@@ -192,7 +174,7 @@ fn a_busy_send_is_refused_naming_the_owner_or_waits_its_turn() {
         "{err}"
     );
     // With it: B waits for A's end, then runs as program 2 from A's end.
-    let second = spawn(&b, &["--wait-turn"]);
+    let second = spawn_send(srv.port, &b, &["--wait-turn"]);
     let out_a = wait_child(first, "send A");
     let out_b = wait_child(second, "send B --wait-turn");
     let err_b = String::from_utf8_lossy(&out_b.stderr);

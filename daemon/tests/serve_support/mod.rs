@@ -274,6 +274,20 @@ pub fn dist_to_segment(p: [f64; 3], a: [f64; 3], b: [f64; 3]) -> f64 {
         .sqrt()
 }
 
+/// Starts `interpd send --json --quiet` of `program` to `port` (with `extra`
+/// flags), its output piped.
+pub fn spawn_send(port: u16, program: &Path, extra: &[&str]) -> Child {
+    Command::new(interpd())
+        .args(["send", "--json", "--quiet", "--addr"])
+        .arg(format!("127.0.0.1:{port}"))
+        .args(extra)
+        .arg(program)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("interpd send")
+}
+
 /// Runs `interpd send --json` of `program` to `port` (with `extra` flags) and
 /// returns its exit status, its final status (JSON, if it printed one) and
 /// its standard error.
@@ -282,16 +296,7 @@ pub fn send(
     program: &Path,
     extra: &[&str],
 ) -> (std::process::ExitStatus, Option<serde_json::Value>, String) {
-    let child = Command::new(interpd())
-        .args(["send", "--json", "--quiet", "--addr"])
-        .arg(format!("127.0.0.1:{port}"))
-        .args(extra)
-        .arg(program)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("interpd send");
-    let out = wait_child(child, "interpd send");
+    let out = wait_child(spawn_send(port, program, extra), "interpd send");
     let status = serde_json::from_slice(&out.stdout).ok();
     (
         out.status,
