@@ -3,6 +3,7 @@
 use std::net::{IpAddr, SocketAddr};
 use std::path::PathBuf;
 
+use clap::builder::TypedValueParser;
 use clap::{Parser, Subcommand};
 use interpd::client::send::SendOptions;
 use interpd::client::watch::{DEFAULT_LIVENESS_S, WatchOptions};
@@ -26,6 +27,7 @@ use planner::setup::{AxisRanges, MachineConfig, SetupConfig};
 use traces::writer::TraceCompression;
 
 use crate::command::{replay, trace};
+use interpd::flags;
 
 /// Real-time CNC interpolator service.
 #[derive(Debug, Parser)]
@@ -78,6 +80,11 @@ pub struct SendArgs {
     /// Do not wait for the program to finish.
     #[arg(long)]
     pub no_wait: bool,
+    /// When another connection's program holds the machine, wait for it to
+    /// end and take the next turn (without it, `send` is refused at once,
+    /// naming the program's owner and how long it has held it).
+    #[arg(long)]
+    pub wait_turn: bool,
     /// Print the final status as JSON.
     #[arg(long)]
     pub json: bool,
@@ -94,6 +101,7 @@ impl From<SendArgs> for SendOptions {
             socket: a.socket,
             token: a.token,
             no_wait: a.no_wait,
+            wait_turn: a.wait_turn,
             json: a.json,
             quiet: a.quiet,
         }
@@ -109,15 +117,16 @@ pub struct WatchArgs {
     /// Stop after this many samples.
     #[arg(long)]
     pub count: Option<u64>,
-    /// Stop after this many seconds.
-    #[arg(long)]
+    /// Stop after this many seconds (0 < S ≤ 86400).
+    #[arg(long, value_parser = flags::SECONDS.parser())]
     pub seconds: Option<f64>,
     /// Stop at the first sample in state `done` after one that was moving.
     #[arg(long)]
     pub until_done: bool,
     /// Give up when no sample arrives for this many seconds: the publisher
     /// is dead (or was never there).
-    #[arg(long, value_name = "SECONDS", default_value_t = DEFAULT_LIVENESS_S)]
+    #[arg(long, value_name = "SECONDS", default_value_t = DEFAULT_LIVENESS_S,
+          value_parser = flags::LIVENESS.parser())]
     pub liveness: f64,
     /// Write every sample (seq,tick,time,x,y,z,feed,u,s,block_id,state) to this CSV.
     #[arg(long, value_name = "PATH")]
@@ -132,10 +141,11 @@ pub struct WatchArgs {
     /// at this feed, mm/min (the setpoint checker, `interp_run::check`),
     /// from the first sample at rest before tick 1; a failed check makes
     /// it exit non-zero.
-    #[arg(long, value_name = "MM_PER_MIN")]
+    #[arg(long, value_name = "MM_PER_MIN", value_parser = flags::FEED.parser())]
     pub check_feed: Option<f64>,
-    /// The service's interpolation period, µs (for `--check-feed`).
-    #[arg(long, value_name = "US", default_value_t = 1000)]
+    /// The service's interpolation period, µs (for `--check-feed`; 250..=10000, as `serve`).
+    #[arg(long, value_name = "US", default_value_t = 1000,
+          value_parser = clap::value_parser!(u32).range(250..=10_000))]
     pub check_period_us: u32,
 }
 
@@ -285,7 +295,7 @@ impl From<ServeArgs> for ServeOptions {
 #[derive(Clone, Debug, clap::Args)]
 pub struct JitterArgs {
     /// Seconds for each of the two loops.
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 10.0, value_parser = flags::SECONDS.parser())]
     pub seconds: f64,
     /// Period and scheduling of both loops, as `interpd serve` takes them.
     #[command(flatten)]
@@ -309,7 +319,8 @@ impl From<JitterArgs> for JitterOptions {
 #[derive(Clone, Debug, clap::Args)]
 pub struct DemoArgs {
     /// Programmed feed, mm/min.
-    #[arg(long, value_name = "MM_PER_MIN", default_value_t = DemoOptions::default().feed)]
+    #[arg(long, value_name = "MM_PER_MIN", default_value_t = DemoOptions::default().feed,
+          value_parser = flags::FEED.parser())]
     pub feed: f64,
     /// Interpolation period, µs.
     #[arg(
@@ -320,10 +331,12 @@ pub struct DemoArgs {
     )]
     pub period_us: u32,
     /// Chord tolerance of the chord-error feed law, mm.
-    #[arg(long, value_name = "MM", default_value_t = DemoOptions::default().chord_tolerance_mm)]
+    #[arg(long, value_name = "MM", default_value_t = DemoOptions::default().chord_tolerance_mm,
+          value_parser = flags::CHORD_TOLERANCE.parser())]
     pub chord_tolerance_mm: f64,
     /// Tangential acceleration limit, mm/s².
-    #[arg(long, value_name = "MM_PER_S2", default_value_t = DemoOptions::default().accel)]
+    #[arg(long, value_name = "MM_PER_S2", default_value_t = DemoOptions::default().accel,
+          value_parser = flags::ACCEL.parser())]
     pub accel: f64,
     /// Do not sleep: tick as fast as possible. Same setpoints; timing is then not meaningful.
     #[arg(long)]
@@ -388,16 +401,16 @@ pub struct SimulateArgs {
     #[arg(long, value_name = "FILE")]
     pub machine: Option<PathBuf>,
     /// Interpolation period, µs (`interp.period`; default 1000).
-    #[arg(long, value_name = "US")]
+    #[arg(long, value_name = "US", value_parser = flags::SIM_PERIOD_US.parser())]
     pub period_us: Option<f64>,
     /// Chord tolerance, mm (`interp.chord-tolerance`; default 0.001).
-    #[arg(long, value_name = "MM")]
+    #[arg(long, value_name = "MM", value_parser = flags::CHORD_TOLERANCE.parser())]
     pub chord_tolerance_mm: Option<f64>,
     /// Machine path-speed limit, mm/s (`interp.max-path-speed`; default 250).
-    #[arg(long, value_name = "MM_PER_S")]
+    #[arg(long, value_name = "MM_PER_S", value_parser = flags::PATH_SPEED.parser())]
     pub max_speed: Option<f64>,
     /// Tangential acceleration limit, mm/s² (`interp.max-path-accel`; default 2000).
-    #[arg(long, value_name = "MM_PER_S2")]
+    #[arg(long, value_name = "MM_PER_S2", value_parser = flags::ACCEL.parser())]
     pub max_accel: Option<f64>,
     /// Control points per segment when long NURBS are split (`simulate.max-ctrl-per-block`; default 32, as `serve`).
     #[arg(long, value_name = "N")]
@@ -449,16 +462,18 @@ pub struct RasterArgs {
     #[arg(long)]
     pub tool: Cutter,
     /// Distance between passes, mm.
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = 0.5, value_parser = flags::STEP.parser())]
     pub stepover: f64,
     /// Pass direction, degrees counter-clockwise from +X.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true,
+          value_parser = flags::PASS_ANGLE.parser())]
     pub angle: f64,
     /// Cut both ways (reverse every other pass).
     #[arg(long)]
     pub zigzag: bool,
     /// Chord tolerance of the CL polylines, mm.
-    #[arg(long, default_value_t = RasterConfig::default().chord_tolerance)]
+    #[arg(long, default_value_t = RasterConfig::default().chord_tolerance,
+          value_parser = flags::PLAN_TOLERANCE.parser())]
     pub chord_tolerance: f64,
     /// G-code output file.
     #[arg(long)]
@@ -470,21 +485,23 @@ pub struct RasterArgs {
     #[arg(long)]
     pub cl_json: Option<PathBuf>,
     /// Safe height above the part's top for rapids, mm.
-    #[arg(long, default_value_t = 5.0)]
+    #[arg(long, default_value_t = 5.0, value_parser = flags::CLEARANCE.parser())]
     pub clearance: f64,
     /// Cutting feed, mm/min.
-    #[arg(long, default_value_t = 1000.0)]
+    #[arg(long, default_value_t = 1000.0, value_parser = flags::FEED.parser())]
     pub feed: f64,
     /// Plunge feed, mm/min.
-    #[arg(long, default_value_t = 300.0)]
+    #[arg(long, default_value_t = 300.0, value_parser = flags::FEED.parser())]
     pub plunge_feed: f64,
     /// `G64 P` written at the program's start, mm: the controller may leave
     /// the polylines by this much to run their dense moves at speed (the
     /// moves are a few µm long). 0: no G64 (the controller's exact path).
-    #[arg(long, default_value_t = DEFAULT_BLEND_TOLERANCE)]
+    #[arg(long, default_value_t = DEFAULT_BLEND_TOLERANCE,
+          value_parser = flags::PLAN_TOLERANCE_OR_ZERO.parser())]
     pub blend_tolerance: f64,
     /// Weld tolerance for the mesh's vertices, mm.
-    #[arg(long, default_value_t = WeldOptions::default().weld_tolerance)]
+    #[arg(long, default_value_t = WeldOptions::default().weld_tolerance,
+          value_parser = flags::PLAN_TOLERANCE_OR_ZERO.parser())]
     pub weld_tolerance: f64,
     /// No progress bar.
     #[arg(long)]
@@ -563,7 +580,7 @@ pub struct GougeArgs {
     #[arg(long)]
     pub tool: String,
     /// Allowed overcut, mm.
-    #[arg(long, default_value_t = 0.05)]
+    #[arg(long, default_value_t = 0.05, value_parser = flags::PLAN_TOLERANCE.parser())]
     pub tol: f64,
     /// Corrected path (G1).
     #[arg(long)]
@@ -572,10 +589,12 @@ pub struct GougeArgs {
     #[arg(long)]
     pub plot: Option<PathBuf>,
     /// Spacing of the CC points sampled on the mesh, mm.
-    #[arg(long, default_value_t = GougeConfig::default().sample_spacing)]
+    #[arg(long, default_value_t = GougeConfig::default().sample_spacing,
+          value_parser = flags::STEP.parser())]
     pub sample_spacing: f64,
     /// Check-point grid step of the milled-surface prediction, mm.
-    #[arg(long, default_value_t = PredictConfig::default().grid_step)]
+    #[arg(long, default_value_t = PredictConfig::default().grid_step,
+          value_parser = flags::STEP.parser())]
     pub grid_step: f64,
     /// Print the report as JSON.
     #[arg(long)]
@@ -605,10 +624,12 @@ pub struct FitArgs {
     #[arg(long)]
     pub path: PathBuf,
     /// Largest distance of a CL point from its curve, mm.
-    #[arg(long, default_value_t = FitConfig::default().tolerance)]
+    #[arg(long, default_value_t = FitConfig::default().tolerance,
+          value_parser = flags::PLAN_TOLERANCE.parser())]
     pub tol: f64,
     /// Curve degree (1..=5).
-    #[arg(long, default_value_t = FitConfig::default().degree)]
+    #[arg(long, default_value_t = FitConfig::default().degree,
+          value_parser = clap::value_parser!(u16).range(1..=planner::fit::MAX_DEGREE as i64).map(usize::from))]
     pub degree: usize,
     /// G6.2 program out.
     #[arg(long)]
@@ -620,7 +641,8 @@ pub struct FitArgs {
     #[arg(long, requires = "stl")]
     pub tool: Option<String>,
     /// Allowed interference of the fitted curves in the re-check, mm.
-    #[arg(long, default_value_t = GougeConfig::default().tolerance)]
+    #[arg(long, default_value_t = GougeConfig::default().tolerance,
+          value_parser = flags::PLAN_TOLERANCE_OR_ZERO.parser())]
     pub gouge_tol: f64,
     /// Print the report as JSON.
     #[arg(long)]

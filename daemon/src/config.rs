@@ -95,6 +95,45 @@ pub fn interp_config(
         .context("the [interp] configuration does not fit InterpConfig")
 }
 
+/// Checks `cfg`: the interpolator's own rules (`InterpConfig::validate`),
+/// then the range of each limit (`crate::flags`), naming the key, so that a
+/// typo such as `--set max-path-speed=1e308` is refused, not run.
+pub fn check(cfg: &interp_core::InterpConfig) -> Result<()> {
+    use crate::flags::{
+        ACCEL, CHORD_TOLERANCE, CONFIG_LENGTH, JERK, PATH_SPEED, ROTARY_ACCEL, ROTARY_JERK,
+        ROTARY_SPEED, SIM_PERIOD_US,
+    };
+    cfg.validate()
+        .map_err(anyhow::Error::msg)
+        .context("checking the configuration")?;
+    let one =
+        |r: crate::flags::Range, key: &str, v: f64| r.check(&format!("interp.{key}"), v).map(drop);
+    let three =
+        |r: crate::flags::Range, key: &str, v: [f64; 3]| v.iter().try_for_each(|&x| one(r, key, x));
+    one(SIM_PERIOD_US, "period (as µs)", cfg.period * 1e6)?;
+    one(CHORD_TOLERANCE, "chord-tolerance", cfg.chord_tolerance)?;
+    one(PATH_SPEED, "max-path-speed", cfg.max_path_speed)?;
+    one(ACCEL, "max-path-accel", cfg.max_path_accel)?;
+    one(JERK, "max-path-jerk", cfg.max_path_jerk)?;
+    one(ACCEL, "max-centripetal-accel", cfg.max_centripetal_accel)?;
+    three(PATH_SPEED, "axis-max-velocity", cfg.axis_max_velocity)?;
+    three(ACCEL, "axis-max-accel", cfg.axis_max_accel)?;
+    three(JERK, "axis-max-jerk", cfg.axis_max_jerk)?;
+    three(ROTARY_SPEED, "rotary-max-velocity", cfg.rotary_max_velocity)?;
+    three(ROTARY_ACCEL, "rotary-max-accel", cfg.rotary_max_accel)?;
+    three(ROTARY_JERK, "rotary-max-jerk", cfg.rotary_max_jerk)?;
+    one(CONFIG_LENGTH, "profile-step", cfg.profile_step)?;
+    one(
+        CONFIG_LENGTH,
+        "default-blend-tolerance",
+        cfg.default_blend_tolerance,
+    )?;
+    if cfg.compress_max_move != 0.0 {
+        one(CONFIG_LENGTH, "compress-max-move", cfg.compress_max_move)?;
+    }
+    Ok(())
+}
+
 /// A machine description file (TOML, `docs/five-axis.md`; e.g.
 /// `examples/five_axis/machine.toml`), checked.
 pub fn read_machine(path: &Path) -> Result<interp_core::kinematics::MachineSpec> {

@@ -10,6 +10,7 @@
 pub use interp_run::check;
 pub mod client;
 pub mod config;
+pub mod flags;
 pub mod plan;
 pub mod program;
 pub mod protocol;

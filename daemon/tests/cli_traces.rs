@@ -248,3 +248,32 @@ fn gcode_programs_simulate_and_replay_from_the_trace_alone() {
     assert!(!o.status.success());
     assert!(text(&o).contains("bad.ngc"), "{}", text(&o));
 }
+
+/// `simulate --json` counts the tangential jerk's sign changes. A
+/// jerk-limited schedule changes sign once at each speed extremum and once
+/// on arriving at rest: a rest-to-rest move twice (jerk up, down, then up
+/// again into the stop), whatever its length, and a `G64` corner once on the
+/// way into it and once out of it. Chatter would count hundreds.
+#[test]
+fn simulate_reports_jerk_sign_changes_as_planned_phases() {
+    let sign_changes = |name: &str, program: &str| {
+        let ngc = tmp(name);
+        std::fs::write(&ngc, program).unwrap();
+        let o = interpd(&["simulate", ngc.to_str().unwrap(), "--json"]);
+        assert!(o.status.success(), "{}", text(&o));
+        let s: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        assert_eq!(s["final_state"], "done", "{s}");
+        let changes = s["jerk_sign_changes"].as_u64().expect("a count");
+        let per_s = s["jerk_sign_changes_per_s"].as_f64().expect("a rate");
+        let motion = s["motion_time_s"].as_f64().expect("a time");
+        assert!((per_s * motion - changes as f64).abs() < 1e-9, "{s}");
+        changes
+    };
+    // Exact stops: four rest-to-rest moves at production feed, one of them
+    // too short to reach it.
+    let stops = "G21 G90 G61\nG1 X100 F6000\nG1 Y5\nG1 X0\nG1 X0.3\nM2\n";
+    assert_eq!(sign_changes("stops.ngc", stops), 8);
+    // Three blended corners: four speed maxima, three minima, one stop.
+    let corners = "G21 G90 G64 P0.01\nG1 X50 F6000\nG1 Y50\nG1 X0\nG1 Y0.5\nM2\n";
+    assert_eq!(sign_changes("corners.ngc", corners), 8);
+}

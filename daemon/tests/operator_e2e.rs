@@ -67,6 +67,50 @@ fn a_program_belongs_to_one_connection_and_others_may_still_hold_abort_and_ask()
     assert_eq!(s["blocks_accepted"], 2);
 }
 
+/// The program fields of a status: number, phase, owner.
+fn program_of(s: &serde_json::Value) -> serde_json::Value {
+    serde_json::json!([s["program"], s["program_phase"], s["program_owner"]])
+}
+
+#[test]
+fn a_refused_block_claims_nothing_and_keeps_nobody_out() {
+    let srv = Server::start(&service_name("refused-claim"), &["--no-socket"]);
+    let mut a = srv.connect();
+    let mut b = srv.connect();
+    // A line to where the machine is (the origin) has no length: refused.
+    let zero = line_to([0.0, 0.0, 0.0], 1200.0, 1);
+    let before = a.status();
+    let r = a.ask(&zero);
+    assert!(r.starts_with("err 2 "), "{r}");
+    // Nothing claimed: no program, no owner; B is not kept out.
+    assert_eq!(program_of(&a.status()), program_of(&before));
+    assert_eq!(program_of(&before), serde_json::json!([0, "none", null]));
+    assert_eq!(
+        b.ask(&line_to([5.0, 0.0, 0.0], 1200.0, 1)),
+        "ok block 1 segments 1..=1"
+    );
+    assert_eq!(b.ask("end"), "ok end");
+    assert_eq!(b.ask("start"), "ok start");
+    let done = b.wait_for("done", |s| s["program_phase"] == "done");
+    // After a finished program too: A's refused first block leaves program
+    // 1 B's and done.
+    let r = a.ask(&line_to([5.0, 0.0, 0.0], 1200.0, 2));
+    assert!(r.starts_with("err 4 "), "{r}");
+    assert_eq!(program_of(&a.status()), program_of(&done));
+    // Nothing lost: B's next program is program 2, from where B's first ended.
+    assert_eq!(
+        b.ask(&line_to([5.0, 5.0, 0.0], 1200.0, 1)),
+        "ok block 1 segments 1..=1"
+    );
+    assert_eq!(b.ask("end"), "ok end");
+    assert_eq!(b.ask("start"), "ok start");
+    let s = b.wait_for("done", |s| {
+        s["program"] == 2 && s["program_phase"] == "done"
+    });
+    assert_eq!(s["position"], serde_json::json!([5.0, 5.0, 0.0]));
+    assert_eq!(s["blocks_accepted"], 2);
+}
+
 #[test]
 fn send_follows_its_own_program_and_fails_unless_it_reached_done() {
     let dir = temp_dir("send-own");
@@ -92,17 +136,11 @@ fn send_follows_its_own_program_and_fails_unless_it_reached_done() {
     }
     // A program aborted by someone else is not a success.
     let long = write(&dir, "long.ngc", "G1 X80 F1200\n");
-    let child = std::process::Command::new(interpd())
-        .args(["send", "--json", "--quiet", "--addr"])
-        .arg(format!("127.0.0.1:{}", srv.port))
-        .arg(&long)
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
+    let child = spawn_send(srv.port, &long, &[]);
     let mut c = srv.connect();
+    // (`s` is the session's arc length: the program moves once the machine runs it.)
     c.wait_for("motion", |s| {
-        s["program"] == 4 && s["s"].as_f64().unwrap() > 1.0
+        s["machine_program"] == 4 && s["feed"].as_f64().unwrap() > 0.0
     });
     assert_eq!(c.ask("abort"), "ok abort");
     let out = wait_child(child, "interpd send of an aborted program");
@@ -112,6 +150,52 @@ fn send_follows_its_own_program_and_fails_unless_it_reached_done() {
         err.contains("program 4 did not reach done: it was aborted"),
         "{err}"
     );
+}
+
+#[test]
+fn a_busy_send_is_refused_naming_the_owner_or_waits_its_turn() {
+    let dir = temp_dir("send-turn");
+    let srv = Server::start(&service_name("send-turn"), &["--no-socket"]);
+    // A: 20 mm at 1200 mm/min, a second of motion.
+    let a = write(&dir, "a.ngc", "G1 X20 F1200\n");
+    let b = write(&dir, "b.ngc", "G1 X20 Y5 F3000\n");
+    let first = spawn_send(srv.port, &a, &[]);
+    let mut c = srv.connect();
+    c.wait_for("A moving", |s| {
+        s["program"] == 1 && s["s"].as_f64().unwrap() > 0.5
+    });
+    // Without --wait-turn: refused at once, naming the owner and how long.
+    let (st, _, err) = send(srv.port, &b, &[]);
+    assert!(!st.success(), "a busy send succeeded");
+    assert!(
+        err.contains("busy: program 1 belongs to connection ")
+            && err.contains("(running to its end, claimed ")
+            && err.contains("send --wait-turn waits for it to end"),
+        "{err}"
+    );
+    // With it: B waits for A's end, then runs as program 2 from A's end.
+    let second = spawn_send(srv.port, &b, &["--wait-turn"]);
+    let out_a = wait_child(first, "send A");
+    let out_b = wait_child(second, "send B --wait-turn");
+    let err_b = String::from_utf8_lossy(&out_b.stderr);
+    assert!(
+        out_a.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out_a.stderr)
+    );
+    assert!(out_b.status.success(), "{err_b}");
+    assert!(
+        err_b.contains("busy: program 1 belongs to connection")
+            && err_b.contains("waiting for its end (--wait-turn)")
+            && err_b.contains("our turn after "),
+        "{err_b}"
+    );
+    let status: serde_json::Value = serde_json::from_slice(&out_b.stdout).unwrap();
+    assert_eq!(status["program"], 2, "{status}");
+    assert_eq!(status["program_phase"], "done", "{status}");
+    assert_eq!(status["position"], serde_json::json!([20.0, 5.0, 0.0]));
+    // Nothing was lost or merged: one block each.
+    assert_eq!(status["blocks_accepted"], 2, "{status}");
 }
 
 #[test]
@@ -176,6 +260,8 @@ fn hold_is_for_motion_and_every_refused_start_says_why() {
         "{r}"
     );
     assert_eq!(c.ask("resume"), "ok resume");
+    // A command acts a planning lead later: resumed once it moves again.
+    c.wait_for("moving again", |s| s["state"] == "running");
     let r = c.ask("resume");
     assert!(r.contains("resume: the machine is not holding"), "{r}");
     assert_eq!(c.ask("end"), "ok end");
@@ -235,8 +321,7 @@ fn serve_does_not_take_over_a_path_that_is_not_its_socket() {
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("another server answers on"), "{err}");
-    let u = std::os::unix::net::UnixStream::connect(&sock).expect("the first server's socket");
-    let mut c = Conn::new_unix(u);
+    let mut c = Conn::unix(&sock);
     assert!(c.ask("status").starts_with("status {"));
     // A stale socket (its server was killed) is taken over.
     signal(srv.child.id(), 9);
@@ -245,8 +330,7 @@ fn serve_does_not_take_over_a_path_that_is_not_its_socket() {
         &service_name("socket-stale"),
         &["--socket", sock.to_str().unwrap()],
     );
-    let u = std::os::unix::net::UnixStream::connect(&sock).expect("the new server's socket");
-    assert!(Conn::new_unix(u).ask("status").starts_with("status {"));
+    assert!(Conn::unix(&sock).ask("status").starts_with("status {"));
     drop(srv);
 }
 
@@ -371,7 +455,9 @@ fn the_rt_thread_makes_no_system_allocation_in_a_session_of_several_programs() {
     );
     assert!(b.ask(&line_to([0.0, 3.0, 0.0], 1800.0, 1)).contains("busy"));
     assert_eq!(b.ask("start"), "ok start");
-    b.wait_for("motion", |s| s["s"].as_f64().unwrap() > 1.0);
+    b.wait_for("motion", |s| {
+        s["state"] == "running" && s["feed"].as_f64().unwrap() > 0.0
+    });
     assert_eq!(b.ask("hold"), "ok hold");
     b.wait_for("held", |s| s["state"] == "holding");
     assert_eq!(b.ask("resume"), "ok resume");
@@ -394,4 +480,95 @@ fn the_rt_thread_makes_no_system_allocation_in_a_session_of_several_programs() {
         "{summary}"
     );
     assert_eq!(summary["rt_pool_fallbacks"], 0, "{summary}");
+}
+
+#[test]
+fn a_numeric_flag_out_of_range_is_refused_naming_it() {
+    let dir = temp_dir("flag-ranges");
+    let prog = write(&dir, "p.ngc", "G1 X5 F3000\n");
+    let p = prog.to_str().unwrap();
+    let stl = write(&dir, "p.stl", "solid p\nendsolid p\n");
+    let stl = stl.to_str().unwrap();
+    for (args, says) in [
+        (
+            &["demo", "--no-service", "--feed", "1e308"][..],
+            "'--feed <MM_PER_MIN>': 1e308 is outside (0, 120000] mm/min",
+        ),
+        (
+            &["demo", "--no-service", "--accel=-1"][..],
+            "'--accel <MM_PER_S2>': -1 is outside (0, 1000000] mm/s²",
+        ),
+        (
+            &["simulate", p, "--max-speed", "inf"][..],
+            "'--max-speed <MM_PER_S>': inf is outside (0, 2000] mm/s",
+        ),
+        (
+            &["simulate", p, "--period-us", "1e-300"][..],
+            "'--period-us <US>': 1e-300 is outside [1, 1000000] µs",
+        ),
+        // A configuration key names itself.
+        (
+            &["simulate", p, "--set", "max-path-speed=1e308"][..],
+            "interp.max-path-speed 1e308 is out of range: it must be a number in (0, 2000] mm/s",
+        ),
+        (
+            &["simulate", p, "--set", "axis-max-jerk=[1e300, 1e6, 1e6]"][..],
+            "interp.axis-max-jerk 1e300 is out of range: it must be a number in (0, 1000000000] mm/s³",
+        ),
+        (
+            &[
+                "serve",
+                "--no-socket",
+                "--port",
+                "0",
+                "--set",
+                "max-path-accel=1e12",
+            ][..],
+            "interp.max-path-accel 1e12 is out of range",
+        ),
+        (
+            &[
+                "serve",
+                "--no-socket",
+                "--port",
+                "0",
+                "--position",
+                "0",
+                "0",
+                "nan",
+            ][..],
+            "--position Z NaN is out of range: it must be a number in [-1000000, 1000000] mm",
+        ),
+        (
+            &["watch", "--seconds", "inf"][..],
+            "'--seconds <SECONDS>': inf is outside (0, 86400] s",
+        ),
+        (
+            &["watch", "--check-feed", "0"][..],
+            "'--check-feed <MM_PER_MIN>': 0 is outside (0, 120000] mm/min",
+        ),
+        (
+            &["jitter", "--seconds", "nan"][..],
+            "'--seconds <SECONDS>': nan is outside (0, 86400] s",
+        ),
+        (
+            &[
+                "plan", "gouge", "--stl", stl, "--path", p, "--tool", "ball:6", "--out", p,
+                "--tol", "1e308",
+            ][..],
+            "'--tol <TOL>': 1e308 is outside (0, 10] mm",
+        ),
+        (
+            &["plan", "fit", "--path", p, "--out", p, "--degree", "9"][..],
+            "'--degree <DEGREE>': 9 is not in 1..=5",
+        ),
+    ] {
+        let out = std::process::Command::new(interpd())
+            .args(args)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} accepted");
+        assert!(err.contains(says), "{args:?}: {err}");
+    }
 }

@@ -53,34 +53,62 @@ fn plan_raster_refuses_bad_feeds_clearances_and_tolerances_naming_the_flag() {
             String::from_utf8_lossy(&o.stderr).into_owned(),
         )
     };
+    // Refused by the flag's range (`interpd::flags`), named with it.
+    let range = |flag: &str, value: &str, range: &str| {
+        format!("invalid value '{value}' for '{flag} <")
+            + &format!(
+                "{}>': {value} is outside {range}",
+                flag[2..].to_uppercase().replace('-', "_")
+            )
+    };
+    let feed = "(0, 120000] mm/min";
+    let plan_mm = "(0, 10] mm";
+    let plan_mm0 = "[0, 10] mm";
     for (flags, says) in [
-        (&["--feed", "0"][..], "--feed must be a positive"),
-        (&["--feed=-5"][..], "--feed must be a positive"),
-        (&["--feed", "nan"][..], "--feed must be a positive"),
+        (&["--feed", "0"][..], range("--feed", "0", feed)),
+        (&["--feed=-5"][..], range("--feed", "-5", feed)),
+        (&["--feed", "nan"][..], range("--feed", "nan", feed)),
+        (&["--feed", "1e308"][..], range("--feed", "1e308", feed)),
         (
             &["--plunge-feed", "inf"][..],
-            "--plunge-feed must be a positive",
+            range("--plunge-feed", "inf", feed),
         ),
         (
             &["--clearance=-100"][..],
-            "--clearance must be a finite number >= 0",
+            range("--clearance", "-100", "[0, 1000] mm"),
+        ),
+        (
+            &["--clearance", "1e308"][..],
+            range("--clearance", "1e308", "[0, 1000] mm"),
+        ),
+        (
+            &["--angle", "1e9"][..],
+            range("--angle", "1e9", "[-360, 360] degrees"),
         ),
         (
             &["--blend-tolerance=-0.001"][..],
-            "--blend-tolerance must be a finite number of mm >= 0",
+            range("--blend-tolerance", "-0.001", plan_mm0),
         ),
         (
             &["--blend-tolerance", "nan"][..],
-            "--blend-tolerance must be a finite number of mm >= 0",
+            range("--blend-tolerance", "nan", plan_mm0),
+        ),
+        (
+            &["--weld-tolerance", "1e308"][..],
+            range("--weld-tolerance", "1e308", plan_mm0),
+        ),
+        (
+            &["--chord-tolerance", "1e308"][..],
+            range("--chord-tolerance", "1e308", plan_mm),
         ),
         (
             &["--chord-tolerance", "1e-15"][..],
-            "--chord-tolerance 0.000000000000001 mm is below what f64 resolves",
+            "--chord-tolerance 0.000000000000001 mm is below what f64 resolves".to_owned(),
         ),
     ] {
         let (ok, err) = run(flags);
         assert!(!ok, "{flags:?} accepted");
-        assert!(err.contains(says), "{flags:?}: {err}");
+        assert!(err.contains(&says), "{flags:?}: {err}");
         assert!(!out.exists(), "{flags:?} wrote {}", out.display());
     }
     // The same run with sane flags writes a program above the part.

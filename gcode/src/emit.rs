@@ -27,24 +27,57 @@ pub const EMIT_HEADER: &str = "G21 G90 G90.1 G94 G17";
 /// cannot be written as G-code; they come out as `NaN`/`inf` and the text
 /// will not parse.
 pub fn emit(program: &Program) -> String {
-    let mut e = Emitter {
-        out: String::with_capacity(program.blocks.len() * 40 + 64),
-        pos: [0.0; 3],
-        plane: Plane::Xy,
-        feed: None,
-        rotary: [Some(0.0); 3],
-        tool: ToolControl::Off,
-        vector: None,
-    };
-    e.out.push_str(EMIT_HEADER);
-    e.out.push('\n');
+    let mut e = Emit::with_capacity(program.blocks.len() * 40 + 64);
     for b in &program.blocks {
         e.block(&b.kind);
     }
-    e.out
+    e.take()
+}
+
+/// [`emit`] block by block, for a program too large to hold whole: the
+/// caller hands each block in order and takes the text written so far
+/// whenever it likes; the pieces, joined, are exactly what [`emit`] writes
+/// for the same blocks.
+#[derive(Debug)]
+pub struct Emit(Emitter);
+
+impl Default for Emit {
+    fn default() -> Self {
+        Self::with_capacity(64)
+    }
+}
+
+impl Emit {
+    /// An emitter whose first text is the header, its buffer of `capacity`
+    /// bytes.
+    pub fn with_capacity(capacity: usize) -> Self {
+        let mut e = Emitter {
+            out: String::with_capacity(capacity),
+            pos: [0.0; 3],
+            plane: Plane::Xy,
+            feed: None,
+            rotary: [Some(0.0); 3],
+            tool: ToolControl::Off,
+            vector: None,
+        };
+        e.out.push_str(EMIT_HEADER);
+        e.out.push('\n');
+        Emit(e)
+    }
+
+    /// Writes the next block.
+    pub fn block(&mut self, kind: &BlockKind) {
+        self.0.block(kind);
+    }
+
+    /// The text written since the last call.
+    pub fn take(&mut self) -> String {
+        core::mem::take(&mut self.0.out)
+    }
 }
 
 /// The emitter's view of the parser state it writes for.
+#[derive(Debug)]
 struct Emitter {
     out: String,
     pos: Point,

@@ -21,7 +21,7 @@ mod parser;
 mod program;
 
 pub use convert::{ConvertOrSinkError, CoreOptions, core_blending};
-pub use emit::{EMIT_HEADER, emit};
+pub use emit::{EMIT_HEADER, Emit, emit};
 pub use error::{ConvertError, FiveAxisReason, ParseError, ParseErrorKind};
 pub use expr::{MAX_EXPRESSION_DEPTH, NEAR_INT_TOL, PARAMETER_COUNT};
 pub use moves::{

@@ -1,4 +1,5 @@
-//! `parse(emit(p)) == p` on random programs, and on the fixture programs.
+//! `parse(emit(p)) == p` on random programs, and on the fixture programs;
+//! `gcode::Emit` block by block writes what `emit` writes.
 //! Numbers are written in shortest round-trip form, so equality is exact.
 
 use gcode::{
@@ -368,6 +369,14 @@ proptest! {
         let text = emit(&program);
         let back = parse(&text).map_err(|e| TestCaseError::fail(format!("{e}\n{text}")))?;
         prop_assert_eq!(without_lines(&back), without_lines(&program), "{}", text);
+        // Block by block, taken after each: the same text.
+        let mut e = gcode::Emit::default();
+        let mut streamed = e.take();
+        for b in &program.blocks {
+            e.block(&b.kind);
+            streamed += &e.take();
+        }
+        prop_assert_eq!(streamed, text);
     }
 
     /// Arbitrary text never panics the parser (the fuzzer does this at length).

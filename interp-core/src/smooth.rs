@@ -13,7 +13,10 @@
 //!   and second derivative (the next piece's first three control points are
 //!   fixed by the previous piece's end), so the schedule sees one
 //!   curvature-continuous curve. Every piece is checked against the
-//!   polyline before it is emitted ([`Smoother`] docs: the check).
+//!   polyline before it is emitted ([`Smoother`] docs: the check), and a
+//!   piece slower than [`crate::plan::stop_speed`] anywhere (micro-moves
+//!   turning sharply fit with a radius of nanometres) is refused as a blend
+//!   is below: the run is cut before the turn, which becomes a corner.
 //! - **Corners between line moves** that stay lines get a quintic Bézier
 //!   blend whose three first and three last control points lie on the two
 //!   lines: tangent and curvature (zero) continuous with both. Its size is
@@ -612,10 +615,7 @@ impl<const W: usize> Smoother<W> {
             let ub = [0.0, d, l];
             if check(&curve, &poly, &ub, tol, blend_m2(&pts, l)) {
                 // Useful: faster than a stop at its tightest point.
-                let slowest = (0..=16)
-                    .map(|i| machine_limit(&curve.eval(l * i as f64 / 16.0, 3), &self.cfg, 1.0))
-                    .fold(f64::INFINITY, f64::min);
-                if slowest < crate::plan::stop_speed(&self.cfg) {
+                if slower_than_a_stop(&curve, &self.cfg) {
                     return None;
                 }
                 return Some((curve, d));
@@ -663,11 +663,21 @@ impl<const W: usize> Smoother<W> {
             if m < k_min {
                 continue;
             }
+            let cfg = &self.cfg;
             let mut attempt = |k: usize| {
                 let end = if k == m { end_dir } else { None };
-                fit_piece(&q[..=k], &t[..=k], *join, end, tol, &mut scratch).or_else(|| {
-                    end.and_then(|_| fit_piece(&q[..=k], &t[..=k], *join, None, tol, &mut scratch))
-                })
+                fit_piece(&q[..=k], &t[..=k], *join, end, tol, &mut scratch)
+                    .or_else(|| {
+                        end.and_then(|_| {
+                            fit_piece(&q[..=k], &t[..=k], *join, None, tol, &mut scratch)
+                        })
+                    })
+                    // A piece slower than a stop somewhere (a sharp turn
+                    // of micro-moves fitted with a tiny radius) is worse
+                    // than stopping there: its slow point limits a whole
+                    // law sub-range of the schedule. Shorter runs, ending
+                    // before the turn, are tried instead.
+                    .filter(|c| !slower_than_a_stop(c, cfg))
             };
             // The whole run first, then bisection for the longest that passes.
             let mut best = attempt(m).map(|c| (m, c));
@@ -776,6 +786,23 @@ fn blend_m2(pts: &[Vec3; 6], l: f64) -> f64 {
 /// The check of [`Smoother`]: every point of `curve` within `tol` of the
 /// polyline `q` (parameters `ub` on the curve), and every vertex within `tol`
 /// of the curve point at its parameter. `m2` bounds `|C''|`.
+/// Samples per knot span in [`slower_than_a_stop`].
+const SPEED_SAMPLES: usize = 16;
+
+/// Whether the machine law somewhere on `curve` (sampled per knot span) is
+/// below [`crate::plan::stop_speed`]: passing there costs more than an exact
+/// stop (see the module docs).
+fn slower_than_a_stop(curve: &Nurbs, cfg: &InterpConfig) -> bool {
+    let stop = crate::plan::stop_speed(cfg);
+    let k = curve.knots();
+    k.windows(2).filter(|w| w[1] > w[0]).any(|w| {
+        (0..=SPEED_SAMPLES).any(|i| {
+            let u = w[0] + (w[1] - w[0]) * i as f64 / SPEED_SAMPLES as f64;
+            machine_limit(&curve.eval(u, 3), cfg, 1.0) < stop
+        })
+    })
+}
+
 fn check(curve: &Nurbs, q: &[Vec3], ub: &[f64], tol: f64, m2: f64) -> bool {
     let k = q.len() - 1;
     // Parameter step whose sagitta bound is SAG_SHARE of the tolerance.

@@ -197,9 +197,15 @@ pub struct Moves {
 /// Builds a program path by path: a rapid across at the safe height, a rapid
 /// down to the approach clearance above the first point, a plunge at the
 /// plunge feed, the cut at the feed, and a rapid retract straight up.
+///
+/// The blocks wait in the writer until [`PathWriter::drain`] hands them on
+/// (a program written as it is made never holds more than one path) or
+/// [`PathWriter::into_program`] makes the program of those not drained.
 #[derive(Debug)]
 pub struct PathWriter {
     blocks: Vec<gcode::ProgramBlock>,
+    /// Blocks handed on by `drain` (line numbers go on after them).
+    drained: u32,
     /// Where the tool is (`None` before the first move: wherever the machine is).
     at: Option<[f64; 3]>,
     moves: Moves,
@@ -210,6 +216,7 @@ impl PathWriter {
     pub fn new(moves: Moves) -> Self {
         let mut w = PathWriter {
             blocks: Vec::new(),
+            drained: 0,
             at: None,
             moves,
         };
@@ -222,9 +229,26 @@ impl PathWriter {
         w
     }
 
+    /// The line number of the next block.
+    fn next_line(&self) -> u32 {
+        self.drained + self.blocks.len() as u32 + 1
+    }
+
     fn push(&mut self, kind: gcode::BlockKind) {
-        let line = self.blocks.len() as u32 + 1;
+        let line = self.next_line();
         self.blocks.push(gcode::ProgramBlock { line, kind });
+    }
+
+    /// Hands on the blocks written since the last call, in order.
+    pub fn drain(&mut self) -> std::vec::Drain<'_, gcode::ProgramBlock> {
+        self.drained += self.blocks.len() as u32;
+        self.blocks.drain(..)
+    }
+
+    /// Ends the program (M2) and hands on the blocks not drained yet.
+    pub fn finish(&mut self) -> std::vec::Drain<'_, gcode::ProgramBlock> {
+        self.push(gcode::BlockKind::ProgramEnd);
+        self.drain()
     }
 
     fn rapid_to(&mut self, end: [f64; 3]) {
@@ -267,7 +291,7 @@ impl PathWriter {
 
     /// A NURBS curve (G6.2) at the cutting feed.
     pub fn nurbs(&mut self, b: &crate::fit::NurbsBlock) {
-        let first_line = self.blocks.len() as u32 + 1;
+        let first_line = self.next_line();
         let feed = gcode::Feed::PerMinute(self.moves.feed);
         self.push(gcode::BlockKind::Nurbs(gcode::NurbsMove {
             first_line,
@@ -302,6 +326,43 @@ impl PathWriter {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_drained_writer_hands_on_the_program_it_would_make() {
+        let moves = Moves {
+            safe_z: 5.0,
+            approach_clearance: 1.0,
+            plunge_feed: 300.0,
+            feed: 1200.0,
+            blend_tolerance: Some(0.001),
+        };
+        let paths = [
+            [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]],
+            [[3.0, 1.0, 0.5], [4.0, 2.0, 0.0]],
+        ];
+        let write = |w: &mut PathWriter, drained: &mut Vec<gcode::ProgramBlock>, drain: bool| {
+            for p in &paths {
+                w.enter(p[0]);
+                w.cut_to(p[1]);
+                w.leave();
+                if drain {
+                    drained.extend(w.drain());
+                }
+            }
+        };
+        let mut whole = PathWriter::new(moves);
+        write(&mut whole, &mut Vec::new(), false);
+        let whole = whole.into_program().blocks;
+        let mut w = PathWriter::new(moves);
+        let mut drained = Vec::new();
+        write(&mut w, &mut drained, true);
+        drained.extend(w.finish());
+        // Same blocks, same line numbers, whether drained or not.
+        assert_eq!(drained, whole);
+        // G64 P; a path from wherever the machine is (down, plunge, cut, up); one
+        // from the last (across, down, plunge, cut, up); M2.
+        assert_eq!(whole.len(), 11);
+    }
 
     #[test]
     fn reads_g1_runs_without_their_plunge_and_refuses_arcs_naming_the_line() {

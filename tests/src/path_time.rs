@@ -102,11 +102,22 @@ pub fn interpolated_run(
     cfg: &InterpConfig,
     keep: bool,
 ) -> Result<(f64, Vec<Vec3>), String> {
+    interpolated_run_within(blocks, cfg, keep, MAX_TICKS)
+}
+
+/// [`interpolated_run`], abandoned as an error after `max_ticks` ticks (a
+/// test that bounds the path time fails as soon as the bound is passed).
+pub fn interpolated_run_within(
+    blocks: &[Block],
+    cfg: &InterpConfig,
+    keep: bool,
+    max_ticks: u64,
+) -> Result<(f64, Vec<Vec3>), String> {
     // An Interpolator<1024> is about 1.6 MB: build it on a thread with room for it.
     let (blocks, cfg) = (blocks.to_vec(), *cfg);
     std::thread::Builder::new()
         .stack_size(INTERPOLATOR_STACK)
-        .spawn(move || run_to_done(&blocks, &cfg, keep))
+        .spawn(move || run_to_done(&blocks, &cfg, keep, max_ticks))
         .map_err(|e| e.to_string())?
         .join()
         .map_err(|_| "interpolator thread panicked".to_string())?
@@ -171,16 +182,23 @@ pub struct ProgramRun {
     pub max_chord_deviation: f64,
 }
 
-/// Runs `blocks` as a driver does (stage, then interpolator) and measures
-/// the setpoints against the programmed path.
+/// Runs `blocks` as a driver does (stage, then interpolator) and, with
+/// `deviation`, measures the setpoints against the programmed path (NaN
+/// without: on curves at high feed the reference search halves every chord
+/// down to its resolution, minutes per program).
 pub fn program_run(
     blocks: &[Block],
     cfg: &InterpConfig,
     policy: Policy,
+    deviation: bool,
 ) -> Result<ProgramRun, String> {
     let (out, stats) = smoothed(blocks, cfg, policy);
-    let (ours, pts) = interpolated_run(&out, cfg, true)?;
-    let (max_point_deviation, max_chord_deviation) = programmed_path(blocks).deviation(&pts);
+    let (ours, pts) = interpolated_run(&out, cfg, deviation)?;
+    let (max_point_deviation, max_chord_deviation) = if deviation {
+        programmed_path(blocks).deviation(&pts)
+    } else {
+        (f64::NAN, f64::NAN)
+    };
     Ok(ProgramRun {
         times: PathTimes {
             ours,
@@ -205,11 +223,12 @@ fn run_to_done(
     blocks: &[Block],
     cfg: &InterpConfig,
     keep: bool,
+    max_ticks: u64,
 ) -> Result<(f64, Vec<Vec3>), String> {
     let p = blocks[0].path.start_point();
     let mut run: Run<1024> = Run::new(*cfg, [p.x, p.y, p.z, 0.0, 0.0, 0.0])
         .map_err(|e| format!("{e:?}"))?
-        .with_tick_limit(MAX_TICKS);
+        .with_tick_limit(max_ticks);
     let mut pts = Vec::new();
     if keep {
         pts.push(p);

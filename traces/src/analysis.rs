@@ -20,6 +20,11 @@ use crate::reader::Trace;
 /// Samples per tick in the chord-error search (then golden section), as `interpd demo`.
 pub const CHORD_SAMPLES: usize = 16;
 
+/// Fraction of the path jerk limit a tangential jerk must pass to count as
+/// signed in [`Summary::jerk_sign_changes`] (a dead band, so that rounding
+/// and grid effects about zero are not counted as sign changes).
+pub const JERK_SIGN_THRESHOLD: f64 = 0.01;
+
 /// Derived values at one setpoint.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct Sample {
@@ -80,6 +85,16 @@ pub struct Summary {
     pub max_tangential_accel_mm_s2: f64,
     /// Largest |tangential jerk| on a path, mm/s³.
     pub max_tangential_jerk_mm_s3: f64,
+    /// Times the tangential jerk changed sign: from above
+    /// [`JERK_SIGN_THRESHOLD`] × the path jerk limit to below minus that, or
+    /// back (a jerk that rests at 0 between two phases of opposite sign counts
+    /// once, rounding noise about 0 not at all). A jerk-limited schedule
+    /// changes sign a few times per speed change; chatter shows as hundreds.
+    pub jerk_sign_changes: u64,
+    /// Machine time with the path moving (feed > 0), s.
+    pub motion_time_s: f64,
+    /// `jerk_sign_changes / motion_time_s`, 1/s (0 without motion).
+    pub jerk_sign_changes_per_s: f64,
     /// Largest centripetal acceleration, mm/s².
     pub max_centripetal_accel_mm_s2: f64,
     /// Smallest and largest relative MRR while cutting (feed > 0) on blocks
@@ -102,6 +117,10 @@ pub struct Analyzer {
     segments: BTreeMap<u32, Block>,
     prev: Setpoint,
     prev_accel: f64,
+    /// Sign of the last tangential jerk outside the dead band (0: none yet).
+    jerk_sign: i8,
+    /// The dead band's half width, mm/s³.
+    jerk_dead_band: f64,
     summary: Summary,
     mrr_range: Option<[f64; 2]>,
     /// A segment id was reused since the last setpoint: a new program of a
@@ -146,6 +165,9 @@ impl Analyzer {
                 max_turn_speed_deg_s: None,
                 max_tangential_accel_mm_s2: 0.0,
                 max_tangential_jerk_mm_s3: 0.0,
+                jerk_sign_changes: 0,
+                motion_time_s: 0.0,
+                jerk_sign_changes_per_s: 0.0,
                 max_centripetal_accel_mm_s2: 0.0,
                 relative_mrr_range: None,
                 final_state: "idle".into(),
@@ -156,6 +178,8 @@ impl Analyzer {
             segments,
             prev,
             prev_accel: 0.0,
+            jerk_sign: 0,
+            jerk_dead_band: JERK_SIGN_THRESHOLD * config.interp.max_path_jerk,
             mrr_range: None,
             new_program: false,
             machine: crate::messages::run_machine(config),
@@ -294,6 +318,18 @@ impl Analyzer {
             m.max_tangential_accel_mm_s2 = m.max_tangential_accel_mm_s2.max(accel.abs());
             m.max_tangential_jerk_mm_s3 = m.max_tangential_jerk_mm_s3.max(jerk.abs());
         }
+        if sp.feed > 0.0 || self.prev.feed > 0.0 {
+            m.motion_time_s += dt;
+        }
+        // Only consecutive ticks give a jerk (a gap's is a difference over
+        // several periods, not the schedule's); a turn's is in deg/s³.
+        if !turning && ticks == 1 && jerk.abs() > self.jerk_dead_band {
+            let sign = if jerk > 0.0 { 1 } else { -1 };
+            if self.jerk_sign != 0 && sign != self.jerk_sign {
+                m.jerk_sign_changes += 1;
+            }
+            self.jerk_sign = sign;
+        }
         m.max_centripetal_accel_mm_s2 = m.max_centripetal_accel_mm_s2.max(s.centripetal_accel);
         if let (Some(r), true) = (mrr, sp.feed > 0.0) {
             let range = self.mrr_range.get_or_insert([r, r]);
@@ -325,9 +361,15 @@ impl Analyzer {
 
     /// The summary so far.
     pub fn summary(&self) -> Summary {
+        let m = &self.summary;
         Summary {
             relative_mrr_range: self.mrr_range,
-            ..self.summary.clone()
+            jerk_sign_changes_per_s: if m.motion_time_s > 0.0 {
+                m.jerk_sign_changes as f64 / m.motion_time_s
+            } else {
+                0.0
+            },
+            ..m.clone()
         }
     }
 }
@@ -509,6 +551,11 @@ impl fmt::Display for Summary {
             f,
             "  tangential    max |accel| {:.3} mm/s², max |jerk| {:.6e} mm/s³",
             self.max_tangential_accel_mm_s2, self.max_tangential_jerk_mm_s3
+        )?;
+        writeln!(
+            f,
+            "  jerk sign     {} changes in {:.3} s of motion ({:.2}/s)",
+            self.jerk_sign_changes, self.motion_time_s, self.jerk_sign_changes_per_s
         )?;
         writeln!(
             f,

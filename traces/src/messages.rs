@@ -307,6 +307,10 @@ pub enum EventKind {
     Commit,
     /// The end of the program was applied (`Interpolator::finish`).
     Finish,
+    /// The interpolator left `done` for the next program of a session: the
+    /// finished program is cleared as an abort clears it (replay applies
+    /// it so), but no operator asked for it, so it is not an `abort`.
+    NextProgram,
 }
 
 /// `/interpd/events`: one event.

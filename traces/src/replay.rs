@@ -303,6 +303,7 @@ fn follow_schedule(
                 | EventKind::Resume
                 | EventKind::Override
                 | EventKind::Abort
+                | EventKind::NextProgram
                 | EventKind::Finish
         )
     });
@@ -417,7 +418,8 @@ fn follow_schedule(
                         ip.set_feed_override(v)
                             .map_err(|err| bad(e, err.to_string()))?;
                     }
-                    EventKind::Abort => {
+                    // Leaving `done` for the next program clears as an abort does.
+                    EventKind::Abort | EventKind::NextProgram => {
                         ip.abort();
                         pending.clear();
                         pipe = None;

@@ -18,10 +18,11 @@ use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
+use crate::client::conn::{Connection, Endpoint, connect};
 use crate::protocol::Reply;
 use crate::service::control::{Phase, StatusReply};
-use anyhow::{Context, Error, Result, anyhow, bail};
-use tokio::io::{AsyncBufReadExt, AsyncRead, AsyncWrite, AsyncWriteExt, BufReader};
+use anyhow::{Context, Result, bail};
+use tokio::io::{AsyncRead, AsyncWrite};
 
 /// Requests in flight at most.
 pub const WINDOW: usize = 8;
@@ -29,6 +30,8 @@ pub const WINDOW: usize = 8;
 pub const STALL: Duration = Duration::from_millis(100);
 /// Status poll interval while waiting for the end.
 const POLL: Duration = Duration::from_millis(50);
+/// How often `--wait-turn` asks for a program again while the server is busy.
+pub const TURN_POLL: Duration = Duration::from_millis(100);
 
 /// Options of `interpd send`.
 #[derive(Clone, Debug, PartialEq)]
@@ -44,6 +47,10 @@ pub struct SendOptions {
     pub token: Option<String>,
     /// Do not wait for the program to finish.
     pub no_wait: bool,
+    /// When the server is busy with another connection's program, wait
+    /// for it to end and take the next turn (polling `begin` every
+    /// [`TURN_POLL`]) instead of failing at once.
+    pub wait_turn: bool,
     /// Print the final status as JSON.
     pub json: bool,
     /// No progress output.
@@ -81,48 +88,29 @@ pub fn program_lines(path: &Path, start: [f64; 6], server: &StatusReply) -> Resu
 /// machine): [`program_lines`] for a file.
 pub type Loader<'a> = dyn Fn([f64; 6], &StatusReply) -> Result<Vec<String>> + 'a;
 
+impl SendOptions {
+    /// Where the server listens: `socket`, else `addr`.
+    pub fn endpoint(&self) -> Endpoint {
+        match &self.socket {
+            Some(p) => Endpoint::Unix(p.clone()),
+            None => Endpoint::Tcp(self.addr),
+        }
+    }
+}
+
 /// Sends `start` on a connection of its own (authenticated like the stream).
 async fn start_aside(args: &SendOptions) -> Result<()> {
-    async fn ask<S: AsyncRead + AsyncWrite + Unpin>(io: S, args: &SendOptions) -> Result<()> {
-        let (rd, mut wr) = tokio::io::split(io);
-        let mut rd = BufReader::new(rd).lines();
-        if let Some(t) = &args.token {
-            wr.write_all(format!("auth {t}\n").as_bytes()).await?;
-        }
-        wr.write_all(b"start\n").await?;
-        let expected = if args.token.is_some() { 2 } else { 1 };
-        for _ in 0..expected {
-            let r = rd
-                .next_line()
-                .await?
-                .ok_or_else(|| anyhow!("the server closed the start connection"))?;
-            if let Reply::Err { problem, .. } = Reply::parse(&r).map_err(Error::msg)? {
-                // Not fatal: the program's own end decides how `send` exits.
-                eprintln!("interpd send: {problem}");
-            }
-        }
-        Ok(())
+    let mut c = connect(&args.endpoint())
+        .await
+        .context("connecting for start")?;
+    if let Some(t) = &args.token {
+        c.auth(t).await?;
     }
-    match &args.socket {
-        Some(p) => {
-            ask(
-                tokio::net::UnixStream::connect(p)
-                    .await
-                    .with_context(|| format!("connecting to {} for start", p.display()))?,
-                args,
-            )
-            .await
-        }
-        None => {
-            ask(
-                tokio::net::TcpStream::connect(args.addr)
-                    .await
-                    .with_context(|| format!("connecting to {} for start", args.addr))?,
-                args,
-            )
-            .await
-        }
+    if let Reply::Err { problem, .. } = c.request("start").await? {
+        // Not fatal: the program's own end decides how `send` exits.
+        eprintln!("interpd send: {problem}");
     }
+    Ok(())
 }
 
 /// How a `send` ended.
@@ -187,48 +175,56 @@ fn bar(done: usize, total: usize) -> String {
 /// point and the machine's rapid speed, then `end` and `start`, then follows
 /// that program to its end. Returns how it ended and the final status line (JSON).
 pub async fn stream<S: AsyncRead + AsyncWrite + Unpin>(
-    io: S,
+    mut conn: Connection<S>,
     load: &Loader<'_>,
     args: &SendOptions,
 ) -> Result<(Outcome, String)> {
-    let (rd, mut wr) = tokio::io::split(io);
-    let mut rd = BufReader::new(rd).lines();
-    let gone = "the server closed the connection (it stopped or crashed)";
-    let next_reply = async |rd: &mut tokio::io::Lines<BufReader<_>>| -> Result<Reply> {
-        let line = rd
-            .next_line()
-            .await
-            .context(gone)?
-            .ok_or_else(|| anyhow!(gone))?;
-        Reply::parse(&line).map_err(Error::msg)
-    };
-    let send = async |wr: &mut tokio::io::WriteHalf<S>, line: &str| -> Result<()> {
-        wr.write_all(format!("{line}\n").as_bytes())
-            .await
-            .context(gone)
-    };
     if let Some(t) = &args.token {
-        send(&mut wr, &format!("auth {t}")).await?;
-        if let Reply::Err { problem, .. } = next_reply(&mut rd).await? {
-            bail!("authentication failed: {problem}");
-        }
+        conn.auth(t).await?;
     }
-    send(&mut wr, "begin").await?;
-    let (program, at) = match next_reply(&mut rd).await? {
-        Reply::Begin { program, at } => (program, at),
-        Reply::Err { problem, .. } => bail!("the server refused a new program: {problem}"),
-        other => bail!("unexpected reply to begin: {other}"),
+    let mut sigint = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::interrupt())
+        .context("installing the Ctrl-C handler")?;
+    // A busy server names the program that holds the machine: without
+    // `--wait-turn` that is the answer; with it, ask again until our turn.
+    let waiting_since = Instant::now();
+    let mut told = false;
+    let (program, at) = loop {
+        match conn.request("begin").await? {
+            Reply::Begin { program, at } => {
+                // Said even with --quiet: two lines, not progress.
+                if told {
+                    eprintln!(
+                        "interpd send: our turn after {:.1} s: program {program}",
+                        waiting_since.elapsed().as_secs_f64()
+                    );
+                }
+                break (program, at);
+            }
+            Reply::Err { problem, .. } if problem.starts_with("busy") && args.wait_turn => {
+                if !told {
+                    eprintln!("interpd send: {problem}; waiting for its end (--wait-turn)");
+                }
+                told = true;
+                tokio::select! {
+                    _ = tokio::time::sleep(TURN_POLL) => {}
+                    _ = sigint.recv() => bail!(
+                        "interrupted while waiting for the turn (nothing was sent)"
+                    ),
+                }
+            }
+            Reply::Err { problem, .. } if problem.starts_with("busy") => bail!(
+                "the server refused a new program: {problem} \
+                 (send --wait-turn waits for it to end)"
+            ),
+            Reply::Err { problem, .. } => bail!("the server refused a new program: {problem}"),
+            other => bail!("unexpected reply to begin: {other}"),
+        }
     };
-    send(&mut wr, "status").await?;
-    let Reply::Status(st) = next_reply(&mut rd).await? else {
-        bail!("no status from the server");
-    };
+    let st = conn.status().await?;
     let lines = load(at, &st)?;
     if lines.is_empty() {
         bail!("{} has no blocks", args.program.display());
     }
-    let mut sigint = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::interrupt())
-        .context("installing the Ctrl-C handler")?;
     let mut progress = Progress {
         tty: std::io::stderr().is_terminal(),
         quiet: args.quiet,
@@ -242,14 +238,14 @@ pub async fn stream<S: AsyncRead + AsyncWrite + Unpin>(
     let mut interrupted = false;
     while acked < total && refused.is_none() {
         while sent < total && expect.len() < WINDOW {
-            send(&mut wr, &lines[sent])
+            conn.send_line(&lines[sent])
                 .await
                 .with_context(|| format!("sending block {} of {total}", sent + 1))?;
             sent += 1;
             expect.push_back(Expect::Block);
         }
         tokio::select! {
-            r = tokio::time::timeout(STALL, next_reply(&mut rd)) => match r {
+            r = tokio::time::timeout(STALL, conn.reply()) => match r {
                 Err(_) => {
                     // Back-pressure: the queue is full; let the machine run.
                     // `start` goes over a second connection: on this one it
@@ -279,37 +275,34 @@ pub async fn stream<S: AsyncRead + AsyncWrite + Unpin>(
         }
     }
     // Replies still owed are read by `request` below in order.
-    let request = async |wr: &mut tokio::io::WriteHalf<S>,
-                         rd: &mut tokio::io::Lines<BufReader<tokio::io::ReadHalf<S>>>,
+    let request = async |conn: &mut Connection<S>,
                          expect: &mut VecDeque<Expect>,
                          req: &str|
            -> Result<Reply> {
-        send(wr, req).await?;
+        conn.send_line(req).await?;
         while expect.pop_front().is_some() {
-            next_reply(rd).await?;
+            conn.reply().await?;
         }
-        next_reply(rd).await
+        conn.reply().await
     };
-    let status = async |wr: &mut tokio::io::WriteHalf<S>,
-                        rd: &mut tokio::io::Lines<BufReader<tokio::io::ReadHalf<S>>>,
-                        expect: &mut VecDeque<Expect>|
-           -> Result<StatusReply> {
-        match request(wr, rd, expect, "status").await? {
-            Reply::Status(s) => Ok(*s),
-            other => bail!("unexpected reply to status: {other}"),
-        }
-    };
+    let status =
+        async |conn: &mut Connection<S>, expect: &mut VecDeque<Expect>| -> Result<StatusReply> {
+            match request(conn, expect, "status").await? {
+                Reply::Status(s) => Ok(*s),
+                other => bail!("unexpected reply to status: {other}"),
+            }
+        };
     let json = |s: &StatusReply| serde_json::to_string(s).unwrap_or_default();
     if interrupted || refused.is_some() {
         progress.done();
         if interrupted {
             eprintln!("interpd send: interrupted: hold, then abort");
-            request(&mut wr, &mut rd, &mut expect, "hold").await?;
+            request(&mut conn, &mut expect, "hold").await?;
         }
-        if let Reply::Err { problem, .. } = request(&mut wr, &mut rd, &mut expect, "abort").await? {
+        if let Reply::Err { problem, .. } = request(&mut conn, &mut expect, "abort").await? {
             eprintln!("interpd send: abort: {problem}");
         }
-        let st = status(&mut wr, &mut rd, &mut expect).await?;
+        let st = status(&mut conn, &mut expect).await?;
         return Ok((
             match refused {
                 Some(e) => Outcome::Refused(e),
@@ -318,16 +311,25 @@ pub async fn stream<S: AsyncRead + AsyncWrite + Unpin>(
             json(&st),
         ));
     }
-    if let Reply::Err { problem, .. } = request(&mut wr, &mut rd, &mut expect, "end").await? {
+    if let Reply::Err { problem, .. } = request(&mut conn, &mut expect, "end").await? {
         bail!("end refused: {problem}");
     }
-    if !started
-        && let Reply::Err { problem, .. } = request(&mut wr, &mut rd, &mut expect, "start").await?
+    if !started && let Reply::Err { problem, .. } = request(&mut conn, &mut expect, "start").await?
     {
         eprintln!("interpd send: {problem}");
     }
     loop {
-        let st = status(&mut wr, &mut rd, &mut expect).await?;
+        let st = status(&mut conn, &mut expect).await?;
+        // The next program (a `--wait-turn` client's) may be claimed the
+        // moment ours is over: the status still says how ours ended.
+        if st.program != program && st.previous_program == program {
+            progress.done();
+            let outcome = match st.previous_phase {
+                Phase::Done => Outcome::Done,
+                phase => Outcome::Ended { program, phase },
+            };
+            return Ok((outcome, json(&st)));
+        }
         if st.program != program {
             progress.done();
             return Ok((
@@ -372,9 +374,9 @@ pub async fn stream<S: AsyncRead + AsyncWrite + Unpin>(
             _ = sigint.recv() => {
                 progress.done();
                 eprintln!("interpd send: interrupted: hold, then abort");
-                request(&mut wr, &mut rd, &mut expect, "hold").await?;
-                request(&mut wr, &mut rd, &mut expect, "abort").await?;
-                let st = status(&mut wr, &mut rd, &mut expect).await?;
+                request(&mut conn, &mut expect, "hold").await?;
+                request(&mut conn, &mut expect, "abort").await?;
+                let st = status(&mut conn, &mut expect).await?;
                 return Ok((Outcome::Interrupted, json(&st)));
             }
         }

@@ -129,8 +129,12 @@ pub struct WatchSummary {
 
 /// Runs `watch`; fails when samples were missed.
 pub fn main(args: &WatchOptions) -> Result<()> {
-    if !(args.liveness.is_finite() && args.liveness > 0.0) {
-        bail!("--liveness must be a positive number of seconds");
+    crate::flags::LIVENESS.check("--liveness", args.liveness)?;
+    if let Some(s) = args.seconds {
+        crate::flags::SECONDS.check("--seconds", s)?;
+    }
+    if let Some(f) = args.check_feed {
+        crate::flags::FEED.check("--check-feed", f)?;
     }
     let node_name = format!("interpd_watch_{}", std::process::id());
     let mut sub = SetpointSubscriber::new(&node_name, &args.service)?;
@@ -164,11 +168,6 @@ pub fn main(args: &WatchOptions) -> Result<()> {
         measured: None,
     };
     let mut check = TickCheck::new(args);
-    if let Some(f) = args.check_feed
-        && !(f.is_finite() && f > 0.0)
-    {
-        bail!("--check-feed must be a positive number of mm/min, got {f}");
-    }
     let mut moved = false;
     let mut last_rx = Instant::now();
     'outer: loop {

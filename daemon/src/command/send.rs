@@ -2,7 +2,8 @@
 //! ([`interpd::client::send`]) and exits non-zero unless its program reached
 //! `done`.
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
+use interpd::client::conn::connect;
 use interpd::client::send::{Outcome, SendOptions, program_lines, stream};
 
 /// Runs `send`.
@@ -13,23 +14,8 @@ pub fn run(args: &SendOptions) -> Result<()> {
     let load = |start: [f64; 6], server: &interpd::service::control::StatusReply| {
         program_lines(&args.program, start, server)
     };
-    let (code, status) = rt.block_on(async {
-        match &args.socket {
-            Some(p) => {
-                let s = tokio::net::UnixStream::connect(p)
-                    .await
-                    .with_context(|| format!("connecting to {}", p.display()))?;
-                stream(s, &load, args).await
-            }
-            None => {
-                let s = tokio::net::TcpStream::connect(args.addr)
-                    .await
-                    .with_context(|| format!("connecting to {}", args.addr))?;
-                s.set_nodelay(true).ok();
-                stream(s, &load, args).await
-            }
-        }
-    })?;
+    let (code, status) =
+        rt.block_on(async { stream(connect(&args.endpoint()).await?, &load, args).await })?;
     if args.json {
         println!("{status}");
     } else {

@@ -104,6 +104,10 @@ fn check_tolerance<'a>(
 
 /// `interpd plan gouge`.
 pub fn gouge_main(a: &GougeOptions) -> Result<()> {
+    use crate::flags::{PLAN_TOLERANCE, STEP};
+    PLAN_TOLERANCE.check("--tol", a.tol)?;
+    STEP.check("--sample-spacing", a.sample_spacing)?;
+    STEP.check("--grid-step", a.grid_step)?;
     let cutter: Cutter = a.tool.parse()?;
     let config = GougeConfig {
         tolerance: a.tol,
@@ -235,6 +239,9 @@ fn predict_runs(
 
 /// `interpd plan fit`.
 pub fn fit_main(a: &FitOptions) -> Result<()> {
+    use crate::flags::{PLAN_TOLERANCE, PLAN_TOLERANCE_OR_ZERO};
+    PLAN_TOLERANCE.check("--tol", a.tol)?;
+    PLAN_TOLERANCE_OR_ZERO.check("--gouge-tol", a.gouge_tol)?;
     let cfg = FitConfig {
         tolerance: a.tol,
         degree: a.degree,

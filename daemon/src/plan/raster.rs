@@ -1,7 +1,8 @@
 //! `interpd plan raster`: 3-axis raster finishing over an STL mesh by slicing
 //! the offset triangle mesh (`planner::raster`, seed `001_…`).
 //!
-//! Writes G-code (`--out`) through `gcode::emit`: for each polyline a rapid
+//! Writes G-code (`--out`) through the `gcode` emitter as it is made, path by
+//! path (`gcode::Emit`; never the whole program in memory): for each polyline a rapid
 //! across at the safe height, a rapid down to just above its start, a plunge
 //! at the plunge feed, the cut at the feed, and a rapid retract straight up to
 //! the safe height. `--json` prints a summary on stdout;
@@ -80,26 +81,25 @@ struct Summary {
     out: Option<String>,
 }
 
+/// Refuses a flag out of its range (`crate::flags`): rapids cross at the
+/// part's top plus `--clearance`, never below it; `--blend-tolerance` 0 is
+/// no G64.
+fn check_ranges(args: &RasterOptions) -> Result<()> {
+    use crate::flags::{CLEARANCE, FEED, PASS_ANGLE, PLAN_TOLERANCE, PLAN_TOLERANCE_OR_ZERO, STEP};
+    FEED.check("--feed", args.feed)?;
+    FEED.check("--plunge-feed", args.plunge_feed)?;
+    PLAN_TOLERANCE_OR_ZERO.check("--blend-tolerance", args.blend_tolerance)?;
+    PLAN_TOLERANCE_OR_ZERO.check("--weld-tolerance", args.weld_tolerance)?;
+    CLEARANCE.check("--clearance", args.clearance)?;
+    STEP.check("--stepover", args.stepover)?;
+    PASS_ANGLE.check("--angle", args.angle)?;
+    PLAN_TOLERANCE.check("--chord-tolerance", args.chord_tolerance)?;
+    Ok(())
+}
+
 /// Runs `interpd plan raster`.
 pub fn main(args: &RasterOptions) -> Result<()> {
-    for (flag, v) in [("--feed", args.feed), ("--plunge-feed", args.plunge_feed)] {
-        if !(v.is_finite() && v > 0.0) {
-            bail!("{flag} must be a positive number of mm/min, got {v}");
-        }
-    }
-    if !(args.blend_tolerance.is_finite() && args.blend_tolerance >= 0.0) {
-        bail!(
-            "--blend-tolerance must be a finite number of mm >= 0 (0: no G64), got {}",
-            args.blend_tolerance
-        );
-    }
-    if !(args.clearance.is_finite() && args.clearance >= 0.0) {
-        bail!(
-            "--clearance must be a finite number >= 0 (rapids cross at the part's top plus it, \
-             never below the top), got {}",
-            args.clearance
-        );
-    }
+    check_ranges(args)?;
     let t0 = Instant::now();
     let mesh = TriMesh::from_stl_path(
         &args.stl,
@@ -192,12 +192,21 @@ pub fn main(args: &RasterOptions) -> Result<()> {
 /// without gouging (the CL height is the lowest it can go there).
 const APPROACH_CLEARANCE: f64 = 1.0;
 
-/// Turns the path into a program for the `gcode` emitter
-/// ([`PathWriter`]): per polyline a rapid across at the safe height, a rapid
-/// down to `APPROACH_CLEARANCE` above its first point, a plunge at the plunge
-/// feed, G1 moves at the feed, and a rapid retract straight up.
-fn raster_program(path: &RasterPath, moves: &Moves) -> gcode::Program {
+/// Writes the path as G-code (a comment naming it, then `gcode::emit`'s
+/// text) through the `gcode` emitter as it is made ([`PathWriter`] then
+/// `gcode::Emit`, path by path): per polyline a rapid across at the safe
+/// height, a rapid down to `APPROACH_CLEARANCE` above its first point, a
+/// plunge at the plunge feed, G1 moves at the feed, and a rapid retract
+/// straight up. Only one polyline's blocks and text are held at a time,
+/// not the whole program (a dense path has millions of moves).
+fn write_raster_gcode(path: &RasterPath, moves: &Moves, out: &mut impl Write) -> Result<()> {
+    writeln!(
+        out,
+        "(interpd plan raster: {} stepover {} angle {})",
+        path.cutter, path.config.stepover, path.config.angle_deg
+    )?;
     let mut w = PathWriter::new(*moves);
+    let mut e = gcode::Emit::default();
     for line in path.passes.iter().flat_map(|p| &p.polylines) {
         let Some(first) = line.first() else { continue };
         w.enter([first.x, first.y, first.z]);
@@ -205,24 +214,21 @@ fn raster_program(path: &RasterPath, moves: &Moves) -> gcode::Program {
             w.cut_to([q.x, q.y, q.z]);
         }
         w.leave();
+        for b in w.drain() {
+            e.block(&b.kind);
+        }
+        out.write_all(e.take().as_bytes())?;
     }
-    w.into_program()
-}
-
-/// The path as G-code text through `gcode::emit`, with a comment naming it.
-fn raster_gcode(path: &RasterPath, moves: &Moves) -> String {
-    format!(
-        "(interpd plan raster: {} stepover {} angle {})\n{}",
-        path.cutter,
-        path.config.stepover,
-        path.config.angle_deg,
-        gcode::emit(&raster_program(path, moves))
-    )
+    for b in w.finish() {
+        e.block(&b.kind);
+    }
+    out.write_all(e.take().as_bytes())?;
+    Ok(())
 }
 
 fn write_gcode(path: &RasterPath, out: &PathBuf, moves: &Moves) -> Result<()> {
     let mut f = BufWriter::new(File::create(out)?);
-    f.write_all(raster_gcode(path, moves).as_bytes())?;
+    write_raster_gcode(path, moves, &mut f)?;
     f.flush()?;
     Ok(())
 }
@@ -307,6 +313,27 @@ mod tests {
         planner::raster::plan_raster(&mesh, &"ball:4".parse().unwrap(), &config).unwrap()
     }
 
+    /// The program built whole and emitted at once (what `plan raster`
+    /// wrote before it streamed).
+    fn whole_program_text(path: &RasterPath, moves: &Moves) -> String {
+        let mut w = PathWriter::new(*moves);
+        for line in path.passes.iter().flat_map(|p| &p.polylines) {
+            let Some(first) = line.first() else { continue };
+            w.enter([first.x, first.y, first.z]);
+            for q in &line[1..] {
+                w.cut_to([q.x, q.y, q.z]);
+            }
+            w.leave();
+        }
+        format!(
+            "(interpd plan raster: {} stepover {} angle {})\n{}",
+            path.cutter,
+            path.config.stepover,
+            path.config.angle_deg,
+            gcode::emit(&w.into_program())
+        )
+    }
+
     #[test]
     fn gcode_parses_back_to_the_same_points_with_safe_retracts() {
         let path = sample_path();
@@ -317,7 +344,12 @@ mod tests {
             plunge_feed: 250.0,
             blend_tolerance: Some(0.001),
         };
-        let text = raster_gcode(&path, &moves);
+        let mut text = Vec::new();
+        write_raster_gcode(&path, &moves, &mut text).unwrap();
+        let text = String::from_utf8(text).unwrap();
+        // Written path by path, byte for byte the text of the whole
+        // program emitted at once.
+        assert_eq!(text, whole_program_text(&path, &moves));
         let program = gcode::parse(&text).expect("emitted G-code parses");
         let lines: Vec<&Vec<P3>> = path.passes.iter().flat_map(|p| &p.polylines).collect();
         assert!(lines.len() >= 2 * path.passes.len(), "expected gaps");

@@ -101,7 +101,7 @@ impl core::fmt::Display for Peer {
 }
 
 /// The current program.
-#[derive(Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Programs {
     /// Its number (0: none yet).
     pub program: u32,
@@ -113,6 +113,11 @@ pub struct Programs {
     pub started: bool,
     /// Blocks accepted into it.
     pub blocks: u32,
+    /// When it was claimed (a busy refusal says how long it has held the machine).
+    pub since: Option<std::time::Instant>,
+    /// The program before it and how it ended (0, `None`: none), so that
+    /// its client learns its fate after the next one was claimed.
+    pub previous: (u32, Phase),
 }
 
 impl Programs {
@@ -124,6 +129,8 @@ impl Programs {
             owner: None,
             started: false,
             blocks: 0,
+            since: None,
+            previous: (0, Phase::None),
         }
     }
 }
@@ -167,6 +174,45 @@ pub struct Stream {
     pub interp: interp_core::InterpConfig,
 }
 
+/// What [`Control::follow`] replaces when the stream moves on to a new
+/// program, kept to put back when the block that claimed it is refused.
+struct StreamMark {
+    queued_to: [f64; 3],
+    queued_tcp: bool,
+    queued_joints: [f64; 6],
+    tail: Option<[f64; 3]>,
+    next_id: u32,
+    index: u32,
+    program: u32,
+    pipeline: Option<traces::Pipeline>,
+}
+
+impl StreamMark {
+    fn take(s: &mut Stream) -> Self {
+        StreamMark {
+            queued_to: s.queued_to,
+            queued_tcp: s.queued_tcp,
+            queued_joints: s.queued_joints,
+            tail: s.tail,
+            next_id: s.next_id,
+            index: s.index,
+            program: s.program,
+            pipeline: s.pipeline.take(),
+        }
+    }
+
+    fn restore(self, s: &mut Stream) {
+        s.queued_to = self.queued_to;
+        s.queued_tcp = self.queued_tcp;
+        s.queued_joints = self.queued_joints;
+        s.tail = self.tail;
+        s.next_id = self.next_id;
+        s.index = self.index;
+        s.program = self.program;
+        s.pipeline = self.pipeline;
+    }
+}
+
 impl core::fmt::Debug for Control {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.debug_struct("Control")
@@ -201,6 +247,12 @@ pub struct StatusReply {
     pub program_phase: Phase,
     /// The connection it belongs to, if one does.
     pub program_owner: Option<String>,
+    /// The program before it (0: none) ...
+    #[serde(default)]
+    pub previous_program: u32,
+    /// ... and how it ended (`done`, `aborted`, `faulted`).
+    #[serde(default = "no_phase")]
+    pub previous_phase: Phase,
     /// The program the interpolator runs (its last commit; 0: none yet).
     pub machine_program: u32,
     /// Interpolator ticks.
@@ -319,22 +371,32 @@ impl Control {
             // Its own ended program still runs: the next one queues behind it.
             Phase::Ended if mine => {}
             Phase::Open | Phase::Ended => {
+                let held = s.since.map_or(0.0, |t| t.elapsed().as_secs_f64());
+                let what = match phase {
+                    Phase::Open => "open",
+                    _ => "running to its end",
+                };
                 return Err(match &s.owner {
-                    Some(o) => format!("busy: program {} belongs to {o}", s.program),
+                    Some(o) => format!(
+                        "busy: program {} belongs to {o} ({what}, claimed {held:.1} s ago)",
+                        s.program
+                    ),
                     None => format!(
-                        "busy: program {} is running to its end (its connection left); \
-                         wait for done or abort it",
+                        "busy: program {} is {what} (its connection left, claimed {held:.1} s \
+                         ago); wait for done or abort it",
                         s.program
                     ),
                 });
             }
             Phase::None | Phase::Done | Phase::Aborted | Phase::Fault => {}
         }
+        s.previous = (s.program, phase);
         s.program += 1;
         s.phase = Phase::Open;
         s.owner = Some(peer.clone());
         s.started = false;
         s.blocks = 0;
+        s.since = Some(std::time::Instant::now());
         Ok(s.program)
     }
 
@@ -384,12 +446,13 @@ impl Control {
                 }
             }
         }
-        let (program, program_phase, program_owner) = {
+        let (program, program_phase, program_owner, (previous_program, previous_phase)) = {
             let s = self.lock_programs();
             (
                 s.program,
                 self.phase(&s),
                 s.owner.as_ref().map(ToString::to_string),
+                s.previous,
             )
         };
         let s = &self.status;
@@ -401,6 +464,8 @@ impl Control {
             program,
             program_phase,
             program_owner,
+            previous_program,
+            previous_phase,
             machine_program: s.program.load(Ordering::Acquire),
             ticks: s.ticks.load(Ordering::Acquire),
             published: s.published.load(Ordering::Acquire),
@@ -501,8 +566,11 @@ impl Control {
                 ));
             }
         }
+        let before = s.clone();
         self.claim(s, peer)?;
         if s.blocks == 0 {
+            // Refused: claims nothing.
+            *s = before;
             return Err(format!("end: program {} has no blocks", s.program));
         }
         s.phase = Phase::Ended;
@@ -586,17 +654,54 @@ impl Control {
     /// Parses and checks one block and sends it through the program's
     /// pipeline; plans and queues what the pipeline releases (waits while
     /// the RT queue is full).
+    ///
+    /// A refused block leaves the service as it was: a program its claim
+    /// made (or took over) is given back, so a client whose first block is
+    /// refused keeps nobody out.
     async fn block(&self, b: &traces::InputBlock, peer: &Peer) -> Result<Reply, String> {
         let epoch = self.abort_epoch.load(Ordering::Acquire);
-        let program = self.claim(&mut self.lock_programs(), peer)?;
+        let (program, undo) = {
+            let mut p = self.lock_programs();
+            let before = p.clone();
+            let program = self.claim(&mut p, peer)?;
+            let claimed = p.program != before.program || p.owner != before.owner;
+            (program, claimed.then_some((before, p.blocks)))
+        };
         let mut s = self.stream.lock().await;
+        let stream_before = (s.program != program).then(|| StreamMark::take(&mut s));
         self.follow(&mut s, program);
+        let r = self.accept_block(&mut s, b, program, epoch).await;
+        if r.is_err()
+            && let Some((before, blocks)) = undo
+        {
+            let mut p = self.lock_programs();
+            // Unless something changed it meanwhile (an abort, a block
+            // accepted), the claim is undone.
+            if p.program == program && p.owner.as_ref() == Some(peer) && p.blocks == blocks {
+                *p = before;
+                if let Some(m) = stream_before {
+                    m.restore(&mut s);
+                }
+            }
+        }
+        r
+    }
+
+    /// [`Self::block`] once claimed: the block through the program's
+    /// pipeline, recorded, its segments queued.
+    async fn accept_block(
+        &self,
+        s: &mut Stream,
+        b: &traces::InputBlock,
+        program: u32,
+        epoch: u64,
+    ) -> Result<Reply, String> {
         let first = s.next_id;
         // Every block of the program passes through its one pipeline.
         let pipeline = match s.pipeline.take() {
             Some(p) => p,
             None => traces::Pipeline::new(
-                self.next_start(&s),
+                self.next_start(s),
                 s.queued_tcp,
                 first,
                 crate::protocol::PIECE_CTRL,
@@ -622,7 +727,7 @@ impl Control {
         s.index += 1;
         self.lock_programs().blocks += 1;
         self.blocks_accepted.fetch_add(1, Ordering::AcqRel);
-        self.queue(&mut s, program, epoch, pieces).await?;
+        self.queue(s, program, epoch, pieces).await?;
         Ok(Reply::Block {
             index: s.index,
             first,
@@ -692,6 +797,10 @@ impl Control {
             }
         }
     }
+}
+
+fn no_phase() -> Phase {
+    Phase::None
 }
 
 /// Lower-case name of a phase, as errors print it.

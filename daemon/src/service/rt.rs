@@ -125,8 +125,11 @@ pub enum Applied {
     Resume,
     /// `set_feed_override` (accepted).
     Override(f64),
-    /// `abort` (an operator abort, or leaving `Done` for a new program).
+    /// `abort`: an operator's.
     Abort,
+    /// `abort` of a finished program, leaving `Done` for the next one
+    /// (recorded apart: no operator asked for it).
+    NextProgram,
     /// `finish`: the program ends after what is queued.
     Finish,
 }

@@ -210,7 +210,7 @@ impl Sequencer {
                 // A new program after a finished one: leave Done.
                 self.run.abort();
                 self.finished = false;
-                self.flush(Some(Applied::Abort), false);
+                self.flush(Some(Applied::NextProgram), false);
             }
             RunState::Idle if !self.aborting => {}
             _ => return false,

@@ -105,9 +105,7 @@ impl ServeOptions {
             period: f64::from(self.rt.period_us) * 1e-6,
             ..cfg
         };
-        cfg.validate()
-            .map_err(anyhow::Error::msg)
-            .context("checking the configuration")?;
+        crate::config::check(&cfg)?;
         Ok(cfg)
     }
 }
@@ -117,7 +115,18 @@ fn start_position(p: Option<&[f64]>) -> Result<[f64; 6]> {
     let mut q = [0.0; 6];
     match p {
         None => {}
-        Some(p) if (p.len() == 3 || p.len() == 6) && p.iter().all(|c| c.is_finite()) => {
+        Some(p) if p.len() == 3 || p.len() == 6 => {
+            for (i, &c) in p.iter().enumerate() {
+                let (axis, range) = (
+                    ["X", "Y", "Z", "A", "B", "C"][i],
+                    if i < 3 {
+                        crate::flags::POSITION
+                    } else {
+                        crate::flags::ANGLE_POSITION
+                    },
+                );
+                range.check(&format!("--position {axis}"), c)?;
+            }
             q[..p.len()].copy_from_slice(p);
         }
         Some(p) => bail!("--position takes X Y Z or X Y Z A B C, finite numbers; got {p:?}"),
@@ -542,6 +551,7 @@ fn trace_sink(tx: traces::RecordTx, period: f64) -> TickSink {
                     ..ev(EventKind::Override)
                 },
                 Applied::Abort => ev(EventKind::Abort),
+                Applied::NextProgram => ev(EventKind::NextProgram),
                 Applied::Finish => ev(EventKind::Finish),
             };
             let _ = tx.try_push(traces::Record::Event(ev));

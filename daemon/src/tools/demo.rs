@@ -545,12 +545,9 @@ struct Prepared {
 
 impl Prepared {
     fn new(args: &DemoOptions) -> Result<Self> {
-        if !(args.feed.is_finite() && args.feed > 0.0) {
-            bail!(
-                "--feed must be a positive number of mm/min, got {}",
-                args.feed
-            );
-        }
+        crate::flags::FEED.check("--feed", args.feed)?;
+        crate::flags::CHORD_TOLERANCE.check("--chord-tolerance-mm", args.chord_tolerance_mm)?;
+        crate::flags::ACCEL.check("--accel", args.accel)?;
         let cfg = config(args);
         let feed = args.feed / 60.0;
         let blocks = butterfly_blocks(args.feed, &cfg)?;

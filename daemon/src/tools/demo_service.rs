@@ -209,6 +209,7 @@ pub fn run(args: &DemoOptions, direct: &Summary) -> Result<ServiceRun> {
         socket: None,
         token: None,
         no_wait: false,
+        wait_turn: false,
         json: false,
         quiet: true,
     };
@@ -216,12 +217,12 @@ pub fn run(args: &DemoOptions, direct: &Summary) -> Result<ServiceRun> {
         .enable_all()
         .build()?
         .block_on(async {
-            let s = tokio::net::TcpStream::connect(addr)
+            let conn = crate::client::conn::connect(&send_args.endpoint())
                 .await
-                .with_context(|| format!("connecting to the service at {addr}"))?;
+                .context("connecting to the service")?;
             let load =
                 |_: [f64; 6], _: &crate::service::control::StatusReply| Ok(vec![line.clone()]);
-            crate::client::send::stream(s, &load, &send_args).await
+            crate::client::send::stream(conn, &load, &send_args).await
         });
     let sub = subscriber
         .join()

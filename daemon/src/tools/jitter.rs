@@ -168,9 +168,7 @@ fn program(loops: usize) -> Vec<String> {
 
 /// Runs `jitter`.
 pub fn main(args: &JitterOptions) -> Result<()> {
-    if !(args.seconds.is_finite() && args.seconds > 0.0) {
-        bail!("--seconds must be positive");
-    }
+    crate::flags::SECONDS.check("--seconds", args.seconds)?;
     let load_before = load_average();
     let opts = args.rt.options("", false)?;
     let never = Arc::new(AtomicBool::new(false));
@@ -210,6 +208,7 @@ pub fn main(args: &JitterOptions) -> Result<()> {
         socket: None,
         token: None,
         no_wait: false,
+        wait_turn: false,
         json: false,
         quiet: true,
     };
@@ -218,11 +217,11 @@ pub fn main(args: &JitterOptions) -> Result<()> {
             .enable_all()
             .build()?
             .block_on(async {
-                let s = tokio::net::TcpStream::connect(addr).await?;
+                let conn = crate::client::conn::connect(&send_args.endpoint()).await?;
                 // Aborted at shutdown: the outcome does not matter here.
                 let load =
                     |_: [f64; 6], _: &crate::service::control::StatusReply| Ok(lines.clone());
-                let _ = crate::client::send::stream(s, &load, &send_args).await;
+                let _ = crate::client::send::stream(conn, &load, &send_args).await;
                 Ok(())
             })
     });

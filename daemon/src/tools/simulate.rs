@@ -93,9 +93,7 @@ pub fn resolve(args: &SimulateOptions) -> Result<Resolved> {
     if let Some(path) = &args.machine {
         cfg.machine = Some(config::read_machine(path)?);
     }
-    cfg.validate()
-        .map_err(anyhow::Error::msg)
-        .context("checking the configuration")?;
+    config::check(&cfg)?;
     let max = interp_core::nurbs::MAX_CTRL;
     if !(1..=max).contains(&settings.max_ctrl_per_block) {
         bail!(

@@ -1,16 +1,17 @@
 //! Shared helpers of the `serve_*` end-to-end tests: locate the `interpd`
 //! binary cargo built for them, start `interpd serve` on a private iceoryx2 service and a
-//! free port, talk the line protocol (every reply read through the library's
-//! typed [`Reply`], which must print it back to the same line), read
+//! free port, talk the line protocol through the library's client (every
+//! reply read through the library's typed [`Reply`], which must print it
+//! back to the same line), read
 //! `interpd watch` CSV files.
 #![allow(dead_code)] // each test file uses a subset
 
-use std::io::{BufRead, BufReader, Write};
-use std::net::TcpStream;
+use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
+use interpd::client::conn::{BlockingConnection, Endpoint};
 use interpd::protocol::Reply;
 use interpd::service::publish::{run_state, state_name};
 
@@ -75,9 +76,9 @@ impl Server {
         }
     }
 
-    /// A protocol connection.
+    /// A protocol connection (the library's client, over TCP).
     pub fn connect(&self) -> Conn {
-        Conn::new(TcpStream::connect(("127.0.0.1", self.port)).expect("connect"))
+        Conn::tcp(self.port)
     }
 
     /// SIGTERM, then the exit status and everything it printed after starting.
@@ -109,31 +110,22 @@ pub fn signal(pid: u32, sig: i32) {
     unsafe { libc_kill(pid as i32, sig) };
 }
 
-/// A stream a connection runs on (TCP or a Unix socket).
-pub trait Stream: std::io::Read + Write {}
-impl<T: std::io::Read + Write> Stream for T {}
-
-/// One line-protocol connection.
-pub struct Conn {
-    pub w: Box<dyn Stream>,
-    pub r: BufReader<Box<dyn Stream>>,
-}
+/// One line-protocol connection: the library's blocking client
+/// ([`BlockingConnection`], what `interpd send` runs on, async), with the
+/// test's checks on every reply.
+pub struct Conn(pub BlockingConnection);
 
 impl Conn {
-    pub fn new(s: TcpStream) -> Conn {
-        s.set_read_timeout(Some(WAIT)).expect("timeout");
-        Conn {
-            r: BufReader::new(Box::new(s.try_clone().expect("clone"))),
-            w: Box::new(s),
-        }
+    /// Over TCP to the loopback `port`.
+    pub fn tcp(port: u16) -> Conn {
+        let at = Endpoint::Tcp(std::net::SocketAddr::from(([127, 0, 0, 1], port)));
+        Conn(BlockingConnection::connect(&at, WAIT).expect("connect"))
     }
 
-    pub fn new_unix(s: std::os::unix::net::UnixStream) -> Conn {
-        s.set_read_timeout(Some(WAIT)).expect("timeout");
-        Conn {
-            r: BufReader::new(Box::new(s.try_clone().expect("clone"))),
-            w: Box::new(s),
-        }
+    /// Over the Unix socket at `path`.
+    pub fn unix(path: &Path) -> Conn {
+        let at = Endpoint::Unix(path.to_owned());
+        Conn(BlockingConnection::connect(&at, WAIT).expect("connect"))
     }
 
     /// Sends one line, returns the reply.
@@ -144,16 +136,13 @@ impl Conn {
 
     /// Sends one line.
     pub fn send(&mut self, line: &str) {
-        self.w.write_all(line.as_bytes()).expect("write");
-        self.w.write_all(b"\n").expect("write");
+        self.0.send_line(line).expect("write");
     }
 
     /// Reads one reply line. It must parse as the library's [`Reply`] and
     /// print back to the same line.
     pub fn reply(&mut self) -> String {
-        let mut s = String::new();
-        self.r.read_line(&mut s).expect("reply");
-        let line = s.trim_end().to_owned();
+        let line = self.0.reply_line().expect("reply");
         let typed = Reply::parse(&line).unwrap_or_else(|e| panic!("{e}"));
         assert_eq!(typed.to_string(), line, "the reply does not print back");
         line
@@ -285,6 +274,20 @@ pub fn dist_to_segment(p: [f64; 3], a: [f64; 3], b: [f64; 3]) -> f64 {
         .sqrt()
 }
 
+/// Starts `interpd send --json --quiet` of `program` to `port` (with `extra`
+/// flags), its output piped.
+pub fn spawn_send(port: u16, program: &Path, extra: &[&str]) -> Child {
+    Command::new(interpd())
+        .args(["send", "--json", "--quiet", "--addr"])
+        .arg(format!("127.0.0.1:{port}"))
+        .args(extra)
+        .arg(program)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("interpd send")
+}
+
 /// Runs `interpd send --json` of `program` to `port` (with `extra` flags) and
 /// returns its exit status, its final status (JSON, if it printed one) and
 /// its standard error.
@@ -293,16 +296,7 @@ pub fn send(
     program: &Path,
     extra: &[&str],
 ) -> (std::process::ExitStatus, Option<serde_json::Value>, String) {
-    let child = Command::new(interpd())
-        .args(["send", "--json", "--quiet", "--addr"])
-        .arg(format!("127.0.0.1:{port}"))
-        .args(extra)
-        .arg(program)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("interpd send");
-    let out = wait_child(child, "interpd send");
+    let out = wait_child(spawn_send(port, program, extra), "interpd send");
     let status = serde_json::from_slice(&out.stdout).ok();
     (
         out.status,
