@@ -5,8 +5,9 @@
 mod cli;
 mod command;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use clap::Parser;
+use interpd::service::rt::RT_STACK_BYTES;
 use interpd::service::rt_alloc;
 
 use cli::{Cli, Command};
@@ -17,8 +18,25 @@ use cli::{Cli, Command};
 #[global_allocator]
 static ALLOCATOR: rt_alloc::RtPool<std::alloc::System> = rt_alloc::RtPool(std::alloc::System);
 
+/// Runs the command on a thread with the RT threads' stack
+/// ([`RT_STACK_BYTES`]), so that none depends on the main thread's 8 MiB:
+/// `simulate`, `replay` and `demo` build an `interp_run::Run` on the stack
+/// before boxing it, which an unoptimised build copies several times
+/// (`interpd simulate` needs 12–14 MiB there). Only pages touched are
+/// committed.
 fn main() -> Result<()> {
-    match Cli::parse().command {
+    let cli = Cli::parse();
+    std::thread::Builder::new()
+        .name("interpd".into())
+        .stack_size(RT_STACK_BYTES)
+        .spawn(move || dispatch(cli))
+        .context("spawning the command thread")?
+        .join()
+        .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+}
+
+fn dispatch(cli: Cli) -> Result<()> {
+    match cli.command {
         Command::Demo(args) => command::demo::run(&args.into()),
         Command::Serve(args) => command::serve::run(&args.into()),
         Command::Send(args) => command::send::run(&args.into()),

@@ -277,3 +277,77 @@ fn simulate_reports_jerk_sign_changes_as_planned_phases() {
     let corners = "G21 G90 G64 P0.01\nG1 X50 F6000\nG1 Y50\nG1 X0\nG1 Y0.5\nM2\n";
     assert_eq!(sign_changes("corners.ngc", corners), 8);
 }
+
+/// `interpd` as a user runs it, with the main thread's stack limited to
+/// `kib` KiB (`ulimit -s`).
+fn interpd_with_main_stack(kib: u32, args: &[&str]) -> Output {
+    Command::new("sh")
+        .arg("-c")
+        .arg(format!("ulimit -s {kib} && exec \"$0\" \"$@\""))
+        .arg(env!("CARGO_BIN_EXE_interpd"))
+        .args(args)
+        .env_remove("RUST_BACKTRACE")
+        .output()
+        .expect("sh runs interpd")
+}
+
+/// The commands do not run on the main thread's stack: an unoptimised
+/// `interpd simulate`, `replay` or `demo` overflowed the 8 MiB main thread
+/// building its `interp_run::Run` (12–14 MiB measured), on any program. The
+/// optimised build these tests run needs 4–8 MiB there, so a 1 MiB main
+/// stack shows the same dependence: a G43.4 program with A and C moving
+/// simulates to its end and replays bit for bit, and the demo runs.
+#[test]
+fn commands_run_off_the_main_thread_stack() {
+    let machine = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../examples/five_axis/machine.toml")
+        .display()
+        .to_string();
+    let ngc = tmp("g43_4_stack.ngc");
+    std::fs::write(
+        &ngc,
+        "G21 G90 G94 G61\nG0 X0 Y0 Z120 A20 C-90\nG43.4 H1\nG1 X20 Y0 Z0 F1200\n\
+         G1 X10 Y17.3205 A25 C-60\nG1 X-10 Y17.3205 A30 C-30\nG1 X-20 Y0 A25 C0\n\
+         G1 X-10 Y-17.3205 A20 C30\nG49\nG0 X0 Y0 Z150\nM2\n",
+    )
+    .unwrap();
+    let out = tmp("g43_4_stack.mcap");
+    let (ngc, out) = (ngc.to_str().unwrap(), out.to_str().unwrap());
+    let o = interpd_with_main_stack(
+        1024,
+        &[
+            "simulate",
+            "--machine",
+            &machine,
+            ngc,
+            "--out",
+            out,
+            "--json",
+        ],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let s: serde_json::Value = serde_json::from_slice(&o.stdout).expect("one JSON object");
+    assert_eq!(s["final_state"], "done", "{s}");
+    assert_eq!(
+        s["final_point"],
+        serde_json::json!([0.0, 0.0, 150.0]),
+        "{s}"
+    );
+    let o = interpd_with_main_stack(1024, &["replay", out]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("bit-identical"), "{}", text(&o));
+    let demo_out = tmp("demo_stack");
+    let o = interpd_with_main_stack(
+        1024,
+        &[
+            "demo",
+            "--fast",
+            "--no-service",
+            "--no-plots",
+            "--json",
+            "--out",
+            demo_out.to_str().unwrap(),
+        ],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+}

@@ -727,3 +727,42 @@ fn a_five_axis_program_gives_the_same_setpoints_served_as_simulated() {
         assert!(p[1].abs() < 1e-9 && (p[2] + 95.0).abs() < 1e-9, "{p:?}");
     }
 }
+
+/// A G43.4 G6.2 curve with A and C on its control points (the tool tip in
+/// the workpiece frame; the rotary axes coordinates of the same NURBS),
+/// sent to `serve`: the program reaches done, the motion is `simulate`'s
+/// bit for bit, and the machine stops on the curve's last control point:
+/// A and C there, and the forward transform of the final joints puts the
+/// tip on its X Y Z.
+#[test]
+fn a_g43_4_curve_with_rotary_coordinates_is_served_to_its_last_point() {
+    // Degree 3, six control points, clamped: it ends on the last one.
+    let program = "G21 G90 G94 G61\nG0 X0 Y0 Z120 A0 C0\nG43.4 H1\nG1 X0 Y0 Z0 F6000\n\
+        G6.2 P4 X0 Y0 A0 C0 R1 K0\n X6 Y4.794255 A3.115347 C5 R1.2 K0\n\
+         X12 Y8.41471 A5.738849 C10 R1 K0\n X18 Y9.97495 A7.456323 C15 R1.3 K0\n\
+         X24 Y9.092974 A7.995675 C20 R1 K1\n X30 Y5.984721 A7.274379 C25 R1 K2\n\
+        G6.2 K3\nG6.2 K3\nG6.2 K3\nG6.2 K3\nM2\n";
+    let (served, _) = served_as_simulated("g43_4_curve", program, Some(FIVE_AXIS_CONFIG));
+    let t = traces::reader::Trace::open(&served).expect("trace reads");
+    let last = t
+        .setpoints
+        .iter()
+        .find(|s| s.state == interp_core::RunState::Done && s.s > 0.0)
+        .expect("the run ended");
+    let joints = [last.x, last.y, last.z, last.a, last.b, last.c];
+    assert!(
+        (joints[3] - 7.274379).abs() < 1e-9 && (joints[5] - 25.0).abs() < 1e-9,
+        "{joints:?}"
+    );
+    let machine =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/five_axis/machine.toml");
+    let spec = interpd::config::read_machine(&machine).expect("the example machine");
+    let tip = interp_core::kinematics::Machine::new(spec)
+        .expect("five-axis")
+        .forward(&joints)
+        .tip;
+    let end = interp_core::Vec3::new(30.0, 5.984721, 0.0);
+    assert!((tip - end).norm() < 1e-9, "tip {tip:?}, joints {joints:?}");
+    // The rotary axes moved along the curve, not just at its end.
+    assert!(t.setpoints.iter().any(|s| s.c > 1.0 && s.c < 24.0));
+}

@@ -54,8 +54,9 @@ pub const CMD_SLOTS: usize = 64;
 pub const EVENT_SLOTS: usize = 64;
 /// Setpoints queued for the recorder: four seconds at 1 kHz.
 pub const RECORD_SLOTS: usize = 4096;
-/// Stack of the RT and planning threads: the executor and the driver are
-/// built on them before they are boxed.
+/// Stack of the RT and planning threads, and of the thread every CLI command
+/// runs on (`main.rs`): the executor and the driver are built on them before
+/// they are boxed (an unoptimised `interpd simulate` needs 12–14 MiB).
 pub const RT_STACK_BYTES: usize = 32 << 20;
 /// Default lead of the planning thread over the RT thread, ms: what a
 /// command waits before it takes effect, and the planning time that can
