@@ -328,26 +328,21 @@ impl Cutter {
                     SplitError::Invalid(n) => CutError::Nurbs(n),
                     SplitError::Sink(k) => k,
                 })?;
+                if let Some(rotary) = rotary {
+                    rotary_pieces(degree, w, knots, rotary, tcp, &mut out)?;
+                }
             }
         }
-        if let MovePath::Nurbs {
-            degree,
-            weights,
-            knots,
-            rotary: Some(rotary),
-            points,
-        } = m.path
-        {
-            let ones;
-            let w: &[f64] = match weights {
-                Some(w) => w,
-                None => {
-                    ones = vec![1.0; points.len()];
-                    &ones
-                }
-            };
-            rotary_pieces(degree, w, knots, rotary, m.is_tcp(), &mut out)?;
-        } else if let (Some(o), Some(first), Some(last)) = (m.orientation, out.first(), out.last())
+        // A NURBS with rotary coordinates carries its orientation per piece.
+        let rotary_curve = matches!(
+            m.path,
+            MovePath::Nurbs {
+                rotary: Some(_),
+                ..
+            }
+        );
+        if !rotary_curve
+            && let (Some(o), Some(first), Some(last)) = (m.orientation, out.first(), out.last())
         {
             // One orientation over the whole move: a split NURBS keeps its
             // parameter, so every piece evaluates it at its own `u`.
