@@ -783,9 +783,6 @@ fn blend_m2(pts: &[Vec3; 6], l: f64) -> f64 {
         / (l * l)
 }
 
-/// The check of [`Smoother`]: every point of `curve` within `tol` of the
-/// polyline `q` (parameters `ub` on the curve), and every vertex within `tol`
-/// of the curve point at its parameter. `m2` bounds `|C''|`.
 /// Samples per knot span in [`slower_than_a_stop`].
 const SPEED_SAMPLES: usize = 16;
 
@@ -803,6 +800,9 @@ fn slower_than_a_stop(curve: &Nurbs, cfg: &InterpConfig) -> bool {
     })
 }
 
+/// The check of [`Smoother`]: every point of `curve` within `tol` of the
+/// polyline `q` (parameters `ub` on the curve), and every vertex within `tol`
+/// of the curve point at its parameter. `m2` bounds `|C''|`.
 fn check(curve: &Nurbs, q: &[Vec3], ub: &[f64], tol: f64, m2: f64) -> bool {
     let k = q.len() - 1;
     // Parameter step whose sagitta bound is SAG_SHARE of the tolerance.

@@ -158,7 +158,7 @@ fn check_text(
         top = top.max(b.feed.min(cfg.max_path_speed));
         let stop = match out.get(k + 1) {
             None => true,
-            Some(next) => exact || slower_than_a_stop(&b.path, &next.path, &cfg),
+            Some(next) => exact || junction_slower_than_a_stop(&b.path, &next.path, &cfg),
         };
         if stop {
             allowance += rest_to_rest(stretch, top, a, j)
@@ -181,7 +181,11 @@ fn check_text(
 
 /// Whether the junction of `a` to `b` is slower than a stop (the planner
 /// stops there: `plan::stop_speed`).
-fn slower_than_a_stop(a: &interp_core::Path, b: &interp_core::Path, cfg: &InterpConfig) -> bool {
+fn junction_slower_than_a_stop(
+    a: &interp_core::Path,
+    b: &interp_core::Path,
+    cfg: &InterpConfig,
+) -> bool {
     interp_core::feed::junction_speed(&a.eval(a.u_end(), 3), &b.eval(b.u_start(), 3), cfg)
         < interp_core::plan::stop_speed(cfg)
 }
