@@ -3,24 +3,31 @@
 //! what f64 resolves), naming the flag, and writes nothing; `interpd plan
 //! setup --json` prints what a program needs to position the rotary axes.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 /// A 20 × 20 mm plate 2 mm high, as an ASCII STL.
-fn plate(dir: &Path) -> std::path::PathBuf {
-    let p = dir.join("plate.stl");
-    let tri = |a: [f64; 3], b: [f64; 3], c: [f64; 3]| {
-        format!(
-            "facet normal 0 0 1\nouter loop\nvertex {} {} {}\nvertex {} {} {}\nvertex {} {} {}\nendloop\nendfacet\n",
-            a[0], a[1], a[2], b[0], b[1], b[2], c[0], c[1], c[2]
-        )
-    };
-    let mut s = String::from("solid plate\n");
-    s += &tri([0.0, 0.0, 2.0], [20.0, 0.0, 2.0], [20.0, 20.0, 2.0]);
-    s += &tri([0.0, 0.0, 2.0], [20.0, 20.0, 2.0], [0.0, 20.0, 2.0]);
-    s += "endsolid plate\n";
-    std::fs::write(&p, s).unwrap();
-    p
+fn plate(dir: &Path) -> PathBuf {
+    use planner::mesh::P3;
+    let p = |x, y| P3::new(x, y, 2.0);
+    let soup = [
+        [p(0.0, 0.0), p(20.0, 0.0), p(20.0, 20.0)],
+        [p(0.0, 0.0), p(20.0, 20.0), p(0.0, 20.0)],
+    ];
+    let path = dir.join("plate.stl");
+    std::fs::write(&path, planner::mesh::ascii_stl("plate", &soup)).unwrap();
+    path
+}
+
+/// A fresh directory named `tag` holding the sample teapot as an ASCII STL:
+/// `(directory, STL path)`.
+fn teapot_stl(tag: &str) -> (PathBuf, PathBuf) {
+    let dir = std::env::temp_dir().join(format!("interpd-{tag}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let stl = dir.join("teapot.stl");
+    let teapot = planner::setup::samples::teapot(10, 12, 5, 6);
+    std::fs::write(&stl, planner::mesh::ascii_stl("teapot", &teapot)).unwrap();
+    (dir, stl)
 }
 
 #[test]
@@ -136,11 +143,7 @@ fn plan_raster_refuses_bad_feeds_clearances_and_tolerances_naming_the_flag() {
 fn plan_setup_json_prints_the_certificate_equivalents_and_rotary_positions() {
     use interp_core::kinematics::{Machine, MachineSpec};
     use planner::setup::MachineConfig;
-    let dir = std::env::temp_dir().join(format!("interpd-plan-setup-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let stl = dir.join("teapot.stl");
-    let teapot = planner::setup::samples::teapot(10, 12, 5, 6);
-    std::fs::write(&stl, planner::mesh::ascii_stl("teapot", &teapot)).unwrap();
+    let (dir, stl) = teapot_stl("plan-setup-cli");
     for (machine, names) in [("W/caxyBz/T", ["C", "A"]), ("W/baxzBy/T", ["B", "A"])] {
         let out = Command::new(env!("CARGO_BIN_EXE_interpd"))
             .args([
@@ -236,11 +239,7 @@ fn plan_setup_positions_the_rotary_axes_for_a_three_axis_cut() {
     use interp_core::kinematics::{Machine, MachineSpec};
     use interp_core::{RunState, Vec3};
     use std::fmt::Write as _;
-    let dir = std::env::temp_dir().join(format!("interpd-plan-setup-32-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let stl = dir.join("teapot.stl");
-    let teapot = planner::setup::samples::teapot(10, 12, 5, 6);
-    std::fs::write(&stl, planner::mesh::ascii_stl("teapot", &teapot)).unwrap();
+    let (dir, stl) = teapot_stl("plan-setup-32");
     let out = Command::new(env!("CARGO_BIN_EXE_interpd"))
         .args(["plan", "setup", "--machine", "W/caxyBz/T"])
         .args(["--ranges", "90,90,180,180", "--json", "--stl"])
