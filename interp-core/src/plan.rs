@@ -67,12 +67,53 @@ pub struct AxisSample {
     pub css: [f64; 3],
     /// `d³C/ds³`.
     pub csss: [f64; 3],
+    /// Where on its block the sample lies: `1` its start, `-1` its end, `0`
+    /// inside. At a rest point between two blocks the end of one is the
+    /// start of the other, with other derivatives: each bounds only its own
+    /// side (a fillet's curvature does not hold back the line before it).
+    pub side: i8,
 }
 
 /// Sub-ranges per grid interval the speed limits are kept for: a slow point
 /// (a sharp bend, a corner blend, a junction) limits its sub-range, not the
 /// whole interval, and the pieces are cut where the limits change.
 pub const SUB: usize = 8;
+
+/// Limits over an exact extent an interval holds besides its sub-ranges'.
+pub const SPANS: usize = 8;
+
+/// A speed limit over an exact extent `[x0, x1]` (a point when equal),
+/// narrower than a sub-range: a short block (a corner blend, a stretch
+/// between two stationary points) or a junction. It limits only the pieces
+/// it overlaps, and the pieces are cut at its ends, so a slow point costs
+/// its own length, not its sub-range's.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Span {
+    /// Where it starts, mm.
+    pub x0: f64,
+    /// Where it ends, mm (`x0` for a point).
+    pub x1: f64,
+    /// Machine-law speed limit over it, mm/s.
+    pub machine: f64,
+    /// Feed-law speed limit over it at 100 % override, mm/s.
+    pub feed: f64,
+}
+
+impl Span {
+    /// Whether it limits a piece over `[x0, x1]`: a point on the piece (on
+    /// its ends too, within round-off), or a span sharing more than
+    /// round-off of its length with the piece (one ending where the piece
+    /// starts does not: the knot rows hold the limit at the shared end).
+    fn overlaps(&self, x0: f64, x1: f64, hs: f64) -> bool {
+        if self.x1 > self.x0 {
+            let common = self.x1.min(x1) - self.x0.max(x0);
+            common > 1e-3 * (self.x1 - self.x0).min(x1 - x0)
+        } else {
+            let e = SUB_SNAP * hs;
+            self.x0 >= x0 - e && self.x0 <= x1 + e
+        }
+    }
+}
 
 /// What the planner knows about one grid interval.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -97,6 +138,10 @@ pub struct Interval {
     /// (infinite for three-axis blocks): next to a rest point the
     /// acceleration steps by half a tick of it at most (`rest_accel`).
     pub joint_jerk: f64,
+    /// Limits over exact extents starting in the interval (see [`Span`]).
+    pub spans: [Span; SPANS],
+    /// Spans held.
+    pub n_spans: u8,
 }
 
 impl Interval {
@@ -110,6 +155,13 @@ impl Interval {
             n_samples: 0,
             overflow: false,
             joint_jerk: f64::INFINITY,
+            spans: [Span {
+                x0: 0.0,
+                x1: 0.0,
+                machine: f64::INFINITY,
+                feed: f64::INFINITY,
+            }; SPANS],
+            n_spans: 0,
         }
     }
     /// Lower the machine (`which = 0`) or feed (`1`) limit of sub-ranges
@@ -373,7 +425,11 @@ impl Data {
     /// The per-axis samples on piece `p` (from its interval and, within
     /// round-off of its ends, its neighbours': a sample on a knot belongs to
     /// both pieces, whichever interval it was stored in).
-    fn piece_samples<'a>(&'a self, p: &'a WPiece) -> impl Iterator<Item = &'a AxisSample> + 'a {
+    fn piece_samples<'a>(
+        &'a self,
+        p: &'a WPiece,
+        rest_end: bool,
+    ) -> impl Iterator<Item = &'a AxisSample> + 'a {
         // Its own samples, those at its ends included (the jerk jumps at a
         // knot: a sample there bounds both sides). A short piece with none
         // (cut next to a rest point, or where a limit changes) is checked
@@ -396,13 +452,27 @@ impl Data {
                     it.samples[..it.n_samples as usize].iter()
                 })
         };
-        let own = move |smp: &&AxisSample| smp.s >= p.x0 - tol && smp.s <= p.x1 + tol;
+        // A block's end at a rest the piece starts from, or a block's
+        // start at a rest it ends at, is the other side's.
+        let across = move |smp: &AxisSample| {
+            (p.rest_start && smp.side < 0 && smp.s <= p.x0 + tol)
+                || (rest_end && smp.side > 0 && smp.s >= p.x1 - tol)
+        };
+        let own =
+            move |smp: &&AxisSample| smp.s >= p.x0 - tol && smp.s <= p.x1 + tol && !across(smp);
         let none = !near().any(|smp| own(&smp));
         let closest = move |before: bool| {
             near()
                 .filter(move |smp| {
                     let gap = if before { p.x0 - smp.s } else { smp.s - p.x1 };
-                    none && gap > 0.0 && gap <= reach
+                    // (Not across a rest point: another block's
+                    // derivatives, a fillet's curvature.)
+                    let (a, b) = if before {
+                        (smp.s, p.x0 + tol)
+                    } else {
+                        (p.x1 - tol, smp.s)
+                    };
+                    none && gap > 0.0 && gap <= reach && !self.stop_within(a, b)
                 })
                 .min_by(move |a, b| {
                     let da = if before { p.x0 - a.s } else { a.s - p.x1 };
@@ -414,6 +484,14 @@ impl Data {
             .filter(own)
             .chain(closest(true))
             .chain(closest(false))
+    }
+
+    /// Whether a rest point lies in `[a, b]`.
+    fn stop_within(&self, a: f64, b: f64) -> bool {
+        let stops = &self.stops[..self.n_stops];
+        stops
+            .get(stops.partition_point(|&x| x < a))
+            .is_some_and(|&x| x <= b)
     }
 
     /// The squared speed limit of piece `i` at override `ovr`.
@@ -523,6 +601,18 @@ impl Data {
     /// Smallest machine-law and feed-law speeds over `[x0, x1]` (from the
     /// sub-ranges it overlaps).
     fn range_limits(&self, x0: f64, x1: f64) -> (f64, f64) {
+        let (mut m, mut f) = self.sub_range_limits(x0, x1);
+        for sp in self.spans_near(x0, x1) {
+            if sp.overlaps(x0, x1, self.h / SUB as f64) {
+                m = m.min(sp.machine);
+                f = f.min(sp.feed);
+            }
+        }
+        (m, f)
+    }
+
+    /// [`Self::range_limits`] without the spans.
+    fn sub_range_limits(&self, x0: f64, x1: f64) -> (f64, f64) {
         let hs = self.h / SUB as f64;
         let snap = SUB_SNAP;
         let k0 = libm::floor(x0 / hs + snap) as i64;
@@ -541,6 +631,19 @@ impl Data {
         (m, f)
     }
 
+    /// The spans that may touch `[x0, x1]`: those of its intervals and the
+    /// one before (a span is narrower than a sub-range and is held where it
+    /// starts).
+    fn spans_near(&self, x0: f64, x1: f64) -> impl Iterator<Item = &Span> + '_ {
+        let held = |g: i64| g >= self.g_base && g < self.g_base + self.n_int as i64;
+        (index_of(x0, self.h) - 1..=index_of(x1, self.h))
+            .filter(move |&g| held(g))
+            .flat_map(move |g| {
+                let it = self.interval(g);
+                it.spans[..it.n_spans as usize].iter()
+            })
+    }
+
     /// Cuts inside piece `p` (ascending, none within a sliver of another or
     /// of its ends) into `out`; returns how many:
     /// - where the speed limit of its sub-ranges changes by more than
@@ -554,37 +657,65 @@ impl Data {
         let sliver = SLIVER * self.h;
         let mut raw = [0.0; MAX_CUTS];
         let mut k = 0;
+        // (Cuts past the capacity are dropped: fewer pieces, each still
+        // limited over its whole extent.)
+        let mut push = |x: f64| {
+            if k < MAX_CUTS && x > p.x0 && x < p.x1 {
+                raw[k] = x;
+                k += 1;
+            }
+        };
+        let hs = self.h / SUB as f64;
+        let sub = |a: f64, b: f64| {
+            let (m, f) = self.sub_range_limits(a, b);
+            m.min(f)
+        };
         let (rs, re) = (p.rest_start, rest_end);
         let scale = |both: bool| self.h.min(if both { 0.5 * len } else { len });
         if rs {
             let sc = scale(re);
             for f in GRADE {
-                raw[k] = p.x0 + sc * f;
-                k += 1;
+                push(p.x0 + sc * f);
             }
         }
         if re {
             let sc = scale(rs);
             for f in GRADE.iter().rev() {
-                raw[k] = p.x1 - sc * f;
-                k += 1;
+                push(p.x1 - sc * f);
             }
         }
-        // Sub-range boundaries where the limit changes.
-        let hs = self.h / SUB as f64;
+        // Spans inside: cut at their ends, graded away from a slow one.
+        for sp in self.spans_near(p.x0, p.x1) {
+            if !sp.overlaps(p.x0, p.x1, hs) {
+                continue;
+            }
+            let v = sp.machine.min(sp.feed);
+            push(sp.x0);
+            push(sp.x1);
+            if RUN_RATIO * v < sub(sp.x0 - hs, sp.x0) {
+                for f in GRADE {
+                    push(sp.x0 - self.h.min(sp.x0 - p.x0) * f);
+                }
+            }
+            if RUN_RATIO * v < sub(sp.x1, sp.x1 + hs) {
+                for f in GRADE {
+                    push(sp.x1 + self.h.min(p.x1 - sp.x1) * f);
+                }
+            }
+        }
+        // Sub-range boundaries where the limit changes (not graded: the
+        // pieces it would take shorten the look-ahead's reach, measured
+        // slower on dense programs).
         let mut b = (libm::floor(p.x0 / hs + 1e-9) + 1.0) * hs;
         let (mut lo, mut hi) = {
-            let (m, f) = self.range_limits(p.x0, b.min(p.x1));
-            let v = m.min(f);
+            let v = sub(p.x0, b.min(p.x1));
             (v, v)
         };
-        while b < p.x1 - sliver && k < MAX_CUTS {
-            let (m, f) = self.range_limits(b, (b + hs).min(p.x1));
-            let v = m.min(f);
+        while b < p.x1 - sliver {
+            let v = sub(b, (b + hs).min(p.x1));
             let (nlo, nhi) = (lo.min(v), hi.max(v));
             if nhi > RUN_RATIO * nlo {
-                raw[k] = b;
-                k += 1;
+                push(b);
                 (lo, hi) = (v, v);
             } else {
                 (lo, hi) = (nlo, nhi);
@@ -833,6 +964,10 @@ impl Window {
             (k, k)
         };
         let sub = SUB as i64;
+        // (Only the intervals held: a range may reach far past them.)
+        let d = &self.data;
+        let k0 = k0.max(d.g_base * sub);
+        let k1 = k1.min((d.g_base + d.n_int as i64) * sub - 1);
         let mut k = k0;
         while k <= k1 {
             let g = k.div_euclid(sub);
@@ -847,6 +982,65 @@ impl Window {
             }
             k = (g + 1) * sub;
         }
+    }
+
+    /// Lower the machine (`which = 0`) or feed (`1`) limit over exactly
+    /// `[s0, s1]` (a point when equal; see [`Span`]); a range a sub-range
+    /// wide or more, or one an interval has no room for, lowers the
+    /// sub-ranges it overlaps ([`Self::lower_range`]).
+    pub fn lower_exact(&mut self, s0: f64, s1: f64, which: usize, v: f64) {
+        // (No limit, or NaN, lowers nothing: `min` keeps the other side.)
+        if !(v < f64::INFINITY) {
+            return;
+        }
+        let h = self.data.h;
+        if s1 - s0 < h / SUB as f64
+            && let Some(it) = self.interval_mut(index_of(s0, h))
+        {
+            let n = it.n_spans as usize;
+            let at = it.spans[..n]
+                .iter()
+                .position(|sp| sp.x0 == s0 && sp.x1 == s1);
+            let slot = match at {
+                Some(i) => Some(i),
+                None if n < SPANS => {
+                    it.spans[n] = Span {
+                        x0: s0,
+                        x1: s1,
+                        machine: f64::INFINITY,
+                        feed: f64::INFINITY,
+                    };
+                    it.n_spans += 1;
+                    Some(n)
+                }
+                None => None,
+            };
+            if let Some(i) = slot {
+                let sp = &mut it.spans[i];
+                let l = if which == 0 {
+                    &mut sp.machine
+                } else {
+                    &mut sp.feed
+                };
+                *l = l.min(v);
+                return;
+            }
+        }
+        self.lower_range(s0, s1, which, v);
+    }
+
+    /// A junction at `s` (within `slack`) passed at `v` at most: the jump
+    /// happens within the tick that crosses it, and the finite differences
+    /// a drive sees span three, so the limit holds over the two ticks'
+    /// travel at `v` each way ([`Self::lower_exact`]).
+    pub fn lower_junction(&mut self, s: f64, slack: f64, v: f64) {
+        let cfg = &self.data.cfg;
+        if !(v < cfg.max_path_speed) {
+            // Not slower than the machine goes anywhere: no limit.
+            return;
+        }
+        let w = slack + JUNCTION_TICKS * v * cfg.period;
+        self.lower_exact(s - w, s + w, 0, v);
     }
 
     /// The data of interval `g`, if held.
@@ -1299,7 +1493,8 @@ fn assemble_and_solve(
         let p = d.pieces[i];
         let l2 = sc.cap2[i];
         needed += 3;
-        for smp in d.piece_samples(&p) {
+        let rest_end = i + 1 >= n || d.pieces[i + 1].rest_start;
+        for smp in d.piece_samples(&p, rest_end) {
             needed += (0..3).filter(|&ax| binds(smp, ax, l2)).count();
         }
     }
@@ -1379,7 +1574,7 @@ fn assemble_and_solve(
         // Per-axis jerk v·(C‴·S + 1.5·C″·S′ + 0.5·t·S″) at the samples in this piece.
         let mut agg = [[0.0f64; 3]; 3];
         let mut any = [false; 3];
-        for smp in d.piece_samples(&p) {
+        for smp in d.piece_samples(&p, rest_end) {
             let u = ((smp.s - p.x0) / h).clamp(0.0, 1.0);
             let (b0, b1, b2) = ((1.0 - u) * (1.0 - u), 2.0 * u * (1.0 - u), u * u);
             for ax in 0..3 {
@@ -1586,6 +1781,10 @@ pub fn stop_speed(cfg: &InterpConfig) -> f64 {
 /// knot is placed there by an arc-length quadrature, to ~1e-10 mm.
 const SUB_SNAP: f64 = 1e-6;
 
+/// Ticks of travel each way a junction's speed limit holds over
+/// ([`Window::lower_junction`]).
+const JUNCTION_TICKS: f64 = 2.0;
+
 /// Where the pieces next to a rest point are cut, as fractions of the grid
 /// step (or of the piece, when shorter) from the rest.
 const GRADE: [f64; 3] = [1.0 / 64.0, 1.0 / 16.0, 0.25];
@@ -1593,8 +1792,9 @@ const GRADE: [f64; 3] = [1.0 / 64.0, 1.0 / 16.0, 0.25];
 /// A piece is cut where the speed limits of its sub-ranges differ by more
 /// than this factor.
 const RUN_RATIO: f64 = 1.5;
-/// Most cuts inside one piece (grading at both ends, and every sub-range).
-const MAX_CUTS: usize = 2 * GRADE.len() + SUB;
+/// Most cuts inside one piece (grading at both ends, every sub-range
+/// boundary, and the spans near it, graded both ways).
+const MAX_CUTS: usize = 2 * GRADE.len() + SUB + SPANS * (2 + 2 * GRADE.len());
 
 /// Refinement passes after the first solve.
 const REFINE_PASSES: usize = 1;
@@ -1653,7 +1853,8 @@ fn crawl(d: &mut Data, from: usize, ovr: f64, lift: &Option<(f64, Stop)>) {
         let mut best = l2
             .min(rest_accel(a_rest, &it, &cfg) * h)
             .min(it.jerk * h * h / (2.0 * vmax));
-        for smp in d.piece_samples(&p) {
+        // (Every piece rests at both ends.)
+        for smp in d.piece_samples(&p, true) {
             let u = ((smp.s - p.x0) / h).clamp(0.0, 1.0);
             for ax in 0..3 {
                 let coef = smp.csss[ax] * 2.0 * u * (1.0 - u)

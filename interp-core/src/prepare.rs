@@ -590,7 +590,10 @@ impl BlockPlanner {
                 junction_speed(&left, &entry, &cfg)
             };
             let v = v.min(self.joint_junction(block, &left, &entry));
-            if self.apply_junction(v, self.tail_s) {
+            // (A block starting at a stationary point has its laws taken
+            // that far inside: the junction's limit covers the stretch.)
+            let slack = pieces[0].arc_length(pieces[0].u_start(), windows[0].0);
+            if self.apply_junction(v, self.tail_s, slack) {
                 out.stop_at_join = true;
             }
         }
@@ -604,7 +607,13 @@ impl BlockPlanner {
                 let left = pieces[k - 1].eval(windows[k - 1].1, 3);
                 let right = piece.eval(windows[k].0, 3);
                 let v = junction_speed(&left, &right, &cfg);
-                let stop = self.apply_junction(v, s);
+                // The laws are not sampled within the windows' offsets of a
+                // stationary point: the junction's limit covers them.
+                let prev = &pieces[k - 1];
+                let slack = prev
+                    .arc_length(windows[k - 1].1, prev.u_end())
+                    .max(piece.arc_length(piece.u_start(), windows[k].0));
+                let stop = self.apply_junction(v, s, slack);
                 if let Some(prev) = out.segments[k - 1].as_mut() {
                     prev.stop_at_end = stop;
                 }
@@ -738,12 +747,12 @@ impl BlockPlanner {
 
     /// A junction of speed limit `v` at arc length `s`: a rest point, or a
     /// lower limit there. Returns whether it is a rest point.
-    fn apply_junction(&mut self, v: f64, s: f64) -> bool {
+    fn apply_junction(&mut self, v: f64, s: f64, slack: f64) -> bool {
         if v < crate::plan::stop_speed(&self.cfg) {
             let _ = self.window.add_stop(s);
             true
         } else {
-            self.window.lower_range(s, s, 0, v);
+            self.window.lower_junction(s, slack, v);
             false
         }
     }
@@ -780,12 +789,20 @@ fn sample_laws(
             feed_limit(d, block.feed, block.mrr.as_ref(), cfg)
         }
     };
+    // A block shorter than a sub-range (a corner blend, a stretch between
+    // two stationary points) limits exactly its own extent, by the lowest
+    // of its laws (see `plan::Span`); a longer one, the sub-ranges.
+    let short = seg.length < h / crate::plan::SUB as f64;
     let lower = |w: &mut Window, s0: f64, s1: f64, which: usize, v: f64| {
-        w.lower_range(s0, s1, which, v);
+        if short {
+            w.lower_exact(seg.s0, seg.s1(), which, v);
+        } else {
+            w.lower_range(s0, s1, which, v);
+        }
     };
     // A per-axis sample is kept where the axis jerk could bind at the
     // speed `v` the laws allow there (elsewhere no row is needed).
-    let sample_at = |w: &mut Window, s: f64, d: &Derivs, v: f64| {
+    let sample_at = |w: &mut Window, s: f64, d: &Derivs, v: f64, side: i8| {
         let Some(a) = ArcLengthDerivs::new(d) else {
             return;
         };
@@ -794,14 +811,22 @@ fn sample_laws(
             t: [a.t.x, a.t.y, a.t.z],
             css: [a.c_ss.x, a.c_ss.y, a.c_ss.z],
             csss: [a.c_sss.x, a.c_sss.y, a.c_sss.z],
+            side,
         };
         if (0..3).any(|ax| axis_jerk_may_bind(&smp, ax, v * v, cfg)) {
             keep_axis_sample(w, smp, h, v * v, cfg);
         }
     };
-    let sample = |w: &mut Window, s: f64, d: &Derivs| {
-        sample_at(w, s, d, law(d, 0).min(law(d, 1)).min(cfg.max_path_speed));
+    let sample_on = |w: &mut Window, s: f64, d: &Derivs, side: i8| {
+        sample_at(
+            w,
+            s,
+            d,
+            law(d, 0).min(law(d, 1)).min(cfg.max_path_speed),
+            side,
+        );
     };
+    let sample = |w: &mut Window, s: f64, d: &Derivs| sample_on(w, s, d, 0);
     let curve = !matches!(path, Path::Line(_));
     let (g_first, g_last) = (index_of(seg.s0, h), index_of(seg.s1(), h));
     let feed_top = block.feed.min(cfg.max_path_speed);
@@ -829,8 +854,8 @@ fn sample_laws(
         }
     }
     if curve {
-        sample(w, seg.s0, &path.eval(u_lo, 3));
-        sample(w, seg.s1(), &path.eval(u_hi, 3));
+        sample_on(w, seg.s0, &path.eval(u_lo, 3), 1);
+        sample_on(w, seg.s1(), &path.eval(u_hi, 3), -1);
     }
     if curve && seg.length < 2.0 * hs {
         // A curve shorter than the law spacing (a corner blend of a few µm)
@@ -895,7 +920,15 @@ fn sample_laws(
             // jerk may bind. Whether one is looked at must not turn on
             // round-off: a variant of the same path (moved, scaled, split)
             // would be planned differently.
-            sample_at(w, x, &d, both[0].min(both[1]));
+            let on_end = 1e-9 * h;
+            let side = if x <= seg.s0 + on_end {
+                1
+            } else if x >= seg.s1() - on_end {
+                -1
+            } else {
+                0
+            };
+            sample_at(w, x, &d, both[0].min(both[1]), side);
             if k > k0 {
                 let um = (0.5 * (u_prev + u)).clamp(u_lo, u_hi);
                 sample(w, x - 0.5 * hs, &path.eval(um, 3));
@@ -992,10 +1025,10 @@ fn sample_laws(
                 let v = junction_speed(&left, &right, cfg);
                 at_s += path.arc_length(at_u, u);
                 at_u = u;
-                // (Arc length carried from knot to knot: a sub-range's
-                // slack each way.)
-                let hsub = h / crate::plan::SUB as f64;
-                lower(w, at_s - hsub, at_s + hsub, 0, v);
+                // (Arc length carried from knot to knot, to ~1e-12 mm a
+                // knot: a thousandth of a sub-range's slack each way.)
+                let slack = 1e-3 * h / crate::plan::SUB as f64;
+                w.lower_junction(at_s, slack, v);
             }
             if u > ua {
                 prev = u;

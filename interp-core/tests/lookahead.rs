@@ -647,3 +647,37 @@ fn a_plan_for_another_queue_end_is_refused_and_a_resynced_planner_goes_on() {
     assert_eq!(last.state, RunState::Done);
     assert_eq!(v3(&last.axes), next.path.end_point());
 }
+
+#[test]
+fn a_slow_fillet_between_exact_stops_slows_only_itself() {
+    // Two lines turning 90° through a fillet of 1 µm radius (1.6 µm long):
+    // its laws allow ~0.6 mm/s, and the curvature jumps at its ends are too
+    // sharp to pass (rest points). Its limits must hold on the fillet only:
+    // not on the law grid's sub-range around it (31 µm), and its curvature
+    // must not bound the axis jerk of the lines across the rest points.
+    // Against the same lines meeting in a sharp corner (an exact stop too),
+    // the fillet adds its own crossing from rest to rest (~13 ms at the
+    // acceleration allowed next to a rest) and a rest more; either fault
+    // made it 200 ms.
+    let cfg = InterpConfig::default();
+    let r = 1e-3;
+    let l = |a: Vec3, b: Vec3, id| Block::new(id, Path::Line(Line::new(a, b).unwrap()), 100.0);
+    let p0 = Vec3::zeros();
+    let p1 = Vec3::new(10.0, 0.0, 0.0);
+    let p2 = Vec3::new(10.0 + r, r, 0.0);
+    let fillet = Arc::from_centre(p1, p2, Vec3::new(10.0, r, 0.0), Vec3::z(), 0).unwrap();
+    let filleted = [
+        l(p0, p1, 1),
+        Block::new(2, Path::Arc(fillet), 100.0),
+        l(p2, p2 + Vec3::new(0.0, 10.0, 0.0), 3),
+    ];
+    let sharp = [l(p0, p1, 1), l(p1, p1 + Vec3::new(0.0, 10.0, 0.0), 2)];
+    let run_f = run_with(cfg, &filleted, |_, _| {});
+    assert_program_properties(&cfg, &filleted, &run_f);
+    let run_s = run_with(cfg, &sharp, |_, _| {});
+    let (tf, ts) = (run_f.sps.len(), run_s.sps.len());
+    assert!(
+        tf <= ts + 30,
+        "filleted corner {tf} ticks, sharp corner {ts} ticks"
+    );
+}
