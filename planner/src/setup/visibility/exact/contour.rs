@@ -71,11 +71,18 @@ struct Node {
     sin_a: f64,
     /// The corners along `axis` (least, most), and their largest distance
     /// from the line along `axis` through the box's centre
-    /// ([`Node::mid`]).
+    /// ([`Node::mid`]), rounded up.
     along: (f64, f64),
-    across: f64,
-    /// Smallest twice-area of a triangle.
-    min_area2: f64,
+    across: f32,
+    /// Smallest twice-area of a triangle, rounded down.
+    min_area2: f32,
+    /// How far each triangle's corners reach past [`Node::mid`] along its
+    /// own unit normal, most and least: `up ≥ n̂·(x − mid)` and
+    /// `down ≥ −n̂·(x − mid)` for every triangle and corner (rounded up).
+    /// Tighter than any bound from the cone of normals, which must pair
+    /// every normal with every corner.
+    up: f32,
+    down: f32,
     /// An inner node (`count` 0): the index of the first node after its
     /// subtree (pre-order; its children are at `i + 1` and after that
     /// child's subtree). A leaf: its first edge, of `count`
@@ -208,6 +215,18 @@ impl ContourTree {
     }
 }
 
+/// `x` in `f32`, rounded up (toward +∞).
+fn f32_above(x: f64) -> f32 {
+    let f = x as f32;
+    if f64::from(f) < x { f.next_up() } else { f }
+}
+
+/// `x` in `f32`, rounded down (toward −∞).
+fn f32_below(x: f64) -> f32 {
+    let f = x as f32;
+    if f64::from(f) > x { f.next_down() } else { f }
+}
+
 /// What building [`ContourTree`] reads.
 struct Build<'a> {
     mesh: &'a TriMesh,
@@ -259,6 +278,7 @@ impl Build<'_> {
             (axis, half.cos(), half.sin())
         };
         let (mut below, mut above, mut across) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
+        let (mut up, mut down) = (f64::NEG_INFINITY, f64::NEG_INFINITY);
         for &e in set.iter() {
             for t in self.triangles(e) {
                 for c in mesh.corners(t) {
@@ -267,6 +287,9 @@ impl Build<'_> {
                     below = below.min(h);
                     above = above.max(h);
                     across = across.max((off - axis * axis.dot(&off)).norm());
+                    let reach = mesh.normals[t].dot(&off);
+                    up = up.max(reach);
+                    down = down.max(-reach);
                 }
             }
         }
@@ -278,8 +301,10 @@ impl Build<'_> {
             cos_a,
             sin_a,
             along: (below, above),
-            across,
-            min_area2,
+            across: f32_above(across),
+            min_area2: f32_below(min_area2),
+            up: f32_above(up),
+            down: f32_above(down),
             link: 0,
             count: 0,
             plain,
@@ -333,7 +358,7 @@ impl ContourTree {
         let na = n.dot(&b.axis);
         let mid = b.mid();
         let base = n.dot(&mid) - na * b.axis.dot(&mid);
-        let spread = (1.0 - na * na).max(0.0).sqrt() * b.across;
+        let spread = (1.0 - na * na).max(0.0).sqrt() * f64::from(b.across);
         let (h_far, h_near) = if na >= 0.0 {
             (b.along.1, b.along.0)
         } else {
@@ -383,18 +408,14 @@ impl ContourTree {
         }
         let mid = b.mid();
         let radius = b.radius();
-        let axis_mid = b.axis.dot(&mid);
         let u = p.origin.coords - mid;
         // Each triangle's n̂·(o − x) = n̂·u − n̂·(x − mid): n̂·u is at least
         // |u|·cos(β + α) (β the angle from the cone's axis to u; positive
-        // only when β + α < 90°), and n̂·(x − mid) at most the corners' reach
-        // along the axis past mid plus sin α times their distance from it
-        // (n̂ = cos θ·axis + sin θ·e, θ ≤ α), or the radius. The opposite
-        // for triangles facing away. |u|·cos β and |u|·sin β are taken
-        // as `axis·u` and `|axis × u|` (no division, no cancellation).
-        let side = b.sin_a * b.across;
-        let up = radius.min((b.along.1 - axis_mid).max(0.0) + side);
-        let down = radius.min((axis_mid - b.along.0).max(0.0) + side);
+        // only when β + α < 90°), and n̂·(x − mid) at most `up`. The
+        // opposite for triangles facing away. |u|·cos β and |u|·sin β are
+        // taken as `axis·u` and `|axis × u|` (no division, no
+        // cancellation).
+        let (up, down) = (f64::from(b.up), f64::from(b.down));
         let (along_u, across_u) = (b.axis.dot(&u), b.axis.cross(&u).norm());
         let front = along_u * b.cos_a - across_u * b.sin_a - up;
         let back = -along_u * b.cos_a - across_u * b.sin_a - down;
@@ -407,7 +428,8 @@ impl ContourTree {
         // round-off of about ε·|corner − o|³; each triangle's n̂·(o − x) times
         // its twice-area must stay well above it.
         let reach = u.norm() + radius;
-        let margin = 2.0 * t_min + 64.0 * f64::EPSILON * reach * reach * reach / b.min_area2;
+        let margin =
+            2.0 * t_min + 64.0 * f64::EPSILON * reach * reach * reach / f64::from(b.min_area2);
         if front > margin || back > margin {
             // Every triangle has a cone; those with a corner in front are
             // the occluders.
