@@ -426,7 +426,6 @@ impl ContourTree {
             return Some((Facing::Mixed, in_front));
         }
         let mid = b.mid();
-        let radius = b.radius();
         let u = p.origin.coords - mid;
         // Each triangle's n̂·(o − x) = n̂·u − n̂·(x − mid): n̂·u is at least
         // |u|·cos(β + α) (β the angle from the cone's axis to u; positive
@@ -446,7 +445,7 @@ impl ContourTree {
         // The edge tests' products and the cone's distance test carry
         // round-off of about ε·|corner − o|³; each triangle's n̂·(o − x) times
         // its twice-area must stay well above it.
-        let reach = u.norm() + radius;
+        let reach = u.norm() + b.radius();
         let margin =
             2.0 * t_min + 64.0 * f64::EPSILON * reach * reach * reach / f64::from(b.min_area2);
         if front > margin || back > margin {
