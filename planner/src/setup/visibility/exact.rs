@@ -61,6 +61,7 @@ const ARC_PIECE_SPACINGS: f64 = 2.0;
 /// every corner is at least `1e-13` off that circle in the products
 /// `arc_meets_cell` takes, far above their round-off (`1e-16`).
 const CLEAR_MIN_SIN: f64 = 1e-6;
+/// See [`CLEAR_MIN_SIN`].
 const CLEAR_MARGIN: f64 = 1e-7;
 /// Candidate cells per chunk of the gather's walk.
 const GATHER_CHUNK: usize = 4;

@@ -1453,4 +1453,52 @@ mod tests {
             "{arcs} arcs, {cut} cut subtrees"
         );
     }
+
+    /// Each node's stored reach bounds `n̂·(x − mid)` over its triangles
+    /// and their own corners from both sides, and its `f32` fields are
+    /// rounded the safe way (the facing bound relies on both).
+    #[test]
+    fn each_node_bounds_its_triangles_reach_along_their_normals() {
+        let soup = rotated(
+            &teapot(10, 12, 5, 6),
+            &z_to(&V3::new(0.3, -0.2, 0.9).normalize()),
+        );
+        let mesh = TriMesh::from_triangles(&soup, WeldOptions::default()).unwrap();
+        let caster = RayCaster::new(&mesh);
+        let tree = ContourTree::new(&mesh, &caster);
+        let mut checked = 0;
+        for (i, node) in tree.nodes.iter().enumerate() {
+            let (mut most, mut least) = (f64::NEG_INFINITY, f64::INFINITY);
+            let leaves = (i..node.end(i)).filter(|&j| tree.nodes[j].count > 0);
+            for e in leaves.flat_map(|j| &tree.edges[tree.nodes[j].edges()]) {
+                for t in [e.t, e.t2].into_iter().filter(|&t| t != NONE) {
+                    for c in mesh.corners(t as usize) {
+                        let reach = mesh.normals[t as usize].dot(&(c.coords - node.mid()));
+                        most = most.max(reach);
+                        least = least.min(reach);
+                        checked += 1;
+                    }
+                }
+            }
+            assert!(
+                f64::from(node.up) >= most && f64::from(node.down) >= -least,
+                "node {i}"
+            );
+            // Rounded outward by at most one f32 step.
+            assert!(
+                f64::from(node.up.next_down()) < most,
+                "node {i}: up not tight"
+            );
+            assert!(
+                f64::from(node.down.next_down()) < -least,
+                "node {i}: down not tight"
+            );
+        }
+        assert!(checked > 10_000, "{checked}");
+        for x in [0.1, -0.1, 1e-40, 3.0, -7.25, 1e30] {
+            let (up, down) = (f32_above(x), f32_below(x));
+            assert!(f64::from(up) >= x && f64::from(up.next_down()) < x, "{x}");
+            assert!(f64::from(down) <= x && f64::from(down.next_up()) > x, "{x}");
+        }
+    }
 }
