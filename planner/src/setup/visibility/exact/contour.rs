@@ -71,18 +71,11 @@ struct Node {
     sin_a: f64,
     /// The corners along `axis` (least, most), and their largest distance
     /// from the line along `axis` through the box's centre
-    /// ([`Node::mid`]), rounded up.
+    /// ([`Node::mid`]).
     along: (f64, f64),
-    across: f32,
-    /// Smallest twice-area of a triangle, rounded down.
-    min_area2: f32,
-    /// How far each triangle's corners reach past [`Node::mid`] along its
-    /// own unit normal, most and least: `up ≥ n̂·(x − mid)` and
-    /// `down ≥ −n̂·(x − mid)` for every triangle and corner (rounded up).
-    /// Tighter than any bound from the cone of normals, which must pair
-    /// every normal with every corner.
-    up: f32,
-    down: f32,
+    across: f64,
+    /// Smallest twice-area of a triangle.
+    min_area2: f64,
     /// An inner node (`count` 0): the index of the first node after its
     /// subtree (pre-order; its children are at `i + 1` and after that
     /// child's subtree). A leaf: its first edge, of `count`
@@ -203,20 +196,8 @@ impl ContourTree {
             points: mesh.vertices.iter().map(|v| v.coords).collect(),
         };
         if !edges.is_empty() {
-            // Each triangle's corners, normal and twice-area, read at every
-            // level of the build.
-            let triangles: Vec<Triangle> = (0..mesh.triangles.len())
-                .map(|t| {
-                    let c = mesh.corners(t).map(|c| c.coords);
-                    Triangle {
-                        corners: c,
-                        normal: mesh.normals[t],
-                        area2: (c[1] - c[0]).cross(&(c[2] - c[0])).norm(),
-                    }
-                })
-                .collect();
             let ctx = Build {
-                triangles: &triangles,
+                mesh,
                 edges: &edges,
                 plain: &plain,
                 mids: &mids,
@@ -227,29 +208,9 @@ impl ContourTree {
     }
 }
 
-/// `x` in `f32`, rounded up (toward +∞).
-fn f32_above(x: f64) -> f32 {
-    let f = x as f32;
-    if f64::from(f) < x { f.next_up() } else { f }
-}
-
-/// `x` in `f32`, rounded down (toward −∞).
-fn f32_below(x: f64) -> f32 {
-    let f = x as f32;
-    if f64::from(f) > x { f.next_down() } else { f }
-}
-
-/// A triangle as building [`ContourTree`] reads it.
-struct Triangle {
-    corners: [V3; 3],
-    normal: V3,
-    /// Twice its area.
-    area2: f64,
-}
-
 /// What building [`ContourTree`] reads.
 struct Build<'a> {
-    triangles: &'a [Triangle],
+    mesh: &'a TriMesh,
     edges: &'a [Edge],
     plain: &'a [bool],
     mids: &'a [V3],
@@ -265,7 +226,7 @@ impl Build<'_> {
     /// Appends the subtree over `set` to `tree` (pre-order); returns its
     /// index.
     fn node(&self, set: &mut [u32], tree: &mut ContourTree) -> usize {
-        let tri = self.triangles;
+        let mesh = self.mesh;
         let (mut lo, mut hi) = (V3::repeat(f64::INFINITY), V3::repeat(f64::NEG_INFINITY));
         let mut sum = V3::zeros();
         let mut min_area2 = f64::INFINITY;
@@ -273,12 +234,13 @@ impl Build<'_> {
         for &e in set.iter() {
             plain &= self.plain[e as usize];
             for t in self.triangles(e) {
-                for c in &tri[t].corners {
-                    lo = lo.inf(c);
-                    hi = hi.sup(c);
+                for c in mesh.corners(t) {
+                    lo = lo.inf(&c.coords);
+                    hi = hi.sup(&c.coords);
                 }
-                sum += tri[t].normal;
-                min_area2 = min_area2.min(tri[t].area2);
+                sum += mesh.normals[t];
+                let c = mesh.corners(t);
+                min_area2 = min_area2.min((c[1] - c[0]).cross(&(c[2] - c[0])).norm());
             }
         }
         let mid = (lo + hi) * 0.5;
@@ -289,7 +251,7 @@ impl Build<'_> {
             let mut cos_a: f64 = 1.0;
             for &e in set.iter() {
                 for t in self.triangles(e) {
-                    cos_a = cos_a.min(axis.dot(&tri[t].normal));
+                    cos_a = cos_a.min(axis.dot(&mesh.normals[t]));
                 }
             }
             // Widened a little for round-off.
@@ -297,18 +259,14 @@ impl Build<'_> {
             (axis, half.cos(), half.sin())
         };
         let (mut below, mut above, mut across) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
-        let (mut up, mut down) = (f64::NEG_INFINITY, f64::NEG_INFINITY);
         for &e in set.iter() {
             for t in self.triangles(e) {
-                for c in &tri[t].corners {
-                    let h = axis.dot(c);
-                    let off = c - mid;
+                for c in mesh.corners(t) {
+                    let h = axis.dot(&c.coords);
+                    let off = c.coords - mid;
                     below = below.min(h);
                     above = above.max(h);
                     across = across.max((off - axis * axis.dot(&off)).norm());
-                    let reach = tri[t].normal.dot(&off);
-                    up = up.max(reach);
-                    down = down.max(-reach);
                 }
             }
         }
@@ -320,10 +278,8 @@ impl Build<'_> {
             cos_a,
             sin_a,
             along: (below, above),
-            across: f32_above(across),
-            min_area2: f32_below(min_area2),
-            up: f32_above(up),
-            down: f32_above(down),
+            across,
+            min_area2,
             link: 0,
             count: 0,
             plain,
@@ -354,110 +310,82 @@ impl Build<'_> {
 }
 
 impl ContourTree {
-    /// Bounds (least, most) of `n·x` over the corners of node `b` from its
-    /// box: looser than [`ContourTree::axis_heights`] on a curved piece of
-    /// surface, but cheap enough to try first. The walk takes the tighter
-    /// of the two on each side, the box's alone when it already decides.
-    fn box_heights(b: &Node, n: &V3) -> (f64, f64) {
+    /// Bounds (least, most) of `n·x` over the corners of node `b`: from
+    /// the box, and from the extent along the axis of the normals (much
+    /// tighter than the box for a curved piece of surface).
+    fn heights(b: &Node, n: &V3) -> (f64, f64) {
         let (mut box_lo, mut box_hi) = (0.0, 0.0);
         for k in 0..3 {
             let (lo, hi) = (n[k] * b.lo[k], n[k] * b.hi[k]);
             box_lo += lo.min(hi);
             box_hi += lo.max(hi);
         }
-        (box_lo, box_hi)
-    }
-
-    /// Bounds (least, most) of `n·x` over the corners of node `b` from
-    /// their extent along the axis of the normals (much tighter than the
-    /// box for a curved piece of surface).
-    fn axis_heights(b: &Node, n: &V3) -> (f64, f64) {
         // n = na·axis + perp: n·x = na·(axis·x) + perp·x, and perp·x is
         // perp·mid within |perp|·across.
         let na = n.dot(&b.axis);
         let mid = b.mid();
         let base = n.dot(&mid) - na * b.axis.dot(&mid);
-        let spread = (1.0 - na * na).max(0.0).sqrt() * f64::from(b.across);
+        let spread = (1.0 - na * na).max(0.0).sqrt() * b.across;
         let (h_far, h_near) = if na >= 0.0 {
             (b.along.1, b.along.0)
         } else {
             (b.along.0, b.along.1)
         };
-        (na * h_near + base - spread, na * h_far + base + spread)
+        (
+            box_lo.max(na * h_near + base - spread),
+            box_hi.min(na * h_far + base + spread),
+        )
     }
 
     /// Whether every triangle of node `i` faces the patch the same way,
     /// with a margin that keeps the edge tests' signs and [`Cone::new`]
     /// certain, and whether all are occluders; `None` when the node lies
     /// behind the plane.
-    #[cfg(test)]
     fn facing(&self, i: usize, p: &PatchFrame, level: f64, t_min: f64) -> Option<Facing> {
-        self.facing_within(i, p, level, t_min, false).map(|f| f.0)
-    }
-
-    /// [`ContourTree::facing`], and whether every corner of node `i` lies
-    /// in front of the plane (past `level` by the slack); `in_front`: that
-    /// is known already (of an ancestor, so of every corner of this node),
-    /// and the node's own bounds are not taken.
-    fn facing_within(
-        &self,
-        i: usize,
-        p: &PatchFrame,
-        level: f64,
-        t_min: f64,
-        in_front: bool,
-    ) -> Option<(Facing, bool)> {
         let b = &self.nodes[i];
-        let in_front = in_front || {
-            // The box first: most nodes it puts behind the plane need no
-            // more.
-            let (box_near, box_far) = Self::box_heights(b, p.normal);
-            if box_far <= level - Self::slack(t_min) {
-                return None;
-            }
-            let (axis_near, axis_far) = Self::axis_heights(b, p.normal);
-            let (near, far) = (box_near.max(axis_near), box_far.min(axis_far));
-            if far <= level - Self::slack(t_min) {
-                return None;
-            }
-            near > level + Self::slack(t_min)
-        };
+        let (near, far) = Self::heights(b, p.normal);
+        if far <= level - Self::slack(t_min) {
+            return None;
+        }
         if !b.plain || b.cos_a <= 0.0 || b.min_area2 <= 0.0 {
-            return Some((Facing::Mixed, in_front));
+            return Some(Facing::Mixed);
         }
         let mid = b.mid();
+        let radius = b.radius();
+        let axis_mid = b.axis.dot(&mid);
         let u = p.origin.coords - mid;
+        let dist = u.norm();
+        if dist == 0.0 {
+            return Some(Facing::Mixed);
+        }
         // Each triangle's n̂·(o − x) = n̂·u − n̂·(x − mid): n̂·u is at least
         // |u|·cos(β + α) (β the angle from the cone's axis to u; positive
-        // only when β + α < 90°), and n̂·(x − mid) at most `up`. The
-        // opposite for triangles facing away. |u|·cos β and |u|·sin β are
-        // taken as `axis·u` and `|axis × u|` (no division, no
-        // cancellation).
-        let (up, down) = (f64::from(b.up), f64::from(b.down));
-        let (along_u, across_u) = (b.axis.dot(&u), b.axis.cross(&u).norm());
-        let front = along_u * b.cos_a - across_u * b.sin_a - up;
-        let back = -along_u * b.cos_a - across_u * b.sin_a - down;
-        // The margin below is at least 2·t_min: a node short of that needs
-        // no more.
-        if front <= 2.0 * t_min && back <= 2.0 * t_min {
-            return Some((Facing::Mixed, in_front));
-        }
+        // only when β + α < 90°), and n̂·(x − mid) at most the corners' reach
+        // along the axis past mid plus sin α times their distance from it
+        // (n̂ = cos θ·axis + sin θ·e, θ ≤ α), or the radius. The opposite
+        // for triangles facing away.
+        let side = b.sin_a * b.across;
+        let up = radius.min((b.along.1 - axis_mid).max(0.0) + side);
+        let down = radius.min((axis_mid - b.along.0).max(0.0) + side);
+        let cos_b = b.axis.dot(&u) / dist;
+        let sin_b = (1.0 - cos_b * cos_b).max(0.0).sqrt();
+        let front = dist * (cos_b * b.cos_a - sin_b * b.sin_a) - up;
+        let back = dist * (-cos_b * b.cos_a - sin_b * b.sin_a) - down;
         // The edge tests' products and the cone's distance test carry
         // round-off of about ε·|corner − o|³; each triangle's n̂·(o − x) times
         // its twice-area must stay well above it.
-        let reach = u.norm() + b.radius();
-        let margin =
-            2.0 * t_min + 64.0 * f64::EPSILON * reach * reach * reach / f64::from(b.min_area2);
+        let reach = dist + radius;
+        let margin = 2.0 * t_min + 64.0 * f64::EPSILON * reach * reach * reach / b.min_area2;
         if front > margin || back > margin {
             // Every triangle has a cone; those with a corner in front are
             // the occluders.
-            if in_front {
-                Some((Facing::Uniform, true))
+            if near > level + Self::slack(t_min) {
+                Some(Facing::Uniform)
             } else {
-                Some((Facing::Cut, false))
+                Some(Facing::Cut)
             }
         } else {
-            Some((Facing::Mixed, in_front))
+            Some(Facing::Mixed)
         }
     }
 
@@ -1155,27 +1083,20 @@ impl Exact<'_> {
     fn mark_contour(&self, tree: &ContourTree, p: &PatchFrame, level: f64, w: &mut ExactScratch) {
         let caster = self.caster;
         let mut i = 0;
-        // The nodes before this one lie in a subtree wholly in front of the
-        // plane (pre-order: a subtree is a run of indices).
-        let mut in_front_until = 0;
         while i < tree.nodes.len() {
             let node = &tree.nodes[i];
-            match tree.facing_within(i, p, level, caster.t_min, i < in_front_until) {
+            match tree.facing(i, p, level, caster.t_min) {
                 // Behind the plane, or every edge interior.
-                None | Some((Facing::Uniform, _)) => {
+                None | Some(Facing::Uniform) => {
                     i = node.end(i);
                     continue;
                 }
-                Some((Facing::Cut, _)) => {
+                Some(Facing::Cut) => {
                     self.mark_cut(tree, i, p, level, w);
                     i = node.end(i);
                     continue;
                 }
-                Some((Facing::Mixed, in_front)) => {
-                    if in_front {
-                        in_front_until = in_front_until.max(node.end(i));
-                    }
-                }
+                Some(Facing::Mixed) => {}
             }
             i += 1;
             for e in &tree.edges[node.edges()] {
@@ -1209,14 +1130,8 @@ impl Exact<'_> {
             if j != i {
                 // Wholly behind (no occluder) or wholly in front (all
                 // occluders): no contour.
-                // The box first (the tighter bound needs no more when it
-                // decides).
-                let (box_near, box_far) = ContourTree::box_heights(node, n);
-                let beyond = |near: f64, far: f64| far <= level - slack || near > level + slack;
-                if beyond(box_near, box_far) || {
-                    let (axis_near, axis_far) = ContourTree::axis_heights(node, n);
-                    beyond(box_near.max(axis_near), box_far.min(axis_far))
-                } {
+                let (near, far) = ContourTree::heights(node, n);
+                if far <= level - slack || near > level + slack {
                     j = node.end(j);
                     continue;
                 }
@@ -1452,53 +1367,5 @@ mod tests {
             arcs > 10_000 && cut > 1_000,
             "{arcs} arcs, {cut} cut subtrees"
         );
-    }
-
-    /// Each node's stored reach bounds `n̂·(x − mid)` over its triangles
-    /// and their own corners from both sides, and its `f32` fields are
-    /// rounded the safe way (the facing bound relies on both).
-    #[test]
-    fn each_node_bounds_its_triangles_reach_along_their_normals() {
-        let soup = rotated(
-            &teapot(10, 12, 5, 6),
-            &z_to(&V3::new(0.3, -0.2, 0.9).normalize()),
-        );
-        let mesh = TriMesh::from_triangles(&soup, WeldOptions::default()).unwrap();
-        let caster = RayCaster::new(&mesh);
-        let tree = ContourTree::new(&mesh, &caster);
-        let mut checked = 0;
-        for (i, node) in tree.nodes.iter().enumerate() {
-            let (mut most, mut least) = (f64::NEG_INFINITY, f64::INFINITY);
-            let leaves = (i..node.end(i)).filter(|&j| tree.nodes[j].count > 0);
-            for e in leaves.flat_map(|j| &tree.edges[tree.nodes[j].edges()]) {
-                for t in [e.t, e.t2].into_iter().filter(|&t| t != NONE) {
-                    for c in mesh.corners(t as usize) {
-                        let reach = mesh.normals[t as usize].dot(&(c.coords - node.mid()));
-                        most = most.max(reach);
-                        least = least.min(reach);
-                        checked += 1;
-                    }
-                }
-            }
-            assert!(
-                f64::from(node.up) >= most && f64::from(node.down) >= -least,
-                "node {i}"
-            );
-            // Rounded outward by at most one f32 step.
-            assert!(
-                f64::from(node.up.next_down()) < most,
-                "node {i}: up not tight"
-            );
-            assert!(
-                f64::from(node.down.next_down()) < -least,
-                "node {i}: down not tight"
-            );
-        }
-        assert!(checked > 10_000, "{checked}");
-        for x in [0.1, -0.1, 1e-40, 3.0, -7.25, 1e30] {
-            let (up, down) = (f32_above(x), f32_below(x));
-            assert!(f64::from(up) >= x && f64::from(up.next_down()) < x, "{x}");
-            assert!(f64::from(down) <= x && f64::from(down.next_up()) > x, "{x}");
-        }
     }
 }
