@@ -289,6 +289,19 @@ pub fn axis_limit_of(a: &ArcLengthDerivs, cfg: &InterpConfig, budget: f64, i: us
 /// axis's curvature budget; the other half bounds the curvature terms of both
 /// pieces at the junction.
 pub fn junction_speed(left: &Derivs, right: &Derivs, cfg: &InterpConfig) -> f64 {
+    junction_speed_with(left, right, cfg, JUMP_SHARE)
+}
+
+/// [`junction_speed`] with the curvature's step taking `jump_share` of an
+/// axis's jerk (at a stationary point, whose laws are taken a tick inside
+/// and whose curvature grows without bound towards it, the planner keeps
+/// [`STATIONARY_JUMP_SHARE`]).
+pub fn junction_speed_with(
+    left: &Derivs,
+    right: &Derivs,
+    cfg: &InterpConfig,
+    jump_share: f64,
+) -> f64 {
     let (Some(l), Some(r)) = (ArcLengthDerivs::new(left), ArcLengthDerivs::new(right)) else {
         return 0.0;
     };
@@ -310,7 +323,10 @@ pub fn junction_speed(left: &Derivs, right: &Derivs, cfg: &InterpConfig) -> f64 
         }
         let c = libm::fabs(dk[i]);
         if c > 0.0 {
-            v = v.min(libm::sqrt(share * keep * cfg.axis_max_jerk[i] * ts / c));
+            // The curvature's step: see [`JUMP_SHARE`].
+            v = v.min(libm::sqrt(
+                jump_share / JUMP_SEEN * keep * cfg.axis_max_jerk[i] * ts / c,
+            ));
         }
     }
     // A jump too small to matter at any speed the machine can reach (split
@@ -321,6 +337,37 @@ pub fn junction_speed(left: &Derivs, right: &Derivs, cfg: &InterpConfig) -> f64 
     }
     v.min(machine_limit(left, cfg, 0.5))
         .min(machine_limit(right, cfg, 0.5))
+}
+
+/// The share of an axis's jerk a curvature step at a junction may take
+/// (`v²·|Δκᵢ|` in one tick). The jerk rows next to the junction keep to the
+/// rest ([`jump_reserve`]), so the two add up to the limit.
+pub const JUMP_SHARE: f64 = 0.5;
+
+/// [`JUMP_SHARE`] at a junction next to a stationary point (see
+/// [`junction_speed_with`]): the share the planner gave every junction
+/// before the jerk rows kept to the rest.
+pub const STATIONARY_JUMP_SHARE: f64 = 0.25 * JUMP_SEEN;
+
+/// The largest part of an acceleration step `ΔA` that one third difference
+/// of the setpoints sees, as a fraction of `ΔA/Ts`: a step at a fraction θ
+/// of a tick spreads over three of them as `(1−θ)²/2`, `(1+2θ−2θ²)/2`,
+/// `θ²/2`, the middle one at most 3/4.
+pub const JUMP_SEEN: f64 = 0.75;
+
+/// The share of each axis's jerk a junction passed at `v` takes with its
+/// curvature's step (at most [`JUMP_SHARE`]): the jerk rows at the
+/// junction's samples keep to the rest.
+pub fn jump_reserve(left: &Derivs, right: &Derivs, v: f64, cfg: &InterpConfig) -> f64 {
+    let (Some(l), Some(r)) = (ArcLengthDerivs::new(left), ArcLengthDerivs::new(right)) else {
+        return 0.0;
+    };
+    let keep = 1.0 - cfg.planning_margin;
+    let dk = r.c_ss - l.c_ss;
+    (0..3)
+        .map(|i| JUMP_SEEN * v * v * libm::fabs(dk[i]) / (cfg.period * keep * cfg.axis_max_jerk[i]))
+        .fold(0.0, f64::max)
+        .min(JUMP_SHARE)
 }
 
 /// A junction whose jump would limit the speed only above this many times the

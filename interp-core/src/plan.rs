@@ -72,6 +72,9 @@ pub struct AxisSample {
     /// start of the other, with other derivatives: each bounds only its own
     /// side (a fillet's curvature does not hold back the line before it).
     pub side: i8,
+    /// The share of each axis's jerk a junction's curvature step takes here
+    /// (`feed::jump_reserve`; 0 off a junction): the rows keep to the rest.
+    pub reserve: f64,
 }
 
 /// Sub-ranges per grid interval the speed limits are kept for: a slow point
@@ -1590,13 +1593,15 @@ fn assemble_and_solve(
                     a[m] = csss * sv + 1.5 * css * sd + 0.5 * t * sdd;
                 }
                 if aggregate {
-                    // |Σ a_m·d_m| ≤ Σ |a_m|·d_m for d ≥ 0: one row bounds every sample.
+                    // |Σ a_m·d_m| ≤ Σ |a_m|·d_m for d ≥ 0: one row bounds
+                    // every sample (a junction's scaled to its share).
                     for m in 0..3 {
-                        agg[ax][m] = agg[ax][m].max(libm::fabs(a[m]));
+                        let am = libm::fabs(a[m]) / (1.0 - smp.reserve);
+                        agg[ax][m] = agg[ax][m].max(am);
                     }
                     any[ax] = true;
                 } else {
-                    let jb = cfg.axis_max_jerk[ax] * keep / vmax;
+                    let jb = cfg.axis_max_jerk[ax] * keep * (1.0 - smp.reserve) / vmax;
                     sink.push(d, i, a, -jb, jb)?;
                 }
             }
@@ -1861,7 +1866,8 @@ fn crawl(d: &mut Data, from: usize, ovr: f64, lift: &Option<(f64, Stop)>) {
                     + 1.5 * smp.css[ax] * 2.0 / h * (1.0 - 2.0 * u)
                     - 0.5 * smp.t[ax] * 4.0 / (h * h);
                 if coef != 0.0 {
-                    best = best.min(cfg.axis_max_jerk[ax] * keep / vmax / libm::fabs(coef));
+                    let jb = cfg.axis_max_jerk[ax] * keep * (1.0 - smp.reserve);
+                    best = best.min(jb / vmax / libm::fabs(coef));
                 }
             }
         }

@@ -15,8 +15,8 @@
 
 use crate::config::{ConfigError, InterpConfig};
 use crate::feed::{
-    ArcLengthDerivs, MACHINE_LAW_PARTS, feed_limit, junction_speed, machine_limit,
-    machine_limit_parts, stationary_offset,
+    ArcLengthDerivs, MACHINE_LAW_PARTS, STATIONARY_JUMP_SHARE, feed_limit, junction_speed,
+    junction_speed_with, machine_limit, machine_limit_parts, stationary_offset,
 };
 use crate::fiveaxis::{
     JointSample, Orientation, QueueEnd, joint_junction_speed, sample_joints, walk_joints,
@@ -586,6 +586,8 @@ impl BlockPlanner {
                 // (A change of frame is a rest point: the machine stands
                 // while tool-centre-point control goes on or off.)
                 0.0
+            } else if singular[0] {
+                junction_speed_with(&left, &entry, &cfg, STATIONARY_JUMP_SHARE)
             } else {
                 junction_speed(&left, &entry, &cfg)
             };
@@ -595,6 +597,9 @@ impl BlockPlanner {
             let slack = pieces[0].arc_length(pieces[0].u_start(), windows[0].0);
             if self.apply_junction(v, self.tail_s, slack) {
                 out.stop_at_join = true;
+            } else {
+                let h = self.h;
+                junction_samples(&mut self.window, self.tail_s, &left, &entry, v, h, &cfg);
             }
         }
         out.n_segments = n_pieces;
@@ -606,7 +611,11 @@ impl BlockPlanner {
                 // A tangent break inside the block.
                 let left = pieces[k - 1].eval(windows[k - 1].1, 3);
                 let right = piece.eval(windows[k].0, 3);
-                let v = junction_speed(&left, &right, &cfg);
+                let v = if singular[k] {
+                    junction_speed_with(&left, &right, &cfg, STATIONARY_JUMP_SHARE)
+                } else {
+                    junction_speed(&left, &right, &cfg)
+                };
                 // The laws are not sampled within the windows' offsets of a
                 // stationary point: the junction's limit covers them.
                 let prev = &pieces[k - 1];
@@ -614,6 +623,10 @@ impl BlockPlanner {
                     .arc_length(windows[k - 1].1, prev.u_end())
                     .max(piece.arc_length(piece.u_start(), windows[k].0));
                 let stop = self.apply_junction(v, s, slack);
+                if !stop {
+                    let h = self.h;
+                    junction_samples(&mut self.window, s, &left, &right, v, h, &cfg);
+                }
                 if let Some(prev) = out.segments[k - 1].as_mut() {
                     prev.stop_at_end = stop;
                 }
@@ -812,6 +825,7 @@ fn sample_laws(
             css: [a.c_ss.x, a.c_ss.y, a.c_ss.z],
             csss: [a.c_sss.x, a.c_sss.y, a.c_sss.z],
             side,
+            reserve: 0.0,
         };
         if (0..3).any(|ax| axis_jerk_may_bind(&smp, ax, v * v, cfg)) {
             keep_axis_sample(w, smp, h, v * v, cfg);
@@ -1029,11 +1043,48 @@ fn sample_laws(
                 // knot: a thousandth of a sub-range's slack each way.)
                 let slack = 1e-3 * h / crate::plan::SUB as f64;
                 w.lower_junction(at_s, slack, v);
+                junction_samples(w, at_s, &left, &right, v, h, cfg);
             }
             if u > ua {
                 prev = u;
             }
             i += mult;
+        }
+    }
+}
+
+/// The per-axis samples of a junction at `s` passed at `v` at most: its
+/// two sides' derivatives, each with the share of the axes' jerk the
+/// curvature's step takes there ([`crate::feed::jump_reserve`]), so the jerk
+/// rows at the junction keep to the rest.
+pub(crate) fn junction_samples(
+    w: &mut Window,
+    s: f64,
+    left: &Derivs,
+    right: &Derivs,
+    v: f64,
+    h: f64,
+    cfg: &InterpConfig,
+) {
+    let v = v.min(cfg.max_path_speed);
+    let reserve = crate::feed::jump_reserve(left, right, v, cfg);
+    if !(reserve > 0.0) {
+        return;
+    }
+    for d in [left, right] {
+        let Some(a) = ArcLengthDerivs::new(d) else {
+            continue;
+        };
+        let smp = AxisSample {
+            s,
+            t: [a.t.x, a.t.y, a.t.z],
+            css: [a.c_ss.x, a.c_ss.y, a.c_ss.z],
+            csss: [a.c_sss.x, a.c_sss.y, a.c_sss.z],
+            side: 0,
+            reserve,
+        };
+        if (0..3).any(|ax| axis_jerk_may_bind(&smp, ax, v * v, cfg)) {
+            keep_axis_sample(w, smp, h, v * v, cfg);
         }
     }
 }
@@ -1058,7 +1109,8 @@ fn axis_jerk_load_at(smp: &AxisSample, ax: usize, l2: f64, cfg: &InterpConfig, j
     let worst = libm::fabs(smp.csss[ax]) * l2
         + 3.0 * libm::fabs(smp.css[ax]) * cfg.planned_accel()
         + libm::fabs(smp.t[ax]) * jerk * keep / v;
-    worst * v / (cfg.axis_max_jerk[ax] * keep)
+    // (Against the share a junction's step leaves.)
+    worst * v / (cfg.axis_max_jerk[ax] * keep * (1.0 - smp.reserve))
 }
 
 /// Put a per-axis sample whose axis jerk may bind at squared speed `l2`
