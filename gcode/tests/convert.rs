@@ -683,3 +683,56 @@ fn g6_2_tool_vectors_under_g43_5_are_a_second_curve_for_the_tool_axis() {
     );
     assert!(e.to_string().contains("line 7"), "{e}");
 }
+
+/// A second curve (rotary coordinates or tool vectors, as the JSON block
+/// form may give them) that is not one per control point is refused, not
+/// indexed out of bounds.
+#[test]
+fn a_second_curve_of_the_wrong_length_is_refused() {
+    use gcode::{CutError, Cutter, Move, MoveOrientation, MovePath};
+    let points = [[0.0, 0.0, 0.0], [10.0, 0.0, 0.0], [10.0, 10.0, 0.0]];
+    let knots = [0.0, 0.0, 0.0, 1.0, 1.0, 1.0];
+    let two = [[0.0, 0.0, 1.0]; 2];
+    for (rotary, tool_axes, what) in [
+        (Some(&two[..]), None, "rotary coordinates"),
+        (None, Some(&two[..]), "tool vectors"),
+    ] {
+        let m = Move {
+            line: 3,
+            first_line: 3,
+            feed: 600.0,
+            blending: interp_core::path::Blending::ExactPath,
+            start: None,
+            path: MovePath::Nurbs {
+                degree: 2,
+                points: &points,
+                weights: None,
+                knots: &knots,
+                rotary,
+                tool_axes,
+            },
+            orientation: Some(match tool_axes {
+                Some(_) => MoveOrientation::ToolAxis {
+                    start: [0.0, 0.0, 1.0],
+                    end: [0.0, 0.0, 1.0],
+                },
+                None => MoveOrientation::Axes {
+                    start: [0.0; 3],
+                    end: [0.0; 3],
+                },
+            }),
+            mrr: None,
+        };
+        let e = Cutter::new([0.0; 3], tool_axes.is_some(), 1, 32)
+            .cut(&m)
+            .unwrap_err();
+        assert_eq!(
+            e,
+            CutError::SecondCurveLength {
+                what,
+                got: 2,
+                want: 3
+            }
+        );
+    }
+}
