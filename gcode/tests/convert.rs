@@ -736,3 +736,51 @@ fn a_second_curve_of_the_wrong_length_is_refused() {
         );
     }
 }
+
+/// A G6.2 with U V W printed (`emit`) and read back is the same program.
+#[test]
+fn g6_2_tool_vectors_print_and_read_back() {
+    let text = "G43.5 H1\nG1 X30 Y0 Z-5 I-0.35 J0 K1.2 F1200\n\
+                G6.2 P3 X30 Y0 Z-5 U-0.35 V0 W1.2 R1 K0\n\
+                X30 Y30 Z-5 U-0.35 V-0.35 W1.2 R0.7071068 K0\n\
+                X0 Y30 Z-5 U0 V-0.35 W0.95 R1 K0\nG6.2 K1\nG6.2 K1\nG6.2 K1\nM2\n";
+    let p = parse(text).unwrap();
+    let n = p
+        .blocks
+        .iter()
+        .find_map(|b| match &b.kind {
+            gcode::BlockKind::Nurbs(n) => Some(n),
+            _ => None,
+        })
+        .expect("the curve");
+    assert_eq!(n.tool_vectors.len(), 3);
+    assert_eq!(n.tool_vectors[1], [-0.35, -0.35, 1.2]);
+    let printed = gcode::emit(&p);
+    assert!(printed.contains("U-0.35 V-0.35 W1.2"), "{printed}");
+    let back = parse(&printed).unwrap();
+    let kinds = |p: &gcode::Program| -> Vec<gcode::BlockKind> {
+        p.blocks
+            .iter()
+            .map(|b| match &b.kind {
+                gcode::BlockKind::Nurbs(n) => gcode::BlockKind::Nurbs(gcode::NurbsMove {
+                    first_line: 0,
+                    ..n.clone()
+                }),
+                k => k.clone(),
+            })
+            .collect()
+    };
+    assert_eq!(kinds(&back), kinds(&p));
+    // And it converts: the doc's example runs through the machine.
+    let blocks = p.to_core_blocks(&ca_options()).unwrap();
+    assert_eq!(
+        blocks
+            .iter()
+            .filter(|b| matches!(
+                b.orientation,
+                Some(interp_core::fiveaxis::Orientation::ToolAxisCurve { .. })
+            ))
+            .count(),
+        1
+    );
+}
