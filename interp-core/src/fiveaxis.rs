@@ -21,7 +21,7 @@
 
 use crate::config::InterpConfig;
 use crate::geom::{Curve, Vec3};
-use crate::kinematics::{InverseError, Joints, Machine, ToolPose};
+use crate::kinematics::{Degrees, InverseError, Joints, Machine, ToolPose};
 use crate::path::Path;
 use crate::plan::{AxisSample, Window, index_of};
 use crate::prepare::{axis_jerk_may_bind, keep_axis_sample};
@@ -162,11 +162,13 @@ impl core::fmt::Display for OrientationError {
             OrientationError::BadValue => write!(f, "non-finite rotary position or tool axis"),
             OrientationError::HalfTurn(d) => write!(
                 f,
-                "the tool axis turns by {d} degrees in one move: split it (the way round is not unique)"
+                "the tool axis turns by {} degrees in one move: split it (the way round is not unique)",
+                Degrees(*d)
             ),
             OrientationError::VectorSpread(d) => write!(
                 f,
-                "the tool vectors of one knot span of the curve spread {d:.3} degrees from their mean direction (90 at most, or the vector curve may pass through zero): add control points"
+                "the tool vectors of one knot span of the curve spread {} degrees from their mean direction (90 at most, or the vector curve may pass through zero): add control points",
+                Degrees(*d)
             ),
         }
     }
@@ -544,11 +546,13 @@ impl core::fmt::Display for JointError {
             JointError::Inverse(e) => write!(f, "{e}"),
             JointError::PoleDeparture(d) => write!(
                 f,
-                "the tool axis leaves the pole where the first rotary axis would have to jump by {d} degrees: turn it first, or leave the pole towards where it stands"
+                "the tool axis leaves the pole where the first rotary axis would have to jump by {} degrees: turn it first, or leave the pole towards where it stands",
+                Degrees(*d)
             ),
             JointError::Jump(d) => write!(
                 f,
-                "the rotary axes or the tool axis do not start where the previous move left them ({d} degrees off)"
+                "the rotary axes or the tool axis do not start where the previous move left them ({} degrees off)",
+                Degrees(*d)
             ),
         }
     }
@@ -1155,6 +1159,19 @@ mod tests {
                 smp.q_ss[j]
             );
         }
+    }
+
+    #[test]
+    fn error_angles_are_rounded_to_a_millionth_of_a_degree() {
+        extern crate std;
+        use std::format;
+        assert_eq!(format!("{}", Degrees(0.5999999999999943)), "0.6");
+        assert_eq!(format!("{}", Degrees(90.00000000001)), "90");
+        assert_eq!(format!("{}", Degrees(-12.3456789)), "-12.345679");
+        assert_eq!(format!("{}", Degrees(2.345e-7)), "2.3e-7");
+        assert_eq!(format!("{}", Degrees(0.0)), "0");
+        let e = JointError::PoleDeparture(0.5999999999999943);
+        assert!(format!("{e}").contains("jump by 0.6 degrees"), "{e}");
     }
 
     #[test]
