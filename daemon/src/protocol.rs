@@ -322,6 +322,7 @@ pub fn nurbs_json(
             weights: Some(weights.to_vec()),
             knots: knots.to_vec(),
             rotary: None,
+            tool_axes: None,
         },
     })
 }

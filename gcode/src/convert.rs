@@ -97,7 +97,8 @@ fn cut_error(line: u32, e: CutError) -> ConvertError {
         },
         error @ (CutError::Discontinuous { .. }
         | CutError::FrameStart
-        | CutError::RotaryWhileStill(_)) => ConvertError::Move { line, error },
+        | CutError::RotaryWhileStill(_)
+        | CutError::SecondCurveLength { .. }) => ConvertError::Move { line, error },
     }
 }
 
@@ -304,6 +305,7 @@ impl Program {
                         weights: Some(&m.weights),
                         knots: &m.knots,
                         rotary: (!rotary_values.is_empty()).then_some(&rotary_values[..]),
+                        tool_axes: (!m.tool_vectors.is_empty()).then_some(&m.tool_vectors[..]),
                     };
                     (path, feed, m.first_line)
                 }

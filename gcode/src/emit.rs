@@ -91,6 +91,8 @@ struct Emitter {
 const AXES: [char; 3] = ['X', 'Y', 'Z'];
 const ROTARY: [char; 3] = ['A', 'B', 'C'];
 const OFFSETS: [char; 3] = ['I', 'J', 'K'];
+/// The tool vector on G6.2 control points (K is the knot there).
+const VECTOR_ON_CURVE: [char; 3] = ['U', 'V', 'W'];
 
 /// Rotary positions of an orientation's start and end, if it has them.
 fn rotary_ends(o: &Orientation) -> Option<(Rotary, Rotary)> {
@@ -311,6 +313,11 @@ impl Emitter {
                     if let Some(r) = m.rotary.get(i) {
                         self.rotary_words(r, &base);
                     }
+                    if let Some(v) = m.tool_vectors.get(i) {
+                        for (a, c) in VECTOR_ON_CURVE.iter().zip(v) {
+                            let _ = write!(self.out, " {a}{c}");
+                        }
+                    }
                     let k = m.knots.get(i).copied().unwrap_or(f64::NAN);
                     let _ = write!(self.out, " R{w} K{k}");
                     if i == 0 {
@@ -325,6 +332,9 @@ impl Emitter {
                 self.pos = m.points[n - 1];
                 if let Some(r) = m.rotary.last() {
                     self.rotary = *r;
+                }
+                if let Some(v) = m.tool_vectors.last() {
+                    self.vector = Some(*v);
                 }
             }
             BlockKind::Dwell { seconds } => {

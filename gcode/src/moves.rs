@@ -86,6 +86,11 @@ pub enum MovePath<'a> {
         /// of the curve, with its weights and knots. `None`: the move's
         /// orientation, if any, is in proportion to the parameter.
         rotary: Option<&'a [[f64; 3]]>,
+        /// The tool vector of each control point (G6.2 with `U V W` under
+        /// G43.5): a second curve for the tool axis, these vectors'
+        /// NURBS with the curve's weights and knots, normalised. `None`:
+        /// the move's tool axis turns on its great circle.
+        tool_axes: Option<&'a [[f64; 3]]>,
     },
 }
 
@@ -175,12 +180,23 @@ pub enum CutError {
     /// The rotary positions or tool axis are refused.
     #[error("{0}")]
     Orientation(OrientationError),
-    /// A NURBS with rotary coordinates whose rotary axes turn where its
-    /// tool tip stands still (a knot span left out of the path).
+    /// A NURBS with rotary coordinates (or tool vectors) that turn where
+    /// its tool tip stands still (a knot span left out of the path).
     #[error(
-        "the rotary coordinates of the NURBS turn where its X Y Z stand still (at parameter {0}): split the move there"
+        "the rotary coordinates or tool vectors of the NURBS turn where its X Y Z stand still (at parameter {0}): split the move there"
     )]
     RotaryWhileStill(f64),
+    /// A NURBS's rotary coordinates or tool vectors are not one per
+    /// control point.
+    #[error("{what}: {got} given for {want} control points (one per control point)")]
+    SecondCurveLength {
+        /// `"rotary coordinates"` or `"tool vectors"`.
+        what: &'static str,
+        /// How many were given.
+        got: usize,
+        /// How many control points the curve has.
+        want: usize,
+    },
 }
 
 fn v3(p: [f64; 3]) -> Vec3 {
@@ -300,6 +316,7 @@ impl Cutter {
                 weights,
                 knots,
                 rotary,
+                tool_axes,
             } => {
                 let ones;
                 let w: &[f64] = match weights {
@@ -309,12 +326,23 @@ impl Cutter {
                         &ones
                     }
                 };
+                for (what, c) in [("rotary coordinates", rotary), ("tool vectors", tool_axes)] {
+                    if let Some(c) = c
+                        && c.len() != points.len()
+                    {
+                        return Err(CutError::SecondCurveLength {
+                            what,
+                            got: c.len(),
+                            want: points.len(),
+                        });
+                    }
+                }
                 let mut first = true;
-                // Rotary coordinates: one block per knot span, each with its
-                // piece of the rotary curve (a rational Bézier).
-                let max_ctrl = match rotary {
-                    Some(_) => degree + 1,
-                    None => self.max_ctrl,
+                // Rotary coordinates or tool vectors: one block per knot
+                // span, each with its piece of that curve (a rational Bézier).
+                let max_ctrl = match (rotary, tool_axes) {
+                    (None, None) => self.max_ctrl,
+                    _ => degree + 1,
                 };
                 split_program_curve(degree, points, w, knots, max_ctrl, |n| {
                     if first {
@@ -329,19 +357,30 @@ impl Cutter {
                     SplitError::Sink(k) => k,
                 })?;
                 if let Some(rotary) = rotary {
-                    rotary_pieces(degree, w, knots, rotary, tcp, &mut out)?;
+                    curve_pieces(degree, w, knots, rotary, &mut out, |p, v, w, ua, ub| {
+                        let o = CoreOrientation::axes_curve(p, v, w, ua, ub)?;
+                        Ok(if tcp { o.under_tcp() } else { o })
+                    })?;
+                } else if let Some(vectors) = tool_axes {
+                    curve_pieces(degree, w, knots, vectors, &mut out, |p, v, w, ua, ub| {
+                        CoreOrientation::tool_axis_curve(p, v, w, ua, ub)
+                    })?;
                 }
             }
         }
-        // A NURBS with rotary coordinates carries its orientation per piece.
-        let rotary_curve = matches!(
+        // A NURBS with rotary coordinates or tool vectors carries its
+        // orientation per piece.
+        let per_piece = matches!(
             m.path,
             MovePath::Nurbs {
                 rotary: Some(_),
                 ..
+            } | MovePath::Nurbs {
+                tool_axes: Some(_),
+                ..
             }
         );
-        if !rotary_curve
+        if !per_piece
             && let (Some(o), Some(first), Some(last)) = (m.orientation, out.first(), out.last())
         {
             // One orientation over the whole move: a split NURBS keeps its
@@ -370,34 +409,37 @@ impl Cutter {
     }
 }
 
-/// Gives each block of a NURBS with rotary coordinates (cut into its knot
-/// spans, the original parameter kept) its piece of the rotary curve: the
-/// rational Bézier with the block's own weights `w_k` whose homogeneous
-/// values `w_k·(A, B, C)_k` give `r(u)·Σ B_k(t)·w_k` (`r` the program's
-/// rotary curve, `Σ Nᵢ·wᵢ·rᵢ / Σ Nᵢ·wᵢ`) at `degree + 1` parameters of the
-/// span: the block's weight function is the program curve's there (up to
-/// a constant factor), so that is a polynomial of the degree, matched
-/// exactly up to round-off; its ends are the program curve's values there, shared
-/// bit for bit by neighbouring spans, the first and last the given ones.
-/// Under tool-centre-point control (`tcp`, G43.4) the path is the tool tip
-/// and the rotary joints follow the curve ([`CoreOrientation::under_tcp`]).
-fn rotary_pieces(
+/// Gives each block of a NURBS with rotary coordinates or tool vectors
+/// (cut into its knot spans, the original parameter kept) its piece of that
+/// second curve: the rational Bézier with the block's own weights `w_k`
+/// whose homogeneous values `w_k·v_k` give `r(u)·Σ B_k(t)·w_k` (`r` the
+/// program's second curve, `Σ Nᵢ·wᵢ·vᵢ / Σ Nᵢ·wᵢ`) at `degree + 1`
+/// parameters of the span: the block's weight function is the program
+/// curve's there (up to a constant factor), so that is a polynomial of the
+/// degree, matched exactly up to round-off; its ends are the program
+/// curve's values there, shared bit for bit by neighbouring spans, the
+/// first and last the given ones. `make` turns a piece (degree, values,
+/// weights, parameter range) into the block's orientation: rotary
+/// coordinates (under G43.4 the rotary joints follow them,
+/// [`CoreOrientation::under_tcp`]) or tool vectors
+/// ([`CoreOrientation::tool_axis_curve`]).
+fn curve_pieces(
     degree: usize,
     weights: &[f64],
     knots: &[f64],
-    rotary: &[[f64; 3]],
-    tcp: bool,
+    second: &[[f64; 3]],
     out: &mut [Block],
+    make: impl Fn(usize, &[[f64; 3]], &[f64], f64, f64) -> Result<CoreOrientation, OrientationError>,
 ) -> Result<(), CutError> {
     let p = degree;
     let (first_u, last_u) = (knots[0], knots[knots.len() - 1]);
-    // The program's rotary curve at `u`.
+    // The program's second curve at `u`.
     let at = |u: f64| {
         if u == first_u {
-            return rotary[0];
+            return second[0];
         }
         if u == last_u {
-            return rotary[rotary.len() - 1];
+            return second[second.len() - 1];
         }
         let (span, n) = interp_core::nurbs::basis_functions(p, knots, u);
         let (mut num, mut den) = ([0.0; 3], 0.0);
@@ -405,7 +447,7 @@ fn rotary_pieces(
             let i = span - p + k;
             let wn = nk * weights[i];
             for j in 0..3 {
-                num[j] += wn * rotary[i][j];
+                num[j] += wn * second[i][j];
             }
             den += wn;
         }
@@ -426,7 +468,7 @@ fn rotary_pieces(
         if let Some((u, r)) = prev_end
             && r != ra
         {
-            // A span the path left out (it stands still) turned the axes.
+            // A span the path left out (it stands still) turned the axes or tool.
             return Err(CutError::RotaryWhileStill(u));
         }
         // Bernstein collocation at t_j = j/p for the homogeneous values.
@@ -449,9 +491,7 @@ fn rotary_pieces(
             .collect();
         values[0] = ra;
         values[p] = rb;
-        let o =
-            CoreOrientation::axes_curve(p, &values, &w, ua, ub).map_err(CutError::Orientation)?;
-        b.orientation = Some(if tcp { o.under_tcp() } else { o });
+        b.orientation = Some(make(p, &values, &w, ua, ub).map_err(CutError::Orientation)?);
         prev_end = Some((ub, rb));
     }
     Ok(())
@@ -500,7 +540,8 @@ fn with_end_parameter(o: CoreOrientation, u1: f64) -> CoreOrientation {
     match o {
         CoreOrientation::Axes { u0, .. }
         | CoreOrientation::ToolAxis { u0, .. }
-        | CoreOrientation::AxesCurve { u0, .. } => o.with_range(u0, u1),
+        | CoreOrientation::AxesCurve { u0, .. }
+        | CoreOrientation::ToolAxisCurve { u0, .. } => o.with_range(u0, u1),
     }
 }
 

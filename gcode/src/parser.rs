@@ -266,6 +266,12 @@ struct G6Curve {
     sources: Vec<(u32, usize)>,
     /// Rotary coordinates of each entry.
     rotary: Vec<Rotary>,
+    /// The tool vector of each entry (G43.5, U V W; `None`: not given,
+    /// the current one for a control point without coordinates).
+    vectors: Vec<Option<[f64; 3]>>,
+    /// Whether the curve's control point lines give U V W (set by the
+    /// first one), and its line.
+    vectors_given: Option<(bool, u32)>,
 }
 
 #[derive(Debug)]
@@ -498,15 +504,6 @@ impl Parser {
                         ParseErrorKind::Unsupported(
                             "O-words (subroutines and control flow)".into(),
                         ),
-                    );
-                }
-                b'u' | b'v' | b'w' => {
-                    return err(
-                        at,
-                        ParseErrorKind::Unsupported(format!(
-                            "axis word '{}' (interpd has X Y Z A B C)",
-                            c.to_ascii_uppercase() as char
-                        )),
                     );
                 }
                 b'e' => {
@@ -1160,6 +1157,17 @@ impl Parser {
         }
 
         // Words nothing used.
+        for c in [b'u', b'v', b'w'] {
+            if w.has(c) && used & (1 << idx(c)) == 0 {
+                return err(
+                    w.col(c),
+                    ParseErrorKind::Unsupported(format!(
+                        "axis word '{}' (interpd has X Y Z A B C; U V W are only the tool vector on G6.2 control points under G43.5)",
+                        c.to_ascii_uppercase() as char
+                    )),
+                );
+            }
+        }
         for c in [b'd', b'h', b'i', b'j', b'k', b'l', b'p', b'q', b'r'] {
             if w.has(c) && used & (1 << idx(c)) == 0 {
                 return err(
@@ -1478,7 +1486,18 @@ impl Parser {
         knots.extend(std::iter::repeat_n(1.0, degree + 1));
         let weights = vec![1.0; points.len()];
         let rotary = vec![self.rotary; points.len()];
-        self.push_nurbs(line, col, line, degree, points, weights, knots, rotary, &[])
+        self.push_nurbs(
+            line,
+            col,
+            line,
+            degree,
+            points,
+            weights,
+            knots,
+            rotary,
+            Vec::new(),
+            &[],
+        )
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -1492,6 +1511,7 @@ impl Parser {
         weights: Vec<f64>,
         knots: Vec<f64>,
         rotary: Vec<Rotary>,
+        vectors: Vec<[f64; 3]>,
         sources: &[(u32, usize)],
     ) -> LineResult<()> {
         match validate_program_curve(degree, &points, &weights, &knots) {
@@ -1521,10 +1541,15 @@ impl Parser {
             (Some(f), Some(l)) => (*f, *l),
             _ => (self.rotary, self.rotary),
         };
-        if start != self.pos || first_rotary != self.rotary {
-            // LinuxCNC feeds in a straight line to the curve's first point.
+        let first_vector = vectors.first().copied().or(self.tool_vector);
+        if start != self.pos || first_rotary != self.rotary || first_vector != self.tool_vector {
+            // LinuxCNC feeds in a straight line to the curve's first point
+            // (turning the tool to the curve's first vector on the way).
             let orientation = match self.tool_control {
-                ToolControl::ToolVector { .. } => self.steady_orientation(),
+                ToolControl::ToolVector { .. } => Orientation::TcpVector {
+                    start: core::mem::replace(&mut self.tool_vector, first_vector),
+                    end: first_vector,
+                },
                 _ => self.rotary_orientation(first_rotary),
             };
             self.push(
@@ -1539,6 +1564,16 @@ impl Parser {
         }
         self.pos = points[points.len() - 1];
         let (orientation, rotary) = match self.tool_control {
+            ToolControl::ToolVector { .. } if !vectors.is_empty() => {
+                self.tool_vector = vectors.last().copied();
+                (
+                    Orientation::TcpVector {
+                        start: first_vector,
+                        end: self.tool_vector,
+                    },
+                    Vec::new(),
+                )
+            }
             ToolControl::ToolVector { .. } => (self.steady_orientation(), Vec::new()),
             ToolControl::Off if rotary.iter().all(|r| *r == first_rotary) => {
                 (Orientation::Fixed, Vec::new())
@@ -1575,6 +1610,7 @@ impl Parser {
                 feed,
                 orientation,
                 rotary,
+                tool_vectors: vectors,
             }),
         );
         Ok(())
@@ -1703,8 +1739,83 @@ impl Parser {
             c.weights,
             knots,
             rotary,
+            Vec::new(),
             &c.sources,
         )
+    }
+
+    /// The tool vector `U V W` of a G6.2 line (G43.5 only; an omitted
+    /// component is 0, as Fanuc's I J K; absolute whatever G90/G91 say):
+    /// given on every control point line of a curve or on none. A line
+    /// without a control point has none (a first point without
+    /// coordinates takes the current vector).
+    fn g6_vector(
+        &mut self,
+        w: &Words,
+        line: u32,
+        col: usize,
+        has_pair: bool,
+        use_word: &mut impl FnMut(u8),
+    ) -> LineResult<Option<[f64; 3]>> {
+        let uvw = [b'u', b'v', b'w'];
+        let given = uvw.iter().filter(|&&c| w.has(c)).map(|&c| w.col(c)).min();
+        let letters = "U V W";
+        if let Some(at) = given {
+            if !matches!(self.tool_control, ToolControl::ToolVector { .. }) {
+                return err(
+                    at,
+                    ParseErrorKind::ConflictingArguments(format!(
+                        "{letters} (a tool vector) on a G6.2 line outside G43.5"
+                    )),
+                );
+            }
+            if !has_pair {
+                return err(
+                    at,
+                    ParseErrorKind::ConflictingArguments(format!(
+                        "{letters} on a G6.2 line without a control point"
+                    )),
+                );
+            }
+        }
+        let Some(c) = self.g6.as_mut() else {
+            return Ok(None);
+        };
+        if !has_pair {
+            return Ok(self.tool_vector);
+        }
+        match c.vectors_given {
+            None => c.vectors_given = Some((given.is_some(), line)),
+            Some((true, first)) if given.is_none() => {
+                return err(
+                    col,
+                    ParseErrorKind::MissingArgument(format!(
+                        "the tool vector {letters} on this control point: the curve's point on line {first} gives one, so every point needs one"
+                    )),
+                );
+            }
+            Some((false, first)) if given.is_some() => {
+                return err(
+                    given.unwrap_or(col),
+                    ParseErrorKind::ConflictingArguments(format!(
+                        "{letters} on this control point but not on the curve's point on line {first}: give the tool vector on every point or on none"
+                    )),
+                );
+            }
+            _ => {}
+        }
+        let Some(at) = given else {
+            return Ok(None);
+        };
+        let v = uvw.map(|c| w.get(c).unwrap_or(0.0));
+        if v == [0.0; 3] {
+            return err(
+                at,
+                ParseErrorKind::BadValue(format!("tool vector {letters} is zero")),
+            );
+        }
+        uvw.into_iter().for_each(&mut *use_word);
+        Ok(Some(v))
     }
 
     fn g6_point(
@@ -1743,6 +1854,8 @@ impl Parser {
                     knots: Vec::new(),
                     sources: Vec::new(),
                     rotary: Vec::new(),
+                    vectors: Vec::new(),
+                    vectors_given: None,
                 });
             }
         } else if first {
@@ -1809,6 +1922,7 @@ impl Parser {
                 }
             }
         }
+        let vector = self.g6_vector(w, line, col, has_pair, use_word)?;
         let point = if has_pair {
             match r {
                 Some(r) if r > 0.0 => {}
@@ -1833,6 +1947,7 @@ impl Parser {
         c.knots.push(k);
         c.sources.push((line, col));
         c.rotary.push(rotary);
+        c.vectors.push(vector);
         let n = c.knots.len();
         // LinuxCNC ends the curve once the last `order` knots are equal.
         if n > c.order && c.knots[n - 1] == c.knots[n - c.order] {
@@ -1843,6 +1958,7 @@ impl Parser {
             c.points.truncate(count);
             c.weights.truncate(count);
             c.rotary.truncate(count);
+            c.vectors.truncate(count);
             self.motion = None;
             let col = c.first_col;
             if count == 0 {
@@ -1851,6 +1967,28 @@ impl Parser {
                     ParseErrorKind::NurbsSequence("G6.2 curve without control points".into()),
                 );
             }
+            let vectors = match c.vectors_given {
+                Some((true, _)) => {
+                    let mut vs = Vec::with_capacity(count);
+                    for (v, &(l, col)) in c.vectors.iter().zip(&c.sources) {
+                        let Some(v) = v else {
+                            // (Only a first point without coordinates.)
+                            if l != line {
+                                self.error_line = Some(l);
+                            }
+                            return err(
+                                col,
+                                ParseErrorKind::MissingArgument(
+                                    "the tool vector U V W of the curve's first point (no tool vector is known here: give its X Y Z and U V W)".into(),
+                                ),
+                            );
+                        };
+                        vs.push(*v);
+                    }
+                    vs
+                }
+                _ => Vec::new(),
+            };
             self.push_nurbs(
                 line,
                 col,
@@ -1860,6 +1998,7 @@ impl Parser {
                 c.weights,
                 c.knots,
                 c.rotary,
+                vectors,
                 &c.sources,
             )?;
         }

@@ -223,6 +223,13 @@ pub struct NurbsMove {
     /// the rotary axes with the same weights and knots); empty unless
     /// `orientation` is [`Orientation::Axes`] or [`Orientation::TcpRotary`].
     pub rotary: Vec<Rotary>,
+    /// The tool vector of each control point (G6.2 `U V W` under G43.5: a
+    /// second curve for the tool axis, the NURBS of these vectors with the
+    /// same weights and knots, normalised); empty unless `orientation` is
+    /// [`Orientation::TcpVector`], whose start and end are then the first
+    /// and last entry.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub tool_vectors: Vec<[f64; 3]>,
 }
 
 /// Spindle rotation (M3, M4, M5).

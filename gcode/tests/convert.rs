@@ -555,3 +555,232 @@ fn nurbs_under_g43_4_are_tip_paths_with_rotary_curves() {
         }
     }
 }
+
+/// G6.2 under G43.5 with a tool vector `U V W` on each control point: a
+/// second curve for the tool axis. The 40-point rational cubic of
+/// [`rotary_nurbs`] with vectors tilting and turning along it: each knot
+/// span a block under TCP whose tool axis is, at 21 parameters, the
+/// normalised NURBS of the vectors by its definition within 1e-12 rad;
+/// neighbours meet bit for bit; a G1 turns the tool to the curve's first
+/// vector before it. A span whose vectors spread over more than a
+/// half-space, a zero vector and a vector missing on some points are
+/// refused naming their line.
+#[test]
+fn g6_2_tool_vectors_under_g43_5_are_a_second_curve_for_the_tool_axis() {
+    use interp_core::fiveaxis::OrientationAt;
+    use std::fmt::Write as _;
+    let RotaryNurbs {
+        degree: p,
+        points: pts,
+        weights: ws,
+        knots,
+        ..
+    } = rotary_nurbs();
+    let vectors: Vec<[f64; 3]> = (0..pts.len())
+        .map(|i| {
+            let (tilt, turn) = (
+                (10.0 + i as f64).to_radians(),
+                (9.0 * i as f64).to_radians(),
+            );
+            // Lengths vary on purpose: they act as weights of the vector curve.
+            let len = 1.0 + 0.1 * (i % 3) as f64;
+            [
+                len * tilt.sin() * turn.cos(),
+                len * tilt.sin() * turn.sin(),
+                len * tilt.cos(),
+            ]
+        })
+        .collect();
+    let mut text = format!(
+        "G0 X{} Y{} Z{} A0 C0\nG43.5\nG1 X{} Y{} Z{} I0 J0 K1 F600\nG6.2 P{}",
+        pts[0][0],
+        pts[0][1],
+        pts[0][2] + 5.0,
+        pts[0][0],
+        pts[0][1],
+        pts[0][2] + 5.0,
+        p + 1
+    );
+    for (i, pt) in pts.iter().enumerate() {
+        if i > 0 {
+            text.push('\n');
+        }
+        let v = vectors[i];
+        write!(
+            text,
+            " X{} Y{} Z{} R{} K{} U{} V{} W{}",
+            pt[0], pt[1], pt[2], ws[i], knots[i], v[0], v[1], v[2]
+        )
+        .unwrap();
+    }
+    text.push('\n');
+    for k in &knots[pts.len()..] {
+        writeln!(text, "G6.2 K{k}").unwrap();
+    }
+    let blocks = parse(&text).unwrap().to_core_blocks(&ca_options()).unwrap();
+    let curve: Vec<_> = blocks
+        .iter()
+        .filter(|b| matches!(b.path, Path::Nurbs(_)))
+        .collect();
+    assert_eq!(curve.len(), pts.len() - p, "one block per knot span");
+    // Before the curve: down to its start and a turn to its first vector.
+    let unit = |v: [f64; 3]| {
+        let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        interp_core::Vec3::new(v[0] / n, v[1] / n, v[2] / n)
+    };
+    let before = blocks
+        .iter()
+        .take_while(|b| !matches!(b.path, Path::Nurbs(_)))
+        .last()
+        .expect("a move before the curve");
+    let OrientationAt::ToolAxis(a) = before.orientation.unwrap().at(before.path.u_end()) else {
+        panic!("a tool axis")
+    };
+    assert!((a - unit(vectors[0])).norm() < 1e-12, "{a:?}");
+    let mut worst = 0.0f64;
+    let mut prev_end: Option<OrientationAt> = None;
+    for blk in &curve {
+        let o = blk.orientation.expect("tool vector curve");
+        assert!(o.is_tcp() && blk.is_tcp());
+        let (ua, ub) = (blk.path.u_start(), blk.path.u_end());
+        if let Some(e) = prev_end {
+            assert_eq!(o.at(ua), e, "blocks meet bit for bit");
+        }
+        prev_end = Some(o.at(ub));
+        for k in 0..=20 {
+            let u = ua + (ub - ua) * k as f64 / 20.0;
+            let OrientationAt::ToolAxis(got) = o.at(u) else {
+                panic!("a tool axis")
+            };
+            let want = unit(rotary_at(p, &vectors, &ws, &knots, u));
+            worst = worst.max(got.cross(&want).norm().atan2(got.dot(&want)));
+        }
+    }
+    assert!(worst < 1e-12, "tool axis off its curve by {worst} rad");
+    assert_eq!(
+        prev_end,
+        Some(OrientationAt::ToolAxis(unit(vectors[vectors.len() - 1])))
+    );
+
+    // Refused, naming the line: vectors of one span more than a half-space
+    // apart (the curve could pass through zero), ...
+    let spread = "G0 X0 Y0 Z50\nG43.5\nF600\nG6.2 P2 X0 Y0 Z0 R1 K0 U1 V0 W0\nX10 Y0 Z0 R1 K0 U-1 V0 W0\nG6.2 K1\nG6.2 K1\n";
+    let e = parse(spread)
+        .unwrap()
+        .to_core_blocks(&ca_options())
+        .unwrap_err();
+    assert!(
+        matches!(
+            e,
+            ConvertError::FiveAxisMove {
+                line: 7,
+                reason: FiveAxisReason::Orientation(
+                    interp_core::fiveaxis::OrientationError::VectorSpread(_)
+                )
+            }
+        ),
+        "{e:?}"
+    );
+    assert!(e.to_string().contains("line 7"), "{e}");
+}
+
+/// A second curve (rotary coordinates or tool vectors, as the JSON block
+/// form may give them) that is not one per control point is refused, not
+/// indexed out of bounds.
+#[test]
+fn a_second_curve_of_the_wrong_length_is_refused() {
+    use gcode::{CutError, Cutter, Move, MoveOrientation, MovePath};
+    let points = [[0.0, 0.0, 0.0], [10.0, 0.0, 0.0], [10.0, 10.0, 0.0]];
+    let knots = [0.0, 0.0, 0.0, 1.0, 1.0, 1.0];
+    let two = [[0.0, 0.0, 1.0]; 2];
+    for (rotary, tool_axes, what) in [
+        (Some(&two[..]), None, "rotary coordinates"),
+        (None, Some(&two[..]), "tool vectors"),
+    ] {
+        let m = Move {
+            line: 3,
+            first_line: 3,
+            feed: 600.0,
+            blending: interp_core::path::Blending::ExactPath,
+            start: None,
+            path: MovePath::Nurbs {
+                degree: 2,
+                points: &points,
+                weights: None,
+                knots: &knots,
+                rotary,
+                tool_axes,
+            },
+            orientation: Some(match tool_axes {
+                Some(_) => MoveOrientation::ToolAxis {
+                    start: [0.0, 0.0, 1.0],
+                    end: [0.0, 0.0, 1.0],
+                },
+                None => MoveOrientation::Axes {
+                    start: [0.0; 3],
+                    end: [0.0; 3],
+                },
+            }),
+            mrr: None,
+        };
+        let e = Cutter::new([0.0; 3], tool_axes.is_some(), 1, 32)
+            .cut(&m)
+            .unwrap_err();
+        assert_eq!(
+            e,
+            CutError::SecondCurveLength {
+                what,
+                got: 2,
+                want: 3
+            }
+        );
+    }
+}
+
+/// A G6.2 with U V W printed (`emit`) and read back is the same program.
+#[test]
+fn g6_2_tool_vectors_print_and_read_back() {
+    let text = "G43.5 H1\nG1 X30 Y0 Z-5 I-0.35 J0 K1.2 F1200\n\
+                G6.2 P3 X30 Y0 Z-5 U-0.35 V0 W1.2 R1 K0\n\
+                X30 Y30 Z-5 U-0.35 V-0.35 W1.2 R0.7071068 K0\n\
+                X0 Y30 Z-5 U0 V-0.35 W0.95 R1 K0\nG6.2 K1\nG6.2 K1\nG6.2 K1\nM2\n";
+    let p = parse(text).unwrap();
+    let n = p
+        .blocks
+        .iter()
+        .find_map(|b| match &b.kind {
+            gcode::BlockKind::Nurbs(n) => Some(n),
+            _ => None,
+        })
+        .expect("the curve");
+    assert_eq!(n.tool_vectors.len(), 3);
+    assert_eq!(n.tool_vectors[1], [-0.35, -0.35, 1.2]);
+    let printed = gcode::emit(&p);
+    assert!(printed.contains("U-0.35 V-0.35 W1.2"), "{printed}");
+    let back = parse(&printed).unwrap();
+    let kinds = |p: &gcode::Program| -> Vec<gcode::BlockKind> {
+        p.blocks
+            .iter()
+            .map(|b| match &b.kind {
+                gcode::BlockKind::Nurbs(n) => gcode::BlockKind::Nurbs(gcode::NurbsMove {
+                    first_line: 0,
+                    ..n.clone()
+                }),
+                k => k.clone(),
+            })
+            .collect()
+    };
+    assert_eq!(kinds(&back), kinds(&p));
+    // And it converts: the doc's example runs through the machine.
+    let blocks = p.to_core_blocks(&ca_options()).unwrap();
+    assert_eq!(
+        blocks
+            .iter()
+            .filter(|b| matches!(
+                b.orientation,
+                Some(interp_core::fiveaxis::Orientation::ToolAxisCurve { .. })
+            ))
+            .count(),
+        1
+    );
+}

@@ -625,6 +625,51 @@ fn every_error_class_names_line_and_column() {
             13,
             |k| matches!(k, K::ConflictingArguments(m) if m.contains("every control point")),
         ),
+        // G6.2 tool vectors U V W: under G43.5 only, on every control
+        // point or none, not zero, finite, not on a knot line; U V W as
+        // axes elsewhere.
+        (
+            "G43.5\nF1\nG6.2 P3 X0 Y0 R1 K0 U0 V0 W1\nX1 Y1 R1 K0\n",
+            4,
+            10,
+            |k| matches!(k, K::MissingArgument(m) if m.contains("U V W") && m.contains("line 3")),
+        ),
+        (
+            "G43.5\nF1\nG6.2 P3 X0 Y0 R1 K0\nX1 Y1 R1 K0 W1\n",
+            4,
+            13,
+            |k| matches!(k, K::ConflictingArguments(m) if m.contains("every point or on none")),
+        ),
+        (
+            "G43.5\nF1\nG6.2 P3 X0 Y0 R1 K0 U0 V0 W0\n",
+            3,
+            21,
+            |k| matches!(k, K::BadValue(m) if m.contains("zero")),
+        ),
+        (
+            "G43.5\nF1\nG6.2 P3 X0 Y0 R1 K0 U[10**400] W1\n",
+            3,
+            21,
+            |k| matches!(k, K::BadValue(m) if m.contains("U word is not finite")),
+        ),
+        (
+            "F1\nG6.2 P3 X0 Y0 R1 K0 U1\n",
+            2,
+            21,
+            |k| matches!(k, K::ConflictingArguments(m) if m.contains("outside G43.5")),
+        ),
+        (
+            "G43.5\nF1\nG6.2 P3 X0 Y0 R1 K0 W1\nX1 Y1 R1 K0 W1\nX2 Y0 R1 K0 W1\nG6.2 K1 V1",
+            6,
+            9,
+            |k| matches!(k, K::ConflictingArguments(m) if m.contains("without a control point")),
+        ),
+        (
+            "G1 X1 U1 F1",
+            1,
+            7,
+            |k| matches!(k, K::Unsupported(m) if m.contains("axis word 'U'")),
+        ),
         ("G80 A1", 1, 5, |k| matches!(k, K::ConflictingArguments(_))),
         ("A1", 1, 1, |k| matches!(k, K::MissingArgument(_))),
         (

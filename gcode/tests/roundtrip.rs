@@ -285,12 +285,32 @@ fn build(steps: &[Step], end: bool) -> Program {
                 // Rotary coordinates only where every axis is known (the
                 // parser wants an axis on every point or on none).
                 let known = tcp.rotary.iter().all(Option::is_some) && !tcp.vector_mode();
-                let mut rot: Vec<Rotary> = match rotary.filter(|_| known) {
+                let mut rot: Vec<Rotary> = match rotary.as_ref().filter(|_| known) {
                     Some(r) => r.iter().map(|p| p.map(Some)).collect(),
                     None => vec![tcp.rotary; pts.len()],
                 };
                 rot[0] = tcp.rotary;
+                // Under G43.5 the same values as tool vectors (U V W), the
+                // first the current one (else a move to it comes first).
+                let mut vecs: Vec<[f64; 3]> = match (tcp.vector_mode(), tcp.vector, &rotary) {
+                    (true, Some(_), Some(r)) => r.clone(),
+                    _ => Vec::new(),
+                };
+                if let (Some(first), Some(v)) = (vecs.first_mut(), tcp.vector) {
+                    *first = v;
+                }
                 let (orientation, rot) = match tcp.mode {
+                    ToolControl::ToolVector { .. } if !vecs.is_empty() => {
+                        let start = tcp.vector;
+                        tcp.vector = vecs.last().copied();
+                        (
+                            Orientation::TcpVector {
+                                start,
+                                end: tcp.vector,
+                            },
+                            Vec::new(),
+                        )
+                    }
                     ToolControl::ToolVector { .. } => (tcp.steady(), Vec::new()),
                     ToolControl::Off if rot.iter().all(|r| *r == rot[0]) => {
                         (Orientation::Fixed, Vec::new())
@@ -326,6 +346,7 @@ fn build(steps: &[Step], end: bool) -> Program {
                     feed,
                     orientation,
                     rotary: rot,
+                    tool_vectors: vecs,
                 }));
             }
             Step::Dwell(s) => push(BlockKind::Dwell { seconds: s }),

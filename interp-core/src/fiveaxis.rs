@@ -21,7 +21,7 @@
 
 use crate::config::InterpConfig;
 use crate::geom::{Curve, Vec3};
-use crate::kinematics::{InverseError, Joints, Machine, ToolPose};
+use crate::kinematics::{Degrees, InverseError, Joints, Machine, ToolPose};
 use crate::path::Path;
 use crate::plan::{AxisSample, Window, index_of};
 use crate::prepare::{axis_jerk_may_bind, keep_axis_sample};
@@ -43,7 +43,10 @@ pub const BEZIER: usize = crate::nurbs::MAX_DEGREE + 1;
 ///
 /// Small on purpose: every block and queued segment carries one, and the
 /// interpolator is built on the stack. (A second NURBS for the tool axis or
-/// the rotary coordinates would double a block's size; it is not here yet.)
+/// the rotary coordinates inline would double a block's size: a program
+/// curve's rotary coordinates or tool vectors travel as one rational Bézier
+/// piece per knot span, [`Orientation::AxesCurve`] and
+/// [`Orientation::ToolAxisCurve`].)
 ///
 /// **A turn in place** (`fixed: Some(p)`): the tool tip (under
 /// tool-centre-point control) or X Y Z stands at `p` while the rotary axes
@@ -115,6 +118,27 @@ pub enum Orientation {
         /// Under tool-centre-point control (G43.4): the path is the tool tip.
         tcp: bool,
     },
+    /// Tool-centre-point control with a second curve for the tool axis
+    /// (G43.5, a G6.2 with a tool vector on each control point): the path
+    /// is the tool tip in the workpiece frame and the tool axis is the
+    /// programmed vectors' NURBS (the path's weights and knots) normalised,
+    /// over one knot span: the rational Bézier in `t = (u − u0)/(u1 − u0)`
+    /// of these vectors and weights, divided by its length
+    /// ([`Orientation::tool_axis_curve`]). A vector path on the sphere, not
+    /// angle by angle; the joints are the inverse nearest the previous ones.
+    ToolAxisCurve {
+        /// Tool vectors of the control points (any length; their lengths
+        /// act as weights of the vector curve).
+        values: [[f64; 3]; BEZIER],
+        /// The path's weights.
+        w: [f64; BEZIER],
+        /// Degree (`degree + 1` control points are used).
+        degree: u8,
+        /// The span's parameter range.
+        u0: f64,
+        /// See `u0`.
+        u1: f64,
+    },
 }
 
 /// Why an [`Orientation`] was refused.
@@ -125,6 +149,11 @@ pub enum OrientationError {
     /// The tool axis would turn by nearly 180° (its great circle is not
     /// unique); the angle in degrees.
     HalfTurn(f64),
+    /// A tool-vector curve's control vectors on one span do not lie on one
+    /// side of a plane through the origin, so the curve might pass through
+    /// the zero vector (no tool axis there); the largest angle, degrees,
+    /// between a control vector and their mean direction.
+    VectorSpread(f64),
 }
 
 impl core::fmt::Display for OrientationError {
@@ -133,7 +162,13 @@ impl core::fmt::Display for OrientationError {
             OrientationError::BadValue => write!(f, "non-finite rotary position or tool axis"),
             OrientationError::HalfTurn(d) => write!(
                 f,
-                "the tool axis turns by {d} degrees in one move: split it (the way round is not unique)"
+                "the tool axis turns by {} degrees in one move: split it (the way round is not unique)",
+                Degrees(*d)
+            ),
+            OrientationError::VectorSpread(d) => write!(
+                f,
+                "the tool vectors of one knot span of the curve spread {} degrees from their mean direction (90 at most, or the vector curve may pass through zero): add control points",
+                Degrees(*d)
             ),
         }
     }
@@ -226,6 +261,61 @@ impl Orientation {
         })
     }
 
+    /// The tool axis as a second curve of a NURBS tool-tip path over one of
+    /// its knot spans `u0..u1`, a rational Bézier piece of `degree`:
+    /// `values[k]` the tool vector (any length, not zero) and `w[k]` the
+    /// weight of its `degree + 1` control points (the path's own weights on
+    /// the span); the axis at `u` is that curve normalised. Refused where
+    /// the vectors do not lie within 90° of their mean direction (the curve
+    /// could pass through zero): [`OrientationError::VectorSpread`].
+    pub fn tool_axis_curve(
+        degree: usize,
+        values: &[[f64; 3]],
+        w: &[f64],
+        u0: f64,
+        u1: f64,
+    ) -> Result<Self, OrientationError> {
+        let Orientation::AxesCurve {
+            values: vs,
+            w: ws,
+            degree: d,
+            ..
+        } = Self::axes_curve(degree, values, w, u0, u1)?
+        else {
+            return Err(OrientationError::BadValue);
+        };
+        // With positive weights the curve is a positive combination of the
+        // control vectors: strictly on the side of a plane through the
+        // origin where they all are, so never zero.
+        let mut mean = Vec3::zeros();
+        for v in values {
+            let v = Vec3::new(v[0], v[1], v[2]);
+            let n = v.norm();
+            if !(n > 0.0) {
+                return Err(OrientationError::BadValue);
+            }
+            mean += v / n;
+        }
+        if !(mean.norm() > 1e-9) {
+            return Err(OrientationError::VectorSpread(180.0));
+        }
+        let mut spread: f64 = 0.0;
+        for v in values {
+            let v = Vec3::new(v[0], v[1], v[2]);
+            spread = spread.max(libm::atan2(v.cross(&mean).norm(), v.dot(&mean)));
+        }
+        if !(spread < core::f64::consts::FRAC_PI_2) {
+            return Err(OrientationError::VectorSpread(spread.to_degrees()));
+        }
+        Ok(Orientation::ToolAxisCurve {
+            values: vs,
+            w: ws,
+            degree: d,
+            u0,
+            u1,
+        })
+    }
+
     /// The same rotary curve under tool-centre-point control (G43.4): the
     /// path is the tool tip and the rotary joints follow the curve (see
     /// [`Orientation::AxesCurve`]). Other orientations are returned as they are.
@@ -246,7 +336,7 @@ impl Orientation {
         match &mut self {
             Orientation::Axes { fixed, .. } | Orientation::ToolAxis { fixed, .. } => *fixed = at,
             // (A NURBS always moves the tip.)
-            Orientation::AxesCurve { .. } => {}
+            Orientation::AxesCurve { .. } | Orientation::ToolAxisCurve { .. } => {}
         }
         self
     }
@@ -256,7 +346,7 @@ impl Orientation {
     pub fn fixed(&self) -> Option<Vec3> {
         match self {
             Orientation::Axes { fixed, .. } | Orientation::ToolAxis { fixed, .. } => *fixed,
-            Orientation::AxesCurve { .. } => None,
+            Orientation::AxesCurve { .. } | Orientation::ToolAxisCurve { .. } => None,
         }
     }
 
@@ -266,7 +356,8 @@ impl Orientation {
         match &mut self {
             Orientation::Axes { u0, u1, .. }
             | Orientation::ToolAxis { u0, u1, .. }
-            | Orientation::AxesCurve { u0, u1, .. } => (*u0, *u1) = (from, to),
+            | Orientation::AxesCurve { u0, u1, .. }
+            | Orientation::ToolAxisCurve { u0, u1, .. } => (*u0, *u1) = (from, to),
         }
         self
     }
@@ -275,7 +366,9 @@ impl Orientation {
     pub fn is_tcp(&self) -> bool {
         matches!(
             self,
-            Orientation::ToolAxis { .. } | Orientation::AxesCurve { tcp: true, .. }
+            Orientation::ToolAxis { .. }
+                | Orientation::AxesCurve { tcp: true, .. }
+                | Orientation::ToolAxisCurve { .. }
         )
     }
 
@@ -335,31 +428,23 @@ impl Orientation {
                 u0,
                 u1,
                 ..
+            } => OrientationAt::Axes(rational_bezier(
+                &values,
+                &w,
+                degree as usize,
+                Self::fraction(u, u0, u1),
+            )),
+            Orientation::ToolAxisCurve {
+                values,
+                w,
+                degree,
+                u0,
+                u1,
             } => {
-                let p = degree as usize;
-                let t = Self::fraction(u, u0, u1);
-                // Exact at both ends (where the next span starts).
-                if t == 0.0 {
-                    return OrientationAt::Axes(values[0]);
-                }
-                if t == 1.0 {
-                    return OrientationAt::Axes(values[p]);
-                }
-                // De Casteljau on the homogeneous values (w·A, w·B, w·C, w).
-                let mut h = [[0.0; 4]; BEZIER];
-                for k in 0..=p {
-                    let v = values[k];
-                    h[k] = [w[k] * v[0], w[k] * v[1], w[k] * v[2], w[k]];
-                }
-                for r in 1..=p {
-                    for k in 0..=p - r {
-                        for j in 0..4 {
-                            h[k][j] = (1.0 - t) * h[k][j] + t * h[k + 1][j];
-                        }
-                    }
-                }
-                let [a, b, c, ww] = h[0];
-                OrientationAt::Axes([a / ww, b / ww, c / ww])
+                let [x, y, z] =
+                    rational_bezier(&values, &w, degree as usize, Self::fraction(u, u0, u1));
+                let v = Vec3::new(x, y, z);
+                OrientationAt::ToolAxis(v / v.norm())
             }
         }
     }
@@ -406,6 +491,33 @@ impl Orientation {
     }
 }
 
+/// The rational Bézier curve of `values` with weights `w` (the first
+/// `degree + 1` of each) at `t ∈ [0, 1]`: exactly the end values at the
+/// ends (where the next span starts, so neighbours meet bit for bit).
+fn rational_bezier(values: &[[f64; 3]; BEZIER], w: &[f64; BEZIER], p: usize, t: f64) -> [f64; 3] {
+    if t == 0.0 {
+        return values[0];
+    }
+    if t == 1.0 {
+        return values[p];
+    }
+    // De Casteljau on the homogeneous values (w·x, w·y, w·z, w).
+    let mut h = [[0.0; 4]; BEZIER];
+    for k in 0..=p {
+        let v = values[k];
+        h[k] = [w[k] * v[0], w[k] * v[1], w[k] * v[2], w[k]];
+    }
+    for r in 1..=p {
+        for k in 0..=p - r {
+            for j in 0..4 {
+                h[k][j] = (1.0 - t) * h[k][j] + t * h[k + 1][j];
+            }
+        }
+    }
+    let [a, b, c, ww] = h[0];
+    [a / ww, b / ww, c / ww]
+}
+
 /// Why the joints of a five-axis block could not be had.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum JointError {
@@ -434,11 +546,13 @@ impl core::fmt::Display for JointError {
             JointError::Inverse(e) => write!(f, "{e}"),
             JointError::PoleDeparture(d) => write!(
                 f,
-                "the tool axis leaves the pole where the first rotary axis would have to jump by {d} degrees: turn it first, or leave the pole towards where it stands"
+                "the tool axis leaves the pole where the first rotary axis would have to jump by {} degrees: turn it first, or leave the pole towards where it stands",
+                Degrees(*d)
             ),
             JointError::Jump(d) => write!(
                 f,
-                "the rotary axes or the tool axis do not start where the previous move left them ({d} degrees off)"
+                "the rotary axes or the tool axis do not start where the previous move left them ({} degrees off)",
+                Degrees(*d)
             ),
         }
     }
@@ -1045,6 +1159,98 @@ mod tests {
                 smp.q_ss[j]
             );
         }
+    }
+
+    #[test]
+    fn error_angles_are_rounded_to_a_millionth_of_a_degree() {
+        extern crate std;
+        use std::format;
+        assert_eq!(format!("{}", Degrees(0.5999999999999943)), "0.6");
+        assert_eq!(format!("{}", Degrees(90.00000000001)), "90");
+        assert_eq!(format!("{}", Degrees(-12.3456789)), "-12.345679");
+        assert_eq!(format!("{}", Degrees(2.345e-7)), "2.3e-7");
+        assert_eq!(format!("{}", Degrees(0.0)), "0");
+        let e = JointError::PoleDeparture(0.5999999999999943);
+        assert!(format!("{e}").contains("jump by 0.6 degrees"), "{e}");
+    }
+
+    #[test]
+    fn a_tool_vector_curve_is_its_normalised_rational_bezier() {
+        // A quarter circle of vectors as an exact rational quadratic (the
+        // middle vector √2 long, weight 1/√2): unit length throughout, at
+        // the angle its rational parametrisation gives.
+        let h = core::f64::consts::FRAC_1_SQRT_2;
+        let vs = [[1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]];
+        let o = Orientation::tool_axis_curve(2, &vs, &[1.0, h, 1.0], 2.0, 4.0).expect("curve");
+        assert!(o.is_tcp() && o.fixed().is_none());
+        for k in 0..=8 {
+            let t = k as f64 / 8.0;
+            let OrientationAt::ToolAxis(a) = o.at(2.0 + 2.0 * t) else {
+                panic!("a tool axis")
+            };
+            // The rational quadratic's angle: tan(φ/2) = t·w/((1−t) + t·w)·…
+            // here simply atan2 of the unnormalised curve.
+            let (b0, b1, b2) = ((1.0 - t) * (1.0 - t), 2.0 * t * (1.0 - t) * h, t * t);
+            let phi = libm::atan2(b1 + b2, b0 + b1);
+            assert!((a - Vec3::new(libm::cos(phi), libm::sin(phi), 0.0)).norm() < 1e-15);
+        }
+        // Ends exactly the end vectors, normalised; lengths do not matter there.
+        let o2 = Orientation::tool_axis_curve(
+            1,
+            &[[0.0, 0.0, 3.0], [0.0, 4.0, 4.0]],
+            &[1.0, 1.0],
+            0.0,
+            1.0,
+        )
+        .expect("curve");
+        assert_eq!(o2.at(0.0), OrientationAt::ToolAxis(Vec3::z()));
+        assert_eq!(
+            o2.at(1.0),
+            OrientationAt::ToolAxis(Vec3::new(0.0, 4.0, 4.0).normalize())
+        );
+        // Refused: a zero or non-finite vector, a bad weight, vectors that
+        // spread over more than a half-space (the curve may pass zero).
+        let bad = |vs: &[[f64; 3]], w: &[f64]| Orientation::tool_axis_curve(1, vs, w, 0.0, 1.0);
+        assert_eq!(
+            bad(&[[0.0; 3], [0.0, 0.0, 1.0]], &[1.0; 2]),
+            Err(OrientationError::BadValue)
+        );
+        assert_eq!(
+            bad(&[[f64::NAN, 0.0, 1.0], [0.0, 0.0, 1.0]], &[1.0; 2]),
+            Err(OrientationError::BadValue)
+        );
+        assert_eq!(
+            bad(&[[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]], &[1.0, 0.0]),
+            Err(OrientationError::BadValue)
+        );
+        // Three vectors 120° apart in the xy plane: no mean direction
+        // (their curve passes through zero at some weights).
+        let (c, sn) = (-0.5, 0.75f64.sqrt());
+        let three = |z: f64| [[1.0, 0.0, z], [c, sn, z], [c, -sn, z]];
+        let curve = |vs: &[[f64; 3]]| Orientation::tool_axis_curve(2, vs, &[1.0; 3], 0.0, 1.0);
+        assert_eq!(
+            curve(&three(0.0)),
+            Err(OrientationError::VectorSpread(180.0))
+        );
+        assert!(curve(&three(0.01)).is_ok());
+        // With +z besides: the mean is +z, 90° from the three.
+        let mut four = three(0.0).to_vec();
+        four.push([0.0, 0.0, 1.0]);
+        let Err(OrientationError::VectorSpread(d)) =
+            Orientation::tool_axis_curve(3, &four, &[1.0; 4], 0.0, 1.0)
+        else {
+            panic!("spread accepted")
+        };
+        assert!((d - 90.0).abs() < 1e-9, "{d}");
+        // 170° apart is still one side of a plane (85° from the mean).
+        let a = tilted(85.0);
+        let b = tilted(-85.0);
+        assert!(bad(&[a, b], &[1.0; 2]).is_ok());
+    }
+
+    fn tilted(deg: f64) -> [f64; 3] {
+        let r = deg.to_radians();
+        [libm::sin(r), 0.0, libm::cos(r)]
     }
 
     #[test]

@@ -566,6 +566,25 @@ pub struct Solution {
     pub at_pole: bool,
 }
 
+/// An angle in degrees as an error message shows it: to a millionth of a
+/// degree (a jump of 0.5999999999999943° reads 0.6), and a smaller one in
+/// two significant digits (a join's 2.3e-7° is not 0).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Degrees(pub f64);
+
+impl core::fmt::Display for Degrees {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let d = self.0;
+        if d.abs() >= 1e-3 || d == 0.0 || !d.is_finite() {
+            // The nearest double to the rounded value prints in its
+            // shortest form, so no trailing digits.
+            write!(f, "{}", libm::round(d * 1e6) / 1e6)
+        } else {
+            write!(f, "{d:.1e}")
+        }
+    }
+}
+
 /// Why [`Machine::inverse`] found no joints.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum InverseError {
@@ -601,8 +620,10 @@ impl fmt::Display for InverseError {
                 range,
             } => write!(
                 f,
-                "tool axis out of reach: {axis:?} would need {needed}°, outside its range [{}°, {}°]",
-                range.min, range.max
+                "tool axis out of reach: {axis:?} would need {}°, outside its range [{}°, {}°]",
+                Degrees(*needed),
+                Degrees(range.min),
+                Degrees(range.max)
             ),
             InverseError::LinearSingular => {
                 write!(f, "linear axes are parallel at these rotary positions")

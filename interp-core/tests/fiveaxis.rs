@@ -368,7 +368,8 @@ impl RotaryCircle {
         let [a, b, c] = Self::rotary([tip.x, tip.y, tip.z]);
         self.m.forward(&[0.0, 0.0, 0.0, a, b, c]).axis
     }
-    fn blocks(&self, feed: f64) -> Vec<Block> {
+    /// The circle's knot spans, as `gcode::Cutter` cuts it.
+    fn spans() -> Vec<interp_core::nurbs::Nurbs> {
         let (r, z, w) = (Self::R, Self::Z, core::f64::consts::FRAC_1_SQRT_2);
         let pts = [
             [r, 0.0, z],
@@ -382,6 +383,9 @@ impl RotaryCircle {
         let ws = [1.0, w, 1.0, w, 1.0, w, 1.0];
         let knots = [0.0, 0.0, 0.0, 1.0, 1.0, 2.0, 2.0, 3.0, 3.0, 3.0];
         common::split_segments(2, &pts, &ws, &knots, 3)
+    }
+    fn blocks(&self, feed: f64) -> Vec<Block> {
+        Self::spans()
             .into_iter()
             .map(|n| {
                 let values: Vec<[f64; 3]> = (0..n.control_count())
@@ -451,6 +455,107 @@ fn g6_2_rotary_curve_under_tcp_keeps_the_tip_on_the_nurbs() {
         span(3),
         span(5)
     );
+}
+
+/// A G6.2 under G43.5 with a tool vector on each control point (a second
+/// curve for the tool axis): the tip on [`RotaryCircle`]'s three quarters
+/// of a circle, and the control vectors the affine image
+/// `v = (−0.35·x/R, −0.35·y/R, 0.95 + 0.25·x/R)` of the control points. A
+/// rational curve keeps an affine map of its control points, so the vector
+/// curve at every tip is that map of the tip, and the programmed axis its
+/// direction: on a cone about z whose opening changes with x (16° at
+/// x = R, 27° at x = −R), in closed form. The curve is not of unit length
+/// between control points, so its normalisation is exercised.
+struct VectorCircle;
+
+impl VectorCircle {
+    fn vector(p: [f64; 3]) -> [f64; 3] {
+        let r = RotaryCircle::R;
+        [-0.35 * p[0] / r, -0.35 * p[1] / r, 0.95 + 0.25 * p[0] / r]
+    }
+    fn axis(tip: Vec3) -> Vec3 {
+        let [x, y, z] = Self::vector([tip.x, tip.y, tip.z]);
+        Vec3::new(x, y, z).normalize()
+    }
+    fn blocks(feed: f64) -> Vec<Block> {
+        RotaryCircle::spans()
+            .into_iter()
+            .map(|n| {
+                let values: Vec<[f64; 3]> = (0..n.control_count())
+                    .map(|k| Self::vector(n.control_point(k)))
+                    .collect();
+                let w: Vec<f64> = (0..n.control_count()).map(|k| n.weight(k)).collect();
+                let o = Orientation::tool_axis_curve(2, &values, &w, n.u_start(), n.u_end())
+                    .expect("tool vector curve");
+                Block::new(1, Path::Nurbs(n), feed).with_orientation(o)
+            })
+            .collect()
+    }
+}
+
+impl Reference for VectorCircle {
+    fn at(&self, tip: Vec3) -> (f64, Vec3) {
+        let d = libm::hypot(
+            libm::hypot(tip.x, tip.y) - RotaryCircle::R,
+            tip.z - RotaryCircle::Z,
+        );
+        // (The programmed axis at the nearest path point: the map of the
+        // tip projected onto the circle.)
+        let rho = libm::hypot(tip.x, tip.y);
+        let on = Vec3::new(
+            tip.x * RotaryCircle::R / rho,
+            tip.y * RotaryCircle::R / rho,
+            RotaryCircle::Z,
+        );
+        (d, Self::axis(on))
+    }
+}
+
+#[test]
+fn g6_2_tool_vector_curve_under_g43_5_turns_the_axis_on_its_cone() {
+    let blocks = VectorCircle::blocks(80.0);
+    assert!(blocks.iter().all(|b| b.is_tcp()));
+    // (On a C,A and an A,B table alike: one closed-form reference for both.)
+    for (chain, centre) in [
+        ("W/caxyBz/T", (0, [0.0, 0.0, -40.0])),
+        ("W/abxyBz/T", (1, [0.0, 0.0, -40.0])),
+    ] {
+        let spec = machine(chain, 80.0, centre);
+        let cfg = config(spec);
+        let m = Machine::new(spec).expect("machine");
+        let tip0 = Vec3::new(RotaryCircle::R, 0.0, RotaryCircle::Z);
+        let start = joints_at(&m, tip0, VectorCircle::axis(tip0));
+        let sps = run_within(&cfg, start, &blocks, 50_000);
+        let rep = check(&cfg, start, &sps, &VectorCircle);
+        assert_within(&cfg, &rep, chain);
+        // The axis at every setpoint is the block's curve at its parameter.
+        let mut off = 0.0f64;
+        for sp in &sps {
+            let b = blocks
+                .iter()
+                .find(|b| sp.u >= b.path.u_start() && sp.u <= b.path.u_end())
+                .expect("a block holds the parameter");
+            let OrientationAt::ToolAxis(a) = b.orientation.expect("orientation").at(sp.u) else {
+                unreachable!("a tool axis");
+            };
+            let axis = m.forward(&sp.axes).axis;
+            off = off.max(libm::atan2(axis.cross(&a).norm(), axis.dot(&a)));
+        }
+        assert!(
+            off <= ON_AXIS_TOL,
+            "{chain}: axis off its curve by {off} rad"
+        );
+        let last = sps.last().expect("setpoints");
+        let end = m.forward(&last.axes);
+        let tip1 = Vec3::new(0.0, -RotaryCircle::R, RotaryCircle::Z);
+        assert!(
+            (end.tip - tip1).norm() < ON_PATH_TOL,
+            "{chain}: end {:?}",
+            end.tip
+        );
+        assert!(end.axis.dot(&VectorCircle::axis(tip1)) > 1.0 - 1e-15);
+        assert_eq!(last.feed, 0.0);
+    }
 }
 
 /// The flank of a cone frustum in the manner of NAS 979: the tip runs

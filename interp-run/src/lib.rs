@@ -20,13 +20,15 @@
 //! service's planning thread sends the same [`Op`]s to its RT thread.
 //!
 //! [`check`] is the setpoint checker every run is held to (demo, jitter's
-//! subscriber, the tests).
+//! subscriber, the tests); [`stack`] the thread stack sizes every caller
+//! builds one on.
 //!
 //! `interp-core` stays `#![no_std]` without an allocator; this crate keeps
 //! the steps in `Vec`s and boxes, so it is the std side of the loop.
 #![forbid(unsafe_code)]
 
 pub mod check;
+pub mod stack;
 
 use core::convert::Infallible;
 

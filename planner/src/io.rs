@@ -303,6 +303,7 @@ impl PathWriter {
             feed,
             orientation: gcode::Orientation::Fixed,
             rotary: Vec::new(),
+            tool_vectors: Vec::new(),
         }));
         self.at = b.control_points.last().copied();
     }

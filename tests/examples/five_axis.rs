@@ -14,7 +14,7 @@ fn main() -> Result<(), String> {
     // The interpolator is built on the stack before it is boxed (its
     // look-ahead is fixed-capacity, over a MiB): a thread with room for it.
     std::thread::Builder::new()
-        .stack_size(64 << 20)
+        .stack_size(interp_run::stack::INTERPOLATOR_STACK_BYTES)
         .spawn(run)
         .map_err(|e| e.to_string())?
         .join()

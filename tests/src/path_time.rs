@@ -217,7 +217,7 @@ pub fn program_run(
 pub const MAX_TICKS: u64 = 20_000_000;
 
 /// Stack for a thread that owns an `Interpolator<1024>`, bytes.
-pub const INTERPOLATOR_STACK: usize = 64 << 20;
+pub use interp_run::stack::INTERPOLATOR_STACK_BYTES as INTERPOLATOR_STACK;
 
 fn run_to_done(
     blocks: &[Block],

@@ -493,3 +493,128 @@ fn g6_2_rotary_coordinates_under_g43_4_move_the_tip_on_the_curve() {
         check.measured
     );
 }
+
+/// The same curve under G43.5 with a tool vector `U V W` on each control
+/// point (issue 19: a second curve for the tool axis), each the direction
+/// tilted `12 + A` degrees from +z towards azimuth `C` of the curve's
+/// rotary values, 1.2 long where the index is odd. Through the JSON block
+/// form (written and read back) and `traces::sim::run`: at every setpoint
+/// on the curve the tip is the program's curve at the setpoint's
+/// parameter and the tool axis the vectors' NURBS there, normalised
+/// (within 1e-9), every joint within its limits, the run done.
+#[test]
+fn g6_2_tool_vectors_under_g43_5_turn_the_axis_on_their_curve() {
+    use std::fmt::Write as _;
+    let c = RotaryCurve::new();
+    let (n, p) = (c.pts.len(), c.p);
+    let vectors: Vec<[f64; 3]> = c
+        .rot
+        .iter()
+        .enumerate()
+        .map(|(i, r)| {
+            let (tilt, azimuth) = ((12.0 + r[0]).to_radians(), r[1].to_radians());
+            let len = if i % 2 == 1 { 1.2 } else { 1.0 };
+            [
+                len * tilt.sin() * azimuth.cos(),
+                len * tilt.sin() * azimuth.sin(),
+                len * tilt.cos(),
+            ]
+        })
+        .collect();
+    let mut text = format!(
+        "G21 G90 G94 G61\nG0 X0 Y0 Z120 A0 C-90\nG43.5 H1\nG1 X0 Y0 Z5 I{} J{} K{} F600\nG6.2 P{}",
+        vectors[0][0],
+        vectors[0][1],
+        vectors[0][2],
+        p + 1
+    );
+    for i in 0..n {
+        if i > 0 {
+            text.push('\n');
+        }
+        let v = vectors[i];
+        write!(
+            text,
+            " X{} Y{} Z0 U{} V{} W{} R{} K{}",
+            c.pts[i][0], c.pts[i][1], v[0], v[1], v[2], c.ws[i], c.knots[i]
+        )
+        .unwrap();
+    }
+    text.push('\n');
+    for k in &c.knots[n..] {
+        writeln!(text, "G6.2 K{k}").unwrap();
+    }
+    text.push_str("G49\nG0 X0 Y0 Z150\nM2\n");
+    let cfg = example_config();
+    let spec = cfg.machine.expect("machine");
+    let SimulatedRun {
+        program,
+        setpoints: sps,
+        ..
+    } = simulate_program(cfg, &text, "g6.2 tool vectors under G43.5").expect("runs");
+    // The block form carries the vectors through its JSON.
+    let json = serde_json::to_string(&program).unwrap();
+    assert!(json.contains("tool_axes"), "{json}");
+    assert_eq!(
+        serde_json::from_str::<traces::Program>(&json).unwrap(),
+        program
+    );
+    let m = Machine::new(spec).unwrap();
+    let curve_ids = curve_ids(&program);
+    assert_eq!(curve_ids.len(), n - p, "one block per knot span");
+    let axis_at = |u: f64| {
+        let (span, nb) = interp_core::nurbs::basis_functions(p, &c.knots, u);
+        let mut v = Vec3::zeros();
+        for k in 0..=p {
+            let i = span - p + k;
+            v += Vec3::from(vectors[i]) * (nb[k] * c.ws[i]);
+        }
+        v.normalize()
+    };
+    let (mut tip_off, mut axis_off, mut on_curve) = (0.0f64, 0.0f64, 0);
+    for sp in sps.iter().filter(|s| curve_ids.contains(&s.block_id)) {
+        let (xy, _) = c.at(sp.u);
+        let pose = m.forward(&sp.axes);
+        tip_off = tip_off.max((pose.tip - Vec3::new(xy[0], xy[1], 0.0)).norm());
+        let want = axis_at(sp.u);
+        axis_off = axis_off.max(pose.axis.cross(&want).norm().atan2(pose.axis.dot(&want)));
+        on_curve += 1;
+    }
+    assert!(on_curve > 500, "{on_curve}");
+    assert!(
+        tip_off < 1e-9,
+        "tip off the program's curve by {tip_off} mm"
+    );
+    assert!(
+        axis_off < 1e-9,
+        "axis off the vector curve by {axis_off} rad"
+    );
+    assert_eq!(sps.last().unwrap().state, RunState::Done);
+    let expanded = program
+        .expand(
+            traces::sim::SimSettings::default().max_ctrl_per_block,
+            traces::sim::FIRST_BLOCK_ID,
+        )
+        .unwrap();
+    let tcp: std::collections::HashMap<u32, bool> =
+        expanded.segments().map(|b| (b.id, b.is_tcp())).collect();
+    assert!(curve_ids.iter().all(|id| tcp[id]), "the curve is under TCP");
+    let mut check = Checker::five_axis(
+        cfg.period,
+        Limits::new(&cfg, cfg.max_path_speed),
+        m,
+        [0.0; 6],
+    );
+    for sp in &sps {
+        check.check_in_frame(sp, tcp.get(&sp.block_id).copied().unwrap_or(false));
+    }
+    check.finish(Some([0.0, 0.0, 150.0]));
+    check.assert_clean("G6.2 with tool vectors under G43.5");
+    // The tool really turns: A (tilt) and C (azimuth) both move.
+    assert!(
+        check.measured.rotary_velocity_deg_s[0] > 1.0
+            && check.measured.rotary_velocity_deg_s[2] > 1.0,
+        "{:?}",
+        check.measured
+    );
+}

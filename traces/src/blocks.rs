@@ -199,6 +199,12 @@ pub enum PathSpec {
         /// control off), with its weights and knots.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         rotary: Option<Vec<[f64; 3]>>,
+        /// The tool vector of each control point (G6.2 with U V W under
+        /// G43.5): a second curve for the tool axis, these vectors' NURBS
+        /// with the curve's weights and knots, normalised; the block's
+        /// `orientation` is then the tool axis from the first to the last.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        tool_axes: Option<Vec<[f64; 3]>>,
     },
 }
 
@@ -592,12 +598,14 @@ impl InputBlock {
                     weights,
                     knots,
                     rotary,
+                    tool_axes,
                 } => PathSpec::Nurbs {
                     degree,
                     points: points.to_vec(),
                     weights: weights.map(<[f64]>::to_vec),
                     knots: knots.to_vec(),
                     rotary: rotary.map(<[[f64; 3]]>::to_vec),
+                    tool_axes: tool_axes.map(<[[f64; 3]]>::to_vec),
                 },
             },
         }
@@ -654,12 +662,14 @@ impl InputBlock {
                     weights,
                     knots,
                     rotary,
+                    tool_axes,
                 } => MovePath::Nurbs {
                     degree: *degree,
                     points,
                     weights: weights.as_deref(),
                     knots,
                     rotary: rotary.as_deref(),
+                    tool_axes: tool_axes.as_deref(),
                 },
             },
             orientation: self.orientation.map(gcode::MoveOrientation::from),

@@ -57,7 +57,7 @@ pub const RECORD_SLOTS: usize = 4096;
 /// Stack of the RT and planning threads, and of the thread every CLI command
 /// runs on (`main.rs`): the executor and the driver are built on them before
 /// they are boxed (an unoptimised `interpd simulate` needs 12–14 MiB).
-pub const RT_STACK_BYTES: usize = 32 << 20;
+pub use interp_run::stack::RT_STACK_BYTES;
 /// Default lead of the planning thread over the RT thread, ms: what a
 /// command waits before it takes effect, and the planning time that can
 /// pass without the RT thread waiting for a plan.

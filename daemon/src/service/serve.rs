@@ -24,12 +24,8 @@ pub type TickSink = Box<dyn FnMut(&RtRecord) + Send>;
 
 /// Default TCP port of the control plane.
 pub const DEFAULT_PORT: u16 = 47_110;
-/// Stack of the control-plane thread: a program's pipeline builds its
-/// `G64 P` stage (`interp_core::Smoother`, 420 KB, fixed capacity) on it
-/// before boxing it, which an unoptimised build copies several times (2 MiB,
-/// the default, overflowed in `cargo run` builds). Only pages touched are
-/// committed.
-const CONTROL_STACK_BYTES: usize = 16 << 20;
+// (The control-plane thread's stack: `interp_run::stack`.)
+use interp_run::stack::CONTROL_STACK_BYTES;
 /// The recorder drains its queue this often.
 const RECORDER_POLL: Duration = Duration::from_millis(5);
 

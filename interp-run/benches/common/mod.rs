@@ -73,7 +73,7 @@ pub fn reload(ip: &mut Replay, cfg: InterpConfig, blocks: &[Block]) {
 /// stack before it is boxed: about 2 MiB, more in an unoptimised build).
 pub fn on_big_stack(f: impl FnOnce() + Send + 'static) {
     std::thread::Builder::new()
-        .stack_size(64 << 20)
+        .stack_size(interp_run::stack::INTERPOLATOR_STACK_BYTES)
         .spawn(f)
         .expect("bench thread")
         .join()
