@@ -7,9 +7,11 @@
 //! program finished.
 
 use gcode::{BlockKind, Orientation};
+use std::collections::HashMap;
+
 use interp_core::kinematics::Machine;
-use interp_core::{RunState, Vec3};
-use interp_run::check::{Checker, Limits};
+use interp_core::{InterpConfig, RunState, Setpoint, Vec3};
+use interp_run::check::{Checker, Limits, Measured};
 use interpd_tests::five_axis::{
     SimulatedRun, example_config, example_dir, run_program, simulate_program,
 };
@@ -32,7 +34,7 @@ fn the_frustum_example_runs_on_its_machine_within_its_program_and_limits() {
 
     // The program's own moves under G43.5, by line: start, end, tool vectors.
     let program = gcode::parse(&text).unwrap();
-    let mut moves = std::collections::HashMap::new();
+    let mut moves = HashMap::new();
     let mut prev_tcp = false;
     for b in &program.blocks {
         let (start, end, o) = match &b.kind {
@@ -96,30 +98,19 @@ fn the_frustum_example_runs_on_its_machine_within_its_program_and_limits() {
     // velocity, acceleration and jerk within its limit (X Y Z and A B C),
     // the path speed, acceleration and jerk, the chord speed of the tool
     // tip under TCP (of X Y Z off it), and the end exactly at X0 Y0 Z150.
-    let tcp: std::collections::HashMap<u32, bool> =
-        run.blocks.iter().map(|b| (b.id, b.is_tcp())).collect();
-    let mut check = Checker::five_axis(
-        cfg.period,
-        Limits::new(&cfg, cfg.max_path_speed),
+    let tcp: HashMap<u32, bool> = run.blocks.iter().map(|b| (b.id, b.is_tcp())).collect();
+    let measured = check_setpoints(
+        &cfg,
         m,
         run.start,
+        &run.setpoints,
+        &tcp,
+        [0.0, 0.0, 150.0],
+        "the frustum example",
     );
-    for sp in &run.setpoints {
-        check.check_in_frame(sp, tcp.get(&sp.block_id).copied().unwrap_or(false));
-    }
-    check.finish(Some([0.0, 0.0, 150.0]));
-    check.assert_clean("the frustum example");
     // The rotary joints moved: C round the whole circle, A to the lean.
-    assert!(
-        check.measured.rotary_velocity_deg_s[2] > 10.0,
-        "{:?}",
-        check.measured
-    );
-    assert!(
-        check.measured.rotary_velocity_deg_s[0] > 1.0,
-        "{:?}",
-        check.measured
-    );
+    assert!(measured.rotary_velocity_deg_s[2] > 10.0, "{measured:?}");
+    assert!(measured.rotary_velocity_deg_s[0] > 1.0, "{measured:?}");
 }
 
 /// Rotary-only moves end to end (G-code text → `traces::Program` →
@@ -158,14 +149,9 @@ fn rotary_only_moves_turn_in_place_through_simulate() {
 
     // Setpoints name segments; their source lines (G61: the `G64 P` stage
     // passes every block, numbered as cut).
-    let expanded = program
-        .expand(
-            traces::sim::SimSettings::default().max_ctrl_per_block,
-            traces::sim::FIRST_BLOCK_ID,
-        )
-        .unwrap();
-    let mut line_of = std::collections::HashMap::new();
-    let mut tcp = std::collections::HashMap::new();
+    let expanded = expand(&program);
+    let mut line_of = HashMap::new();
+    let mut tcp = HashMap::new();
     for b in &expanded.blocks {
         for seg in &b.segments {
             line_of.insert(seg.id, b.input.source_line.unwrap());
@@ -215,13 +201,15 @@ fn rotary_only_moves_turn_in_place_through_simulate() {
         "{end8:?}"
     );
 
-    let start = [0.0; 6];
-    let mut check = Checker::five_axis(cfg.period, Limits::new(&cfg, cfg.max_path_speed), m, start);
-    for sp in &sps {
-        check.check_in_frame(sp, tcp.get(&sp.block_id).copied().unwrap_or(false));
-    }
-    check.finish(Some([0.0, 0.0, 100.0]));
-    check.assert_clean("rotary-only moves");
+    check_setpoints(
+        &cfg,
+        m,
+        [0.0; 6],
+        &sps,
+        &tcp,
+        [0.0, 0.0, 100.0],
+        "rotary-only moves",
+    );
     // The trace summary measures a turn's chord error on the point the
     // tool stands on (not on the turn's measure, degrees away).
     let segments = traces::sim::smoothed_segments(&expanded, &config.interp).unwrap();
@@ -346,18 +334,54 @@ impl RotaryCurve {
     }
 }
 
-/// The ids of the blocks of `program` that are pieces of its NURBS.
-fn curve_ids(program: &traces::Program) -> std::collections::HashSet<u32> {
+/// `program` cut into the segments the setpoints name, as
+/// `traces::sim::run` cuts it.
+fn expand(program: &traces::Program) -> traces::blocks::Expanded {
     program
         .expand(
             traces::sim::SimSettings::default().max_ctrl_per_block,
             traces::sim::FIRST_BLOCK_ID,
         )
         .unwrap()
+}
+
+/// The ids of the blocks of `program` that are pieces of its NURBS.
+fn curve_ids(program: &traces::Program) -> std::collections::HashSet<u32> {
+    expand(program)
         .segments()
         .filter(|b| matches!(b.path, interp_core::Path::Nurbs(_)))
         .map(|b| b.id)
         .collect()
+}
+
+/// Whether each segment of `program` is under tool-centre-point control.
+fn tcp_blocks(program: &traces::Program) -> HashMap<u32, bool> {
+    expand(program)
+        .segments()
+        .map(|b| (b.id, b.is_tcp()))
+        .collect()
+}
+
+/// Every setpoint through the one setpoint checker, each in its segment's
+/// frame (the tool tip where `tcp` says the segment is under TCP, X Y Z
+/// elsewhere), from `start` to the end at `end`: panics naming `what` on
+/// any breach; returns what the checker measured.
+fn check_setpoints(
+    cfg: &InterpConfig,
+    m: Machine,
+    start: [f64; 6],
+    sps: &[Setpoint],
+    tcp: &HashMap<u32, bool>,
+    end: [f64; 3],
+    what: &str,
+) -> Measured {
+    let mut check = Checker::five_axis(cfg.period, Limits::new(cfg, cfg.max_path_speed), m, start);
+    for sp in sps {
+        check.check_in_frame(sp, tcp.get(&sp.block_id).copied().unwrap_or(false));
+    }
+    check.finish(Some(end));
+    check.assert_clean(what);
+    check.measured
 }
 
 /// G6.2 with A and C on its control points (TCP off) from G-code text
@@ -403,23 +427,16 @@ fn g6_2_rotary_coordinates_run_as_coordinates_of_the_curve() {
         rot[n - 1],
         "the axes end on the last control point"
     );
-    let m = Machine::new(spec).unwrap();
-    let mut check = Checker::five_axis(
-        cfg.period,
-        Limits::new(&cfg, cfg.max_path_speed),
-        m,
+    let measured = check_setpoints(
+        &cfg,
+        Machine::new(spec).unwrap(),
         [0.0; 6],
+        &sps,
+        &HashMap::new(),
+        [pts[n - 1][0], pts[n - 1][1], 0.0],
+        "G6.2 with rotary coordinates",
     );
-    for sp in &sps {
-        check.check_in_frame(sp, false);
-    }
-    check.finish(Some([pts[n - 1][0], pts[n - 1][1], 0.0]));
-    check.assert_clean("G6.2 with rotary coordinates");
-    assert!(
-        check.measured.rotary_velocity_deg_s[2] > 1.0,
-        "{:?}",
-        check.measured
-    );
+    assert!(measured.rotary_velocity_deg_s[2] > 1.0, "{measured:?}");
 }
 
 /// The same G6.2 under G43.4 (issue 19): X Y Z are the tool tip in the
@@ -467,31 +484,18 @@ fn g6_2_rotary_coordinates_under_g43_4_move_the_tip_on_the_curve() {
         "A C off the rotary curve by {rot_off} degrees"
     );
     assert_eq!(sps.last().unwrap().state, RunState::Done);
-    let expanded = program
-        .expand(
-            traces::sim::SimSettings::default().max_ctrl_per_block,
-            traces::sim::FIRST_BLOCK_ID,
-        )
-        .unwrap();
-    let tcp: std::collections::HashMap<u32, bool> =
-        expanded.segments().map(|b| (b.id, b.is_tcp())).collect();
+    let tcp = tcp_blocks(&program);
     assert!(curve_ids.iter().all(|id| tcp[id]), "the curve is under TCP");
-    let mut check = Checker::five_axis(
-        cfg.period,
-        Limits::new(&cfg, cfg.max_path_speed),
+    let measured = check_setpoints(
+        &cfg,
         m,
         [0.0; 6],
+        &sps,
+        &tcp,
+        [0.0, 0.0, 150.0],
+        "G6.2 with rotary coordinates under G43.4",
     );
-    for sp in &sps {
-        check.check_in_frame(sp, tcp.get(&sp.block_id).copied().unwrap_or(false));
-    }
-    check.finish(Some([0.0, 0.0, 150.0]));
-    check.assert_clean("G6.2 with rotary coordinates under G43.4");
-    assert!(
-        check.measured.rotary_velocity_deg_s[2] > 1.0,
-        "{:?}",
-        check.measured
-    );
+    assert!(measured.rotary_velocity_deg_s[2] > 1.0, "{measured:?}");
 }
 
 /// The same curve under G43.5 with a tool vector `U V W` on each control
@@ -590,31 +594,20 @@ fn g6_2_tool_vectors_under_g43_5_turn_the_axis_on_their_curve() {
         "axis off the vector curve by {axis_off} rad"
     );
     assert_eq!(sps.last().unwrap().state, RunState::Done);
-    let expanded = program
-        .expand(
-            traces::sim::SimSettings::default().max_ctrl_per_block,
-            traces::sim::FIRST_BLOCK_ID,
-        )
-        .unwrap();
-    let tcp: std::collections::HashMap<u32, bool> =
-        expanded.segments().map(|b| (b.id, b.is_tcp())).collect();
+    let tcp = tcp_blocks(&program);
     assert!(curve_ids.iter().all(|id| tcp[id]), "the curve is under TCP");
-    let mut check = Checker::five_axis(
-        cfg.period,
-        Limits::new(&cfg, cfg.max_path_speed),
+    let measured = check_setpoints(
+        &cfg,
         m,
         [0.0; 6],
+        &sps,
+        &tcp,
+        [0.0, 0.0, 150.0],
+        "G6.2 with tool vectors under G43.5",
     );
-    for sp in &sps {
-        check.check_in_frame(sp, tcp.get(&sp.block_id).copied().unwrap_or(false));
-    }
-    check.finish(Some([0.0, 0.0, 150.0]));
-    check.assert_clean("G6.2 with tool vectors under G43.5");
     // The tool really turns: A (tilt) and C (azimuth) both move.
     assert!(
-        check.measured.rotary_velocity_deg_s[0] > 1.0
-            && check.measured.rotary_velocity_deg_s[2] > 1.0,
-        "{:?}",
-        check.measured
+        measured.rotary_velocity_deg_s[0] > 1.0 && measured.rotary_velocity_deg_s[2] > 1.0,
+        "{measured:?}"
     );
 }
