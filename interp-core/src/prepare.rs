@@ -586,10 +586,8 @@ impl BlockPlanner {
                 // (A change of frame is a rest point: the machine stands
                 // while tool-centre-point control goes on or off.)
                 0.0
-            } else if singular[0] {
-                junction_speed_with(&left, &entry, &cfg, STATIONARY_JUMP_SHARE)
             } else {
-                junction_speed(&left, &entry, &cfg)
+                junction_speed_with(&left, &entry, &cfg, jump_share(singular[0]))
             };
             let v = v.min(self.joint_junction(block, &left, &entry));
             // (A block starting at a stationary point has its laws taken
@@ -611,11 +609,7 @@ impl BlockPlanner {
                 // A tangent break inside the block.
                 let left = pieces[k - 1].eval(windows[k - 1].1, 3);
                 let right = piece.eval(windows[k].0, 3);
-                let v = if singular[k] {
-                    junction_speed_with(&left, &right, &cfg, STATIONARY_JUMP_SHARE)
-                } else {
-                    junction_speed(&left, &right, &cfg)
-                };
+                let v = junction_speed_with(&left, &right, &cfg, jump_share(singular[k]));
                 // The laws are not sampled within the windows' offsets of a
                 // stationary point: the junction's limit covers them.
                 let prev = &pieces[k - 1];
@@ -816,20 +810,7 @@ fn sample_laws(
     // A per-axis sample is kept where the axis jerk could bind at the
     // speed `v` the laws allow there (elsewhere no row is needed).
     let sample_at = |w: &mut Window, s: f64, d: &Derivs, v: f64, side: i8| {
-        let Some(a) = ArcLengthDerivs::new(d) else {
-            return;
-        };
-        let smp = AxisSample {
-            s,
-            t: [a.t.x, a.t.y, a.t.z],
-            css: [a.c_ss.x, a.c_ss.y, a.c_ss.z],
-            csss: [a.c_sss.x, a.c_sss.y, a.c_sss.z],
-            side,
-            reserve: 0.0,
-        };
-        if (0..3).any(|ax| axis_jerk_may_bind(&smp, ax, v * v, cfg)) {
-            keep_axis_sample(w, smp, h, v * v, cfg);
-        }
+        offer_axis_sample(w, s, d, side, 0.0, v, h, cfg);
     };
     let sample_on = |w: &mut Window, s: f64, d: &Derivs, side: i8| {
         sample_at(
@@ -1053,6 +1034,17 @@ fn sample_laws(
     }
 }
 
+/// The share of the axis jerk a junction's curvature step may take: next to
+/// a stationary point (`stationary`) [`STATIONARY_JUMP_SHARE`], whose laws
+/// are taken a tick inside, else [`crate::feed::JUMP_SHARE`].
+fn jump_share(stationary: bool) -> f64 {
+    if stationary {
+        STATIONARY_JUMP_SHARE
+    } else {
+        crate::feed::JUMP_SHARE
+    }
+}
+
 /// The per-axis samples of a junction at `s` passed at `v` at most: its
 /// two sides' derivatives, each with the share of the axes' jerk the
 /// curvature's step takes there ([`crate::feed::jump_reserve`]), so the jerk
@@ -1072,20 +1064,37 @@ pub(crate) fn junction_samples(
         return;
     }
     for d in [left, right] {
-        let Some(a) = ArcLengthDerivs::new(d) else {
-            continue;
-        };
-        let smp = AxisSample {
-            s,
-            t: [a.t.x, a.t.y, a.t.z],
-            css: [a.c_ss.x, a.c_ss.y, a.c_ss.z],
-            csss: [a.c_sss.x, a.c_sss.y, a.c_sss.z],
-            side: 0,
-            reserve,
-        };
-        if (0..3).any(|ax| axis_jerk_may_bind(&smp, ax, v * v, cfg)) {
-            keep_axis_sample(w, smp, h, v * v, cfg);
-        }
+        offer_axis_sample(w, s, d, 0, reserve, v, h, cfg);
+    }
+}
+
+/// The per-axis sample of derivatives `d` at `s` (its block `side`, the
+/// junction `reserve`: see [`AxisSample`]), kept where its axis jerk could
+/// bind at speed `v` ([`keep_axis_sample`]); elsewhere no row is needed.
+#[allow(clippy::too_many_arguments)]
+fn offer_axis_sample(
+    w: &mut Window,
+    s: f64,
+    d: &Derivs,
+    side: i8,
+    reserve: f64,
+    v: f64,
+    h: f64,
+    cfg: &InterpConfig,
+) {
+    let Some(a) = ArcLengthDerivs::new(d) else {
+        return;
+    };
+    let smp = AxisSample {
+        s,
+        t: [a.t.x, a.t.y, a.t.z],
+        css: [a.c_ss.x, a.c_ss.y, a.c_ss.z],
+        csss: [a.c_sss.x, a.c_sss.y, a.c_sss.z],
+        side,
+        reserve,
+    };
+    if (0..3).any(|ax| axis_jerk_may_bind(&smp, ax, v * v, cfg)) {
+        keep_axis_sample(w, smp, h, v * v, cfg);
     }
 }
 
