@@ -208,12 +208,7 @@ fn write_raster_gcode(path: &RasterPath, moves: &Moves, out: &mut impl Write) ->
     let mut w = PathWriter::new(*moves);
     let mut e = gcode::Emit::default();
     for line in path.passes.iter().flat_map(|p| &p.polylines) {
-        let Some(first) = line.first() else { continue };
-        w.enter([first.x, first.y, first.z]);
-        for q in &line[1..] {
-            w.cut_to([q.x, q.y, q.z]);
-        }
-        w.leave();
+        cut_polyline(&mut w, line);
         for b in w.drain() {
             e.block(&b.kind);
         }
@@ -224,6 +219,17 @@ fn write_raster_gcode(path: &RasterPath, moves: &Moves, out: &mut impl Write) ->
     }
     out.write_all(e.take().as_bytes())?;
     Ok(())
+}
+
+/// One polyline of the path into `w`: in at its first point, a cut
+/// through the rest, out (an empty one writes nothing).
+fn cut_polyline(w: &mut PathWriter, line: &[planner::mesh::P3]) {
+    let Some(first) = line.first() else { return };
+    w.enter([first.x, first.y, first.z]);
+    for q in &line[1..] {
+        w.cut_to([q.x, q.y, q.z]);
+    }
+    w.leave();
 }
 
 fn write_gcode(path: &RasterPath, out: &PathBuf, moves: &Moves) -> Result<()> {
@@ -318,12 +324,7 @@ mod tests {
     fn whole_program_text(path: &RasterPath, moves: &Moves) -> String {
         let mut w = PathWriter::new(*moves);
         for line in path.passes.iter().flat_map(|p| &p.polylines) {
-            let Some(first) = line.first() else { continue };
-            w.enter([first.x, first.y, first.z]);
-            for q in &line[1..] {
-                w.cut_to([q.x, q.y, q.z]);
-            }
-            w.leave();
+            cut_polyline(&mut w, line);
         }
         format!(
             "(interpd plan raster: {} stepover {} angle {})\n{}",
