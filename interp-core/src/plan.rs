@@ -464,7 +464,27 @@ impl Data {
         let own =
             move |smp: &&AxisSample| smp.s >= p.x0 - tol && smp.s <= p.x1 + tol && !across(smp);
         let none = !near().any(|smp| own(&smp));
+        // Nor across a block junction: past a block's end sample (or a
+        // junction's) before the piece, or a block's start sample after it,
+        // the derivatives are another block's (a blend's `C‴` held the line
+        // after it near zero speed).
+        let junction = move |smp: &AxisSample, before: bool| {
+            smp.reserve > 0.0 || if before { smp.side < 0 } else { smp.side > 0 }
+        };
+        // The nearest such sample on that side of the piece.
+        let wall = move |before: bool| {
+            let at = near()
+                .filter(move |smp| junction(smp, before))
+                .map(|smp| smp.s);
+            if before {
+                at.filter(|&s| s < p.x0 + tol)
+                    .fold(f64::NEG_INFINITY, f64::max)
+            } else {
+                at.filter(|&s| s > p.x1 - tol).fold(f64::INFINITY, f64::min)
+            }
+        };
         let closest = move |before: bool| {
+            let wall = if none { wall(before) } else { 0.0 };
             near()
                 .filter(move |smp| {
                     let gap = if before { p.x0 - smp.s } else { smp.s - p.x1 };
@@ -475,7 +495,12 @@ impl Data {
                     } else {
                         (p.x1 - tol, smp.s)
                     };
-                    none && gap > 0.0 && gap <= reach && !self.stop_within(a, b)
+                    let past = if before { smp.s < wall } else { smp.s > wall };
+                    none && gap > 0.0
+                        && gap <= reach
+                        && !past
+                        && !junction(smp, before)
+                        && !self.stop_within(a, b)
                 })
                 .min_by(move |a, b| {
                     let da = if before { p.x0 - a.s } else { a.s - p.x1 };

@@ -252,6 +252,24 @@ fn micro_moves_turning_sharply_become_corners_not_slow_pieces() {
     assert!(ours < 0.5, "{ours} s (reference {reference} s)");
 }
 
+/// Found measuring the sizes (seed 1's `G64 P` program of 10⁴
+/// moves): a line of 0.6 mm after a 33 µm blend took 35 s. A short piece
+/// of the line, with no derivative samples of its own, borrowed the
+/// blend's end sample (`C‴` ≈ 400 mm⁻²) across the junction, and the
+/// plan held the line near zero speed. The first 5,300 moves of that
+/// program show it (release: a few seconds).
+#[test]
+#[ignore]
+fn a_blend_s_derivatives_do_not_hold_back_the_line_after_it() {
+    let (ours, reference, moves, _) = check(1, 5300, Some(false));
+    eprintln!(
+        "seed 1: {moves} moves, {ours:.3} s, {:.3}×",
+        ours / reference
+    );
+    // 379.7 s before (1.78× the reference), 336.9 s now (1.58×).
+    assert!(ours < 350.0, "{ours} s (reference {reference} s)");
+}
+
 /// The size: programs of 10⁴ and 10⁵ moves, `G64 P` and `G61`
 /// (release: a minute).
 #[test]
