@@ -55,6 +55,13 @@ pub const WITNESS_OFFSET: f64 = 1e-10;
 const MIN_PIECE: f64 = 1e-8;
 /// Arcs longer than this many cell spacings are marked in pieces.
 const ARC_PIECE_SPACINGS: f64 = 2.0;
+/// [`Exact::mark_arc`] rules out a cell by its direction alone when the
+/// piece of arc's `|pa × pb|` exceeds this and the direction lies this
+/// much (as a sine) beyond the cell's radius from the piece's circle: then
+/// every corner is at least `1e-13` off that circle in the products
+/// `arc_meets_cell` takes, far above their round-off (`1e-16`).
+const CLEAR_MIN_SIN: f64 = 1e-6;
+const CLEAR_MARGIN: f64 = 1e-7;
 /// Candidate cells per chunk of the gather's walk.
 const GATHER_CHUNK: usize = 4;
 /// No triangle on this side of an edge: [`RayCaster::across`].
@@ -731,9 +738,21 @@ impl Exact<'_> {
             let half = (pa - pb).norm().min(2.0) * 0.5;
             let r = half.asin() + self.cells.radius + CAP_MARGIN;
             let pm = pa.cross(&pb);
+            // A cell whose direction lies farther than its radius from the
+            // piece's great circle cannot meet the piece: one product rules
+            // out most of the cap's cells before `arc_meets_cell`. Only
+            // when the piece is long enough (and that far clear) for the
+            // signs `arc_meets_cell` takes to be certain, so it would say
+            // no too.
+            let pm_norm = pm.norm();
+            let clear = if pm_norm > CLEAR_MIN_SIN {
+                pm_norm * (self.cells.sin_radius + CLEAR_MARGIN)
+            } else {
+                f64::INFINITY
+            };
             let grid = self.grid;
-            grid.any_in_cap(&centre, r.cos().max(0.0), r.sin(), |i, _| {
-                if wanted(i) && self.arc_meets_cell(&pa, &pb, &pm, i) {
+            grid.any_in_cap(&centre, r.cos().max(0.0), r.sin(), |i, d| {
+                if d.dot(&pm).abs() <= clear && wanted(i) && self.arc_meets_cell(&pa, &pb, &pm, i) {
                     w.mark(i);
                 }
                 false

@@ -310,16 +310,24 @@ impl Build<'_> {
 }
 
 impl ContourTree {
-    /// Bounds (least, most) of `n·x` over the corners of node `b`: from
-    /// the box, and from the extent along the axis of the normals (much
-    /// tighter than the box for a curved piece of surface).
-    fn heights(b: &Node, n: &V3) -> (f64, f64) {
+    /// Bounds (least, most) of `n·x` over the corners of node `b` from its
+    /// box: looser than [`ContourTree::axis_heights`] on a curved piece of
+    /// surface, but cheap enough to try first. The walk takes the tighter
+    /// of the two on each side, the box's alone when it already decides.
+    fn box_heights(b: &Node, n: &V3) -> (f64, f64) {
         let (mut box_lo, mut box_hi) = (0.0, 0.0);
         for k in 0..3 {
             let (lo, hi) = (n[k] * b.lo[k], n[k] * b.hi[k]);
             box_lo += lo.min(hi);
             box_hi += lo.max(hi);
         }
+        (box_lo, box_hi)
+    }
+
+    /// Bounds (least, most) of `n·x` over the corners of node `b` from
+    /// their extent along the axis of the normals (much tighter than the
+    /// box for a curved piece of surface).
+    fn axis_heights(b: &Node, n: &V3) -> (f64, f64) {
         // n = na·axis + perp: n·x = na·(axis·x) + perp·x, and perp·x is
         // perp·mid within |perp|·across.
         let na = n.dot(&b.axis);
@@ -331,10 +339,7 @@ impl ContourTree {
         } else {
             (b.along.0, b.along.1)
         };
-        (
-            box_lo.max(na * h_near + base - spread),
-            box_hi.min(na * h_far + base + spread),
-        )
+        (na * h_near + base - spread, na * h_far + base + spread)
     }
 
     /// Whether every triangle of node `i` faces the patch the same way,
@@ -343,7 +348,13 @@ impl ContourTree {
     /// behind the plane.
     fn facing(&self, i: usize, p: &PatchFrame, level: f64, t_min: f64) -> Option<Facing> {
         let b = &self.nodes[i];
-        let (near, far) = Self::heights(b, p.normal);
+        // The box first: most nodes it puts behind the plane need no more.
+        let (box_near, box_far) = Self::box_heights(b, p.normal);
+        if box_far <= level - Self::slack(t_min) {
+            return None;
+        }
+        let (axis_near, axis_far) = Self::axis_heights(b, p.normal);
+        let (near, far) = (box_near.max(axis_near), box_far.min(axis_far));
         if far <= level - Self::slack(t_min) {
             return None;
         }
@@ -1130,8 +1141,14 @@ impl Exact<'_> {
             if j != i {
                 // Wholly behind (no occluder) or wholly in front (all
                 // occluders): no contour.
-                let (near, far) = ContourTree::heights(node, n);
-                if far <= level - slack || near > level + slack {
+                // The box first (the tighter bound needs no more when it
+                // decides).
+                let (box_near, box_far) = ContourTree::box_heights(node, n);
+                let beyond = |near: f64, far: f64| far <= level - slack || near > level + slack;
+                if beyond(box_near, box_far) || {
+                    let (axis_near, axis_far) = ContourTree::axis_heights(node, n);
+                    beyond(box_near.max(axis_near), box_far.min(axis_far))
+                } {
                     j = node.end(j);
                     continue;
                 }
