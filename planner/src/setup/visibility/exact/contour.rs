@@ -365,27 +365,28 @@ impl ContourTree {
         let radius = b.radius();
         let axis_mid = b.axis.dot(&mid);
         let u = p.origin.coords - mid;
-        let dist = u.norm();
-        if dist == 0.0 {
-            return Some(Facing::Mixed);
-        }
         // Each triangle's n̂·(o − x) = n̂·u − n̂·(x − mid): n̂·u is at least
         // |u|·cos(β + α) (β the angle from the cone's axis to u; positive
         // only when β + α < 90°), and n̂·(x − mid) at most the corners' reach
         // along the axis past mid plus sin α times their distance from it
         // (n̂ = cos θ·axis + sin θ·e, θ ≤ α), or the radius. The opposite
-        // for triangles facing away.
+        // for triangles facing away. |u|·cos β and |u|·sin β are taken
+        // as `axis·u` and `|axis × u|` (no division, no cancellation).
         let side = b.sin_a * b.across;
         let up = radius.min((b.along.1 - axis_mid).max(0.0) + side);
         let down = radius.min((axis_mid - b.along.0).max(0.0) + side);
-        let cos_b = b.axis.dot(&u) / dist;
-        let sin_b = (1.0 - cos_b * cos_b).max(0.0).sqrt();
-        let front = dist * (cos_b * b.cos_a - sin_b * b.sin_a) - up;
-        let back = dist * (-cos_b * b.cos_a - sin_b * b.sin_a) - down;
+        let (along_u, across_u) = (b.axis.dot(&u), b.axis.cross(&u).norm());
+        let front = along_u * b.cos_a - across_u * b.sin_a - up;
+        let back = -along_u * b.cos_a - across_u * b.sin_a - down;
+        // The margin below is at least 2·t_min: a node short of that needs
+        // no more.
+        if front <= 2.0 * t_min && back <= 2.0 * t_min {
+            return Some(Facing::Mixed);
+        }
         // The edge tests' products and the cone's distance test carry
         // round-off of about ε·|corner − o|³; each triangle's n̂·(o − x) times
         // its twice-area must stay well above it.
-        let reach = dist + radius;
+        let reach = u.norm() + radius;
         let margin = 2.0 * t_min + 64.0 * f64::EPSILON * reach * reach * reach / b.min_area2;
         if front > margin || back > margin {
             // Every triangle has a cone; those with a corner in front are
