@@ -346,20 +346,40 @@ impl ContourTree {
     /// with a margin that keeps the edge tests' signs and [`Cone::new`]
     /// certain, and whether all are occluders; `None` when the node lies
     /// behind the plane.
+    #[cfg(test)]
     fn facing(&self, i: usize, p: &PatchFrame, level: f64, t_min: f64) -> Option<Facing> {
+        self.facing_within(i, p, level, t_min, false).map(|f| f.0)
+    }
+
+    /// [`ContourTree::facing`], and whether every corner of node `i` lies
+    /// in front of the plane (past `level` by the slack); `in_front`: that
+    /// is known already (of an ancestor, so of every corner of this node),
+    /// and the node's own bounds are not taken.
+    fn facing_within(
+        &self,
+        i: usize,
+        p: &PatchFrame,
+        level: f64,
+        t_min: f64,
+        in_front: bool,
+    ) -> Option<(Facing, bool)> {
         let b = &self.nodes[i];
-        // The box first: most nodes it puts behind the plane need no more.
-        let (box_near, box_far) = Self::box_heights(b, p.normal);
-        if box_far <= level - Self::slack(t_min) {
-            return None;
-        }
-        let (axis_near, axis_far) = Self::axis_heights(b, p.normal);
-        let (near, far) = (box_near.max(axis_near), box_far.min(axis_far));
-        if far <= level - Self::slack(t_min) {
-            return None;
-        }
+        let in_front = in_front || {
+            // The box first: most nodes it puts behind the plane need no
+            // more.
+            let (box_near, box_far) = Self::box_heights(b, p.normal);
+            if box_far <= level - Self::slack(t_min) {
+                return None;
+            }
+            let (axis_near, axis_far) = Self::axis_heights(b, p.normal);
+            let (near, far) = (box_near.max(axis_near), box_far.min(axis_far));
+            if far <= level - Self::slack(t_min) {
+                return None;
+            }
+            near > level + Self::slack(t_min)
+        };
         if !b.plain || b.cos_a <= 0.0 || b.min_area2 <= 0.0 {
-            return Some(Facing::Mixed);
+            return Some((Facing::Mixed, in_front));
         }
         let mid = b.mid();
         let radius = b.radius();
@@ -381,7 +401,7 @@ impl ContourTree {
         // The margin below is at least 2·t_min: a node short of that needs
         // no more.
         if front <= 2.0 * t_min && back <= 2.0 * t_min {
-            return Some(Facing::Mixed);
+            return Some((Facing::Mixed, in_front));
         }
         // The edge tests' products and the cone's distance test carry
         // round-off of about ε·|corner − o|³; each triangle's n̂·(o − x) times
@@ -391,13 +411,13 @@ impl ContourTree {
         if front > margin || back > margin {
             // Every triangle has a cone; those with a corner in front are
             // the occluders.
-            if near > level + Self::slack(t_min) {
-                Some(Facing::Uniform)
+            if in_front {
+                Some((Facing::Uniform, true))
             } else {
-                Some(Facing::Cut)
+                Some((Facing::Cut, false))
             }
         } else {
-            Some(Facing::Mixed)
+            Some((Facing::Mixed, in_front))
         }
     }
 
@@ -1095,20 +1115,27 @@ impl Exact<'_> {
     fn mark_contour(&self, tree: &ContourTree, p: &PatchFrame, level: f64, w: &mut ExactScratch) {
         let caster = self.caster;
         let mut i = 0;
+        // The nodes before this one lie in a subtree wholly in front of the
+        // plane (pre-order: a subtree is a run of indices).
+        let mut in_front_until = 0;
         while i < tree.nodes.len() {
             let node = &tree.nodes[i];
-            match tree.facing(i, p, level, caster.t_min) {
+            match tree.facing_within(i, p, level, caster.t_min, i < in_front_until) {
                 // Behind the plane, or every edge interior.
-                None | Some(Facing::Uniform) => {
+                None | Some((Facing::Uniform, _)) => {
                     i = node.end(i);
                     continue;
                 }
-                Some(Facing::Cut) => {
+                Some((Facing::Cut, _)) => {
                     self.mark_cut(tree, i, p, level, w);
                     i = node.end(i);
                     continue;
                 }
-                Some(Facing::Mixed) => {}
+                Some((Facing::Mixed, in_front)) => {
+                    if in_front {
+                        in_front_until = in_front_until.max(node.end(i));
+                    }
+                }
             }
             i += 1;
             for e in &tree.edges[node.edges()] {
