@@ -196,8 +196,20 @@ impl ContourTree {
             points: mesh.vertices.iter().map(|v| v.coords).collect(),
         };
         if !edges.is_empty() {
+            // Each triangle's corners, normal and twice-area, read at every
+            // level of the build.
+            let triangles: Vec<Triangle> = (0..mesh.triangles.len())
+                .map(|t| {
+                    let c = mesh.corners(t).map(|c| c.coords);
+                    Triangle {
+                        corners: c,
+                        normal: mesh.normals[t],
+                        area2: (c[1] - c[0]).cross(&(c[2] - c[0])).norm(),
+                    }
+                })
+                .collect();
             let ctx = Build {
-                mesh,
+                triangles: &triangles,
                 edges: &edges,
                 plain: &plain,
                 mids: &mids,
@@ -208,9 +220,17 @@ impl ContourTree {
     }
 }
 
+/// A triangle as building [`ContourTree`] reads it.
+struct Triangle {
+    corners: [V3; 3],
+    normal: V3,
+    /// Twice its area.
+    area2: f64,
+}
+
 /// What building [`ContourTree`] reads.
 struct Build<'a> {
-    mesh: &'a TriMesh,
+    triangles: &'a [Triangle],
     edges: &'a [Edge],
     plain: &'a [bool],
     mids: &'a [V3],
@@ -226,7 +246,7 @@ impl Build<'_> {
     /// Appends the subtree over `set` to `tree` (pre-order); returns its
     /// index.
     fn node(&self, set: &mut [u32], tree: &mut ContourTree) -> usize {
-        let mesh = self.mesh;
+        let tri = self.triangles;
         let (mut lo, mut hi) = (V3::repeat(f64::INFINITY), V3::repeat(f64::NEG_INFINITY));
         let mut sum = V3::zeros();
         let mut min_area2 = f64::INFINITY;
@@ -234,13 +254,12 @@ impl Build<'_> {
         for &e in set.iter() {
             plain &= self.plain[e as usize];
             for t in self.triangles(e) {
-                for c in mesh.corners(t) {
-                    lo = lo.inf(&c.coords);
-                    hi = hi.sup(&c.coords);
+                for c in &tri[t].corners {
+                    lo = lo.inf(c);
+                    hi = hi.sup(c);
                 }
-                sum += mesh.normals[t];
-                let c = mesh.corners(t);
-                min_area2 = min_area2.min((c[1] - c[0]).cross(&(c[2] - c[0])).norm());
+                sum += tri[t].normal;
+                min_area2 = min_area2.min(tri[t].area2);
             }
         }
         let mid = (lo + hi) * 0.5;
@@ -251,7 +270,7 @@ impl Build<'_> {
             let mut cos_a: f64 = 1.0;
             for &e in set.iter() {
                 for t in self.triangles(e) {
-                    cos_a = cos_a.min(axis.dot(&mesh.normals[t]));
+                    cos_a = cos_a.min(axis.dot(&tri[t].normal));
                 }
             }
             // Widened a little for round-off.
@@ -261,9 +280,9 @@ impl Build<'_> {
         let (mut below, mut above, mut across) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
         for &e in set.iter() {
             for t in self.triangles(e) {
-                for c in mesh.corners(t) {
-                    let h = axis.dot(&c.coords);
-                    let off = c.coords - mid;
+                for c in &tri[t].corners {
+                    let h = axis.dot(c);
+                    let off = c - mid;
                     below = below.min(h);
                     above = above.max(h);
                     across = across.max((off - axis * axis.dot(&off)).norm());
