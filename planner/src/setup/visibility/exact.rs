@@ -33,7 +33,7 @@
 //! cell centre, only upgraded cells, is narrower than the cell spacing (see
 //! `VisibilityMap::narrow`).
 
-use std::f64::consts::TAU;
+use std::f64::consts::{PI, TAU};
 
 use bvh::bvh::BvhNode;
 use nalgebra::{Point3, Vector3};
@@ -360,7 +360,9 @@ impl Curve {
         (p + toward * (WITNESS_OFFSET / norm)).normalize()
     }
 
-    /// Angles on this curve where it meets the circle `{d : d·m = h}`.
+    /// Angles on this curve where it meets the circle `{d : d·m = h}`;
+    /// on an arc, only those that may lie on it (both callers keep only
+    /// the angles up to `len`).
     fn cuts_with(&self, m: &V3, h: f64, out: &mut Vec<f64>) {
         let g = self.m.dot(m);
         let det = 1.0 - g * g;
@@ -377,7 +379,14 @@ impl Curve {
         }
         let gamma = gamma2.sqrt();
         for sign in [-1.0, 1.0] {
-            out.push(self.angle(&(base + cross * (sign * gamma))));
+            let x = base + cross * (sign * gamma);
+            // On an arc (shorter than π) a point with `x·e2 < 0` is at an
+            // angle of π or more, past its end: dropped without its atan2.
+            // The same product as in `angle`, so the same sign.
+            if self.len < PI && x.dot(&self.e2) < 0.0 {
+                continue;
+            }
+            out.push(self.angle(&x));
         }
     }
 }
