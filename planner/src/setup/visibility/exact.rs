@@ -445,10 +445,10 @@ pub(super) struct ExactScratch {
     face_hint: usize,
     /// Stack of the ray tests.
     rays: Vec<usize>,
-    /// `occ_stamp[t] == generation`: `occ[t]` says whether triangle `t` is
-    /// an occluder of the patch (the contour method).
-    occ_stamp: Vec<u32>,
-    occ: Vec<bool>,
+    /// `occ[t].0 == generation`: `occ[t].1` says whether triangle `t` is
+    /// an occluder of the patch (the contour method's test). Stamp and
+    /// answer side by side: one cache line per look-up.
+    occ: Vec<(u32, bool)>,
     /// The contour method's cells: centres in front, cells of runs closed
     /// by a flood, cells across the horizon with a point of them in front,
     /// the flood's stack, and boundary cells left to rays.
@@ -497,10 +497,8 @@ impl ExactScratch {
             self.flooded.clear();
             self.flooded.resize(triangles, 0);
             self.flood_generation = 0;
-            self.occ_stamp.clear();
-            self.occ_stamp.resize(triangles, 0);
             self.occ.clear();
-            self.occ.resize(triangles, false);
+            self.occ.resize(triangles, (0, false));
             self.settled.iter_mut().for_each(|s| s.0 = 0);
             self.generation = 1;
         }

@@ -583,15 +583,15 @@ impl ExactScratch {
     /// Whether triangle `t` is an occluder of the patch: not the patch,
     /// a corner in front of its plane, and a cone. Computed once per patch.
     fn occluder(&mut self, caster: &RayCaster, p: &PatchFrame, level: f64, t: usize) -> bool {
-        if self.occ_stamp[t] == self.generation {
-            return self.occ[t];
+        let (stamp, yes) = self.occ[t];
+        if stamp == self.generation {
+            return yes;
         }
         let tri = &caster.shapes[t].corners;
         let yes = t != p.skip
             && tri.iter().any(|c| p.normal.dot(&c.coords) > level)
             && super::blocks(p.origin, tri, caster.t_min);
-        self.occ_stamp[t] = self.generation;
-        self.occ[t] = yes;
+        self.occ[t] = (self.generation, yes);
         yes
     }
 }
