@@ -5,8 +5,8 @@ use nalgebra::{Point3, Rotation3, Vector3};
 use planner::mesh::{TriMesh, WeldOptions};
 use planner::setup::samples::{bowl, cavity, dome, random_rotation, rotated, teapot, well, z_to};
 use planner::setup::{
-    AxisRanges, GeodesicSphere, MachineConfig, SetupConfig, SetupOrientation, SetupPlan,
-    plan_setup, search_setup, visibility_map,
+    AxisRanges, GeodesicSphere, MachineConfig, PreparedMap, SetupConfig, SetupOrientation,
+    SetupPlan, plan_setup, search_setup, visibility_map,
 };
 
 type V3 = Vector3<f64>;
@@ -306,11 +306,12 @@ fn bounded_search_finds_the_exhaustive_answer() {
     ] {
         let part = mesh(&soup);
         let map = visibility_map(&part, &sphere, &exhaustive, &|_, _, _| {}).unwrap();
+        let prepared = PreparedMap::new(&map, &sphere);
         for machine in [CA_MACHINE, AB_MACHINE] {
             let kind = machine.parse::<MachineConfig>().unwrap().machine_type();
             for deg in [[90.0, 90.0, 180.0, 180.0], [20.0, 20.0, 20.0, 20.0]] {
                 let r = ranges(deg);
-                let a = search_setup(&map, &sphere, kind, &r, &exhaustive, &|_, _, _| {});
+                let a = prepared.search(kind, &r, &exhaustive, &|_, _, _| {});
                 let b = search_setup(&map, &sphere, kind, &r, &bounded, &|_, _, _| {});
                 let what = format!("{name} {machine} {deg:?}");
                 assert_eq!(a.evaluated, sphere.len(), "{what}");
@@ -415,14 +416,16 @@ fn rotated_parts_keep_feasibility_area_and_tool_axis() {
                 (r, map)
             })
             .collect();
+        let prepared: Vec<_> = maps
+            .iter()
+            .map(|(_, map)| PreparedMap::new(map, &sphere))
+            .collect();
         for machine in [CA_MACHINE, AB_MACHINE] {
             let kind = machine.parse::<MachineConfig>().unwrap().machine_type();
             for deg in [[90.0, 90.0, 180.0, 180.0], [5.0, 5.0, 5.0, 5.0]] {
-                let plans: Vec<SetupPlan> = maps
+                let plans: Vec<SetupPlan> = prepared
                     .iter()
-                    .map(|(_, map)| {
-                        search_setup(map, &sphere, kind, &ranges(deg), &config, &|_, _, _| {})
-                    })
+                    .map(|p| p.search(kind, &ranges(deg), &config, &|_, _, _| {}))
                     .collect();
                 let base = &plans[0];
                 let o0 = base.setup.unwrap_or(base.mar);

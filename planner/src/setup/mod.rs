@@ -258,7 +258,8 @@ pub fn plan_setup(
 
 /// The search of §4 on a computed map: every cell is a candidate tool axis,
 /// and the least key over all of them is found and certified (see
-/// `optimum`).
+/// `optimum`). To search one map for several machines, prepare it once
+/// ([`PreparedMap`]).
 pub fn search_setup(
     map: &VisibilityMap,
     sphere: &GeodesicSphere,
@@ -267,51 +268,96 @@ pub fn search_setup(
     config: &SetupConfig,
     progress: &(dyn Fn(Phase, usize, usize) + Sync),
 ) -> SetupPlan {
-    let classes = search::PvcClasses::new(map, sphere.cells());
-    let unreachable_patches: Vec<usize> = classes
-        .class_of
-        .iter()
-        .enumerate()
-        .filter(|(_, c)| c.is_none())
-        .map(|(j, _)| j)
-        .collect();
-    // Whether one direction reaches every reachable patch: the cells in all
-    // cones (exact, whatever the search tries).
-    let common = classes.common_cells();
-    let problem = optimum::Problem {
-        map,
-        classes: &classes,
-        sphere,
-        kind,
-        ranges,
-        tol: config.fit_tolerance_deg.to_radians(),
-        equivalent: config.equivalent_cells.max(0.0) * sphere.spacing(),
-        probe_cells: config.probe_cells,
-    };
-    let out = optimum::search(&problem, &common, progress);
-    let orientation = |o: &optimum::Optimum| SetupOrientation {
-        placement: o.placement,
-        cell: o.cell,
-        group_ii_classes: o.group_ii,
-        md_points: o.md_points,
-        lower_bound: o.lower_bound,
-        equivalent: o.equivalent,
-        equivalent_tolerance: o.tolerance,
-    };
-    let setup = out.fit.as_ref().map(orientation);
-    SetupPlan {
-        machine_type: kind,
-        cells: sphere.len(),
-        patches: map.patches(),
-        pvc_classes: classes.classes,
-        unreachable_patches: unreachable_patches.clone(),
-        narrow_patches: (0..map.patches())
-            .filter(|&j| map.narrow(j, sphere))
-            .collect(),
-        three_axis: !common.is_empty(),
-        feasible: setup.is_some() && unreachable_patches.is_empty(),
-        setup,
-        mar: orientation(&out.mar),
-        evaluated: out.evaluated,
+    PreparedMap::new(map, sphere).search(kind, ranges, config, progress)
+}
+
+/// What the search needs from a map whatever the machine: the patches
+/// grouped by identical cones ([`search::PvcClasses`], a pass over the
+/// whole map), the unreachable and narrow patches, and the cells in every
+/// cone. Made once, it serves any number of searches of that map.
+#[derive(Debug)]
+pub struct PreparedMap<'a> {
+    map: &'a VisibilityMap,
+    sphere: &'a GeodesicSphere,
+    classes: search::PvcClasses,
+    unreachable_patches: Vec<usize>,
+    narrow_patches: Vec<usize>,
+    common: Vec<usize>,
+}
+
+impl<'a> PreparedMap<'a> {
+    /// Groups the patches of `map` (computed on `sphere`).
+    pub fn new(map: &'a VisibilityMap, sphere: &'a GeodesicSphere) -> Self {
+        let classes = search::PvcClasses::new(map, sphere.cells());
+        let unreachable_patches = classes
+            .class_of
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| c.is_none())
+            .map(|(j, _)| j)
+            .collect();
+        // Whether one direction reaches every reachable patch: the cells in
+        // all cones (exact, whatever the search tries).
+        let common = classes.common_cells();
+        Self {
+            map,
+            sphere,
+            classes,
+            unreachable_patches,
+            narrow_patches: (0..map.patches())
+                .filter(|&j| map.narrow(j, sphere))
+                .collect(),
+            common,
+        }
+    }
+
+    /// Number of classes of identical cones.
+    pub fn classes(&self) -> usize {
+        self.classes.classes
+    }
+
+    /// [`search_setup`] on the prepared map.
+    pub fn search(
+        &self,
+        kind: MachineType,
+        ranges: &AxisRanges,
+        config: &SetupConfig,
+        progress: &(dyn Fn(Phase, usize, usize) + Sync),
+    ) -> SetupPlan {
+        let (map, sphere, classes, common) = (self.map, self.sphere, &self.classes, &self.common);
+        let problem = optimum::Problem {
+            map,
+            classes,
+            sphere,
+            kind,
+            ranges,
+            tol: config.fit_tolerance_deg.to_radians(),
+            equivalent: config.equivalent_cells.max(0.0) * sphere.spacing(),
+            probe_cells: config.probe_cells,
+        };
+        let out = optimum::search(&problem, common, progress);
+        let orientation = |o: &optimum::Optimum| SetupOrientation {
+            placement: o.placement,
+            cell: o.cell,
+            group_ii_classes: o.group_ii,
+            md_points: o.md_points,
+            lower_bound: o.lower_bound,
+            equivalent: o.equivalent,
+            equivalent_tolerance: o.tolerance,
+        };
+        let setup = out.fit.as_ref().map(orientation);
+        SetupPlan {
+            machine_type: kind,
+            cells: sphere.len(),
+            patches: map.patches(),
+            pvc_classes: classes.classes,
+            unreachable_patches: self.unreachable_patches.clone(),
+            narrow_patches: self.narrow_patches.clone(),
+            three_axis: !common.is_empty(),
+            feasible: setup.is_some() && self.unreachable_patches.is_empty(),
+            setup,
+            mar: orientation(&out.mar),
+            evaluated: out.evaluated,
+        }
     }
 }

@@ -446,7 +446,8 @@ pub fn compute_sampled(
     let shapes = exact::CellShapes::new(sphere);
     let tree = options
         .exact_cells
-        .then(|| exact::ContourTree::new(mesh, &caster));
+        .then(|| exact::ContourTree::new(mesh, &caster))
+        .flatten();
     let mut ctx = Rasteriser::new(&caster, &grid, &shapes, sphere, options);
     ctx.contour = tree.as_ref();
     fill_rows(
@@ -1256,7 +1257,7 @@ mod raster_tests {
             let caster = RayCaster::new(&mesh);
             let grid = CellGrid::new(&sphere);
             let shapes = exact::CellShapes::new(&sphere);
-            let tree = exact::ContourTree::new(&mesh, &caster);
+            let tree = exact::ContourTree::new(&mesh, &caster).unwrap();
             let mut ctx = Rasteriser::new(
                 &caster,
                 &grid,
@@ -1341,7 +1342,7 @@ mod raster_tests {
         let caster = RayCaster::new(mesh);
         let grid = CellGrid::new(sphere);
         let shapes = exact::CellShapes::new(sphere);
-        let tree = exact::ContourTree::new(mesh, &caster);
+        let tree = exact::ContourTree::new(mesh, &caster).unwrap();
         let mut contour = Rasteriser::new(&caster, &grid, &shapes, sphere, options);
         contour.contour = Some(&tree);
         let flood = Rasteriser::new(&caster, &grid, &shapes, sphere, options);

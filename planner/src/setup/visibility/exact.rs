@@ -33,7 +33,7 @@
 //! cell centre, only upgraded cells, is narrower than the cell spacing (see
 //! `VisibilityMap::narrow`).
 
-use std::f64::consts::TAU;
+use std::f64::consts::{PI, TAU};
 
 use bvh::bvh::BvhNode;
 use nalgebra::{Point3, Vector3};
@@ -53,8 +53,18 @@ pub const WITNESS_OFFSET: f64 = 1e-10;
 /// Pieces of outline shorter than this (radians) get no test point of
 /// their own (their neighbours' points are within round-off of them).
 const MIN_PIECE: f64 = 1e-8;
+/// [`Curve::cuts_with`] drops a point whose turn past an arc's end has a
+/// sine above this (relative to its distance from the arc's axis).
+const PAST_END: f64 = 1e-9;
 /// Arcs longer than this many cell spacings are marked in pieces.
 const ARC_PIECE_SPACINGS: f64 = 2.0;
+/// [`Exact::mark_arc`] rules out a cell by its direction alone when the
+/// piece of arc's `|pa × pb|` exceeds this and the direction lies this
+/// much (as a sine) beyond the cell's radius from the piece's circle: then
+/// every corner is at least `1e-13` off that circle in the products
+/// `arc_meets_cell` takes, far above their round-off (`1e-16`).
+const CLEAR_MIN_SIN: f64 = 1e-6;
+const CLEAR_MARGIN: f64 = 1e-7;
 /// Candidate cells per chunk of the gather's walk.
 const GATHER_CHUNK: usize = 4;
 /// No triangle on this side of an edge: [`RayCaster::across`].
@@ -283,6 +293,9 @@ struct Curve {
     e1: V3,
     e2: V3,
     len: f64,
+    /// `(cos len, sin len)` up to a common factor within round-off of 1
+    /// (arcs only; [`Curve::cuts_with`]).
+    end: (f64, f64),
     /// Direction of the open side (the visible side, if any).
     open: OpenSide,
 }
@@ -313,6 +326,7 @@ impl Curve {
             e1: ua,
             e2,
             len: norm.atan2(ua.dot(&ub)),
+            end: (ua.dot(&ub), norm),
             open: OpenSide::Away(plane.dot(&m).signum()),
         })
     }
@@ -328,6 +342,7 @@ impl Curve {
             e1,
             e2: n.cross(&e1),
             len: TAU,
+            end: (1.0, 0.0),
             open: OpenSide::Plus,
         }
     }
@@ -353,12 +368,12 @@ impl Curve {
         (p + toward * (WITNESS_OFFSET / norm)).normalize()
     }
 
-    /// Angles on this curve where it meets the circle `{d : d·m = h}`.
-    fn cuts_with(&self, m: &V3, h: f64, out: &mut Vec<f64>) {
+    /// The two points where this curve's circle meets `{d : d·m = h}`.
+    fn meets(&self, m: &V3, h: f64) -> Option<[V3; 2]> {
         let g = self.m.dot(m);
         let det = 1.0 - g * g;
         if det <= 1e-24 {
-            return;
+            return None;
         }
         let alpha = (self.h - h * g) / det;
         let beta = (h - self.h * g) / det;
@@ -366,11 +381,34 @@ impl Curve {
         let cross = self.m.cross(m);
         let gamma2 = (1.0 - base.norm_squared()) / cross.norm_squared();
         if gamma2 < 0.0 {
-            return;
+            return None;
         }
         let gamma = gamma2.sqrt();
-        for sign in [-1.0, 1.0] {
-            out.push(self.angle(&(base + cross * (sign * gamma))));
+        Some([-1.0, 1.0].map(|sign| base + cross * (sign * gamma)))
+    }
+
+    /// Angles on this curve where it meets the circle `{d : d·m = h}`;
+    /// on an arc, not those certainly past its end (both callers keep
+    /// only the angles up to `len`): their atan2 is not taken.
+    fn cuts_with(&self, m: &V3, h: f64, out: &mut Vec<f64>) {
+        for x in self.meets(m, h).into_iter().flatten() {
+            if self.len < PI {
+                // On an arc (shorter than π): with `y < 0` (the product
+                // `angle` takes, so the same sign) the angle is π or
+                // more; with `y ≥ 0` and the turn from the arc's end
+                // to `x` positive by far more than round-off, it exceeds
+                // `len` by about 1e-9 at least, far above the error of
+                // either atan2. Both are past the end.
+                let (y, along) = (x.dot(&self.e2), x.dot(&self.e1));
+                if y < 0.0 {
+                    continue;
+                }
+                let (c, s) = self.end;
+                if y * c - along * s > PAST_END * (y + along.abs()) {
+                    continue;
+                }
+            }
+            out.push(self.angle(&x));
         }
     }
 }
@@ -429,10 +467,10 @@ pub(super) struct ExactScratch {
     face_hint: usize,
     /// Stack of the ray tests.
     rays: Vec<usize>,
-    /// `occ_stamp[t] == generation`: `occ[t]` says whether triangle `t` is
-    /// an occluder of the patch (the contour method).
-    occ_stamp: Vec<u32>,
-    occ: Vec<bool>,
+    /// `occ[t].0 == generation`: `occ[t].1` says whether triangle `t` is
+    /// an occluder of the patch (the contour method's test). Stamp and
+    /// answer side by side: one cache line per look-up.
+    occ: Vec<(u32, bool)>,
     /// The contour method's cells: centres in front, cells of runs closed
     /// by a flood, cells across the horizon with a point of them in front,
     /// the flood's stack, and boundary cells left to rays.
@@ -481,10 +519,8 @@ impl ExactScratch {
             self.flooded.clear();
             self.flooded.resize(triangles, 0);
             self.flood_generation = 0;
-            self.occ_stamp.clear();
-            self.occ_stamp.resize(triangles, 0);
             self.occ.clear();
-            self.occ.resize(triangles, false);
+            self.occ.resize(triangles, (0, false));
             self.settled.iter_mut().for_each(|s| s.0 = 0);
             self.generation = 1;
         }
@@ -731,9 +767,21 @@ impl Exact<'_> {
             let half = (pa - pb).norm().min(2.0) * 0.5;
             let r = half.asin() + self.cells.radius + CAP_MARGIN;
             let pm = pa.cross(&pb);
+            // A cell whose direction lies farther than its radius from the
+            // piece's great circle cannot meet the piece: one product rules
+            // out most of the cap's cells before `arc_meets_cell`. Only
+            // when the piece is long enough (and that far clear) for the
+            // signs `arc_meets_cell` takes to be certain, so it would say
+            // no too.
+            let pm_norm = pm.norm();
+            let clear = if pm_norm > CLEAR_MIN_SIN {
+                pm_norm * (self.cells.sin_radius + CLEAR_MARGIN)
+            } else {
+                f64::INFINITY
+            };
             let grid = self.grid;
-            grid.any_in_cap(&centre, r.cos().max(0.0), r.sin(), |i, _| {
-                if wanted(i) && self.arc_meets_cell(&pa, &pb, &pm, i) {
+            grid.any_in_cap(&centre, r.cos().max(0.0), r.sin(), |i, d| {
+                if d.dot(&pm).abs() <= clear && wanted(i) && self.arc_meets_cell(&pa, &pb, &pm, i) {
                     w.mark(i);
                 }
                 false
@@ -1199,5 +1247,60 @@ impl Exact<'_> {
             }
         }
         None
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::setup::samples::random_rotation;
+
+    /// The cuts an arc keeps (angles up to `len`) are those of both meeting
+    /// points, bit for bit, though the points past its end are dropped
+    /// before their angle is taken: random arcs against random circles,
+    /// great circles and circles through the arc's ends.
+    #[test]
+    fn arc_cuts_are_those_of_every_meeting_point() {
+        let (mut kept, mut dropped) = (0, 0);
+        for seed in 0..400u64 {
+            let r = random_rotation(seed);
+            let ua = r * V3::x();
+            let turn = 0.001 + 3.1 * (seed % 97) as f64 / 97.0;
+            let ub = r * V3::new(turn.cos(), turn.sin(), 0.0);
+            let Some(curve) = Curve::arc(ua, ub, &(r * V3::z())) else {
+                continue;
+            };
+            let q = random_rotation(seed + 1000);
+            let circles = [
+                (q * V3::z(), 0.0),
+                (q * V3::x(), 0.3),
+                (ua.cross(&(q * V3::y())).normalize(), 0.0),
+                (ub.cross(&(q * V3::y())).normalize(), 0.0),
+                (ub.cross(&curve.m).normalize(), 0.0),
+            ];
+            for (m, h) in circles {
+                let mut fast = Vec::new();
+                curve.cuts_with(&m, h, &mut fast);
+                let all: Vec<f64> = curve
+                    .meets(&m, h)
+                    .into_iter()
+                    .flatten()
+                    .map(|x| curve.angle(&x))
+                    .collect();
+                let on = |v: &[f64]| -> Vec<u64> {
+                    v.iter()
+                        .filter(|&&t| t <= curve.len)
+                        .map(|t| t.to_bits())
+                        .collect()
+                };
+                assert_eq!(on(&fast), on(&all), "seed {seed}, circle {m:?} {h}");
+                kept += on(&all).len();
+                dropped += all.len() - fast.len();
+            }
+        }
+        assert!(
+            kept > 300 && dropped > 1000,
+            "{kept} kept, {dropped} dropped"
+        );
     }
 }

@@ -56,54 +56,106 @@ type V3 = Vector3<f64>;
 /// Edges per leaf of [`ContourTree`].
 const LEAF_EDGES: usize = 4;
 
-/// One node of [`ContourTree`], bounding the triangles of its edges: two
-/// cache lines (the walk is bound by reading them).
+/// One node of [`ContourTree`], bounding the triangles of its edges: one
+/// cache line, read once per visit (the walk is bound by reading nodes).
+/// Every bound is in `f32`, rounded the safe way, so it is looser than the
+/// `f64` one by at most an `f32` step: the walk skips a subtree only when
+/// that subtree has no contour whatever the rounding.
 #[derive(Debug, Clone, Copy)]
 #[repr(C, align(64))]
 struct Node {
-    /// Box of the corners.
-    lo: V3,
-    hi: V3,
-    /// Cone of the triangles' unit normals: axis, cosine and sine of its
-    /// half-angle (`cos_a ≤ 0`: 90° or more, of no use).
-    axis: V3,
-    cos_a: f64,
-    sin_a: f64,
-    /// The corners along `axis` (least, most), and their largest distance
-    /// from the line along `axis` through the box's centre
-    /// ([`Node::mid`]).
-    along: (f64, f64),
-    across: f64,
-    /// Smallest twice-area of a triangle.
-    min_area2: f64,
-    /// An inner node (`count` 0): the index of the first node after its
-    /// subtree (pre-order; its children are at `i + 1` and after that
-    /// child's subtree). A leaf: its first edge, of `count`
-    /// ([`Node::edges`]); the next node is `i + 1`.
+    /// Box of the corners (rounded outward).
+    lo: [f32; 3],
+    hi: [f32; 3],
+    /// The axis `a` of the cone of the triangles' unit normals, rounded
+    /// toward zero: its length `s` is at most 1 (and within an `f32` step
+    /// of it), which keeps `n·a` no farther from 0 than `n·â` (`â = a/s`).
+    axis: [f32; 3],
+    /// The cone's half-angle `α` (widened for round-off) as `cos α / s`
+    /// (rounded down) and `sin α / s` (rounded up), so that `(a·u)·cos_a`
+    /// and `|a × u|·sin_a` bound `(â·u)·cos α` and `|â × u|·sin α`.
+    /// `cos_a ≤ 0`: of no use for the facing test (`α ≥ 90°`, a
+    /// degenerate triangle, or an edge without a neighbour run the
+    /// opposite way: see [`Build::node`]).
+    cos_a: f32,
+    sin_a: f32,
+    /// Least and most `a·(x − mid)/s²` over the corners (`= â·(x − mid)/s`,
+    /// rounded outward; [`Node::mid`]), and their largest distance from
+    /// the line along `â` through `mid` (rounded up).
+    along: [f32; 2],
+    across: f32,
+    /// Smallest twice-area of a triangle (rounded down).
+    min_area2: f32,
+    /// The low [`LINK_BITS`] bits: an inner node (count 0) holds the index
+    /// of the first node after its subtree (pre-order; its children are at
+    /// `i + 1` and after that child's subtree); a leaf its first edge, of
+    /// the count in the high bits ([`Node::edges`]), and the next node is
+    /// `i + 1`.
     link: u32,
-    count: u8,
-    /// Every edge has a triangle on each side, run the opposite ways: with
-    /// all triangles occluders facing the patch one way, none is contour.
-    plain: bool,
 }
 
-const _: () = assert!(std::mem::size_of::<Node>() == 128);
+const _: () = assert!(std::mem::size_of::<Node>() == 64);
+
+/// Bits of [`Node::link`] that hold the index (the rest the leaf's count).
+const LINK_BITS: u32 = 29;
+const _: () = assert!(LEAF_EDGES < 1 << (32 - LINK_BITS));
+
+/// `x` in `f32`, rounded up (toward +∞).
+fn f32_above(x: f64) -> f32 {
+    let f = x as f32;
+    if f64::from(f) < x { f.next_up() } else { f }
+}
+
+/// `x` in `f32`, rounded down (toward −∞).
+fn f32_below(x: f64) -> f32 {
+    let f = x as f32;
+    if f64::from(f) > x { f.next_down() } else { f }
+}
+
+/// `x` in `f32`, rounded toward zero.
+fn f32_toward_zero(x: f64) -> f32 {
+    if x >= 0.0 { f32_below(x) } else { f32_above(x) }
+}
+
+fn widen(v: &[f32; 3]) -> V3 {
+    V3::new(f64::from(v[0]), f64::from(v[1]), f64::from(v[2]))
+}
 
 impl Node {
-    /// The centre of the box (a point of the axis line).
+    fn lo(&self) -> V3 {
+        widen(&self.lo)
+    }
+
+    fn hi(&self) -> V3 {
+        widen(&self.hi)
+    }
+
+    fn axis(&self) -> V3 {
+        widen(&self.axis)
+    }
+
+    /// The centre of the box (exact: a sum of two `f32` halved).
     fn mid(&self) -> V3 {
-        (self.lo + self.hi) * 0.5
+        (self.lo() + self.hi()) * 0.5
     }
 
     /// The radius of a sphere around [`Node::mid`] holding the box.
     fn radius(&self) -> f64 {
-        (self.hi - self.lo).norm() * 0.5
+        (self.hi() - self.lo()).norm() * 0.5
+    }
+
+    fn count(&self) -> usize {
+        (self.link >> LINK_BITS) as usize
+    }
+
+    fn index(&self) -> usize {
+        (self.link & ((1 << LINK_BITS) - 1)) as usize
     }
 
     /// The index of the first node after node `i`'s subtree.
     fn end(&self, i: usize) -> usize {
-        if self.count == 0 {
-            self.link as usize
+        if self.count() == 0 {
+            self.index()
         } else {
             i + 1
         }
@@ -111,7 +163,7 @@ impl Node {
 
     /// A leaf's edges (indices into [`ContourTree::edges`]).
     fn edges(&self) -> std::ops::Range<usize> {
-        self.link as usize..self.link as usize + self.count as usize
+        self.index()..self.index() + self.count()
     }
 }
 
@@ -157,8 +209,14 @@ enum Facing {
 impl ContourTree {
     /// Builds the hierarchy over the edges of `mesh` (adjacency from
     /// `caster`): median splits of the edges' midpoints along the box's
-    /// longest side, [`LEAF_EDGES`] edges per leaf.
-    pub(in crate::setup::visibility) fn new(mesh: &TriMesh, caster: &RayCaster) -> Self {
+    /// longest side, [`LEAF_EDGES`] edges per leaf. `None` for a mesh
+    /// too large for [`Node::link`] (the map is then made without it).
+    pub(in crate::setup::visibility) fn new(mesh: &TriMesh, caster: &RayCaster) -> Option<Self> {
+        // At most three edges per triangle and fewer nodes than edges (a
+        // leaf has two edges or more).
+        if 3 * mesh.triangles.len() >= 1 << LINK_BITS {
+            return None;
+        }
         let mut edges = Vec::new();
         let mut plain = Vec::new();
         let mut mids = Vec::new();
@@ -196,21 +254,41 @@ impl ContourTree {
             points: mesh.vertices.iter().map(|v| v.coords).collect(),
         };
         if !edges.is_empty() {
+            // Each triangle's corners, normal and twice-area, read at every
+            // level of the build.
+            let triangles: Vec<Triangle> = (0..mesh.triangles.len())
+                .map(|t| {
+                    let c = mesh.corners(t).map(|c| c.coords);
+                    Triangle {
+                        corners: c,
+                        normal: mesh.normals[t],
+                        area2: (c[1] - c[0]).cross(&(c[2] - c[0])).norm(),
+                    }
+                })
+                .collect();
             let ctx = Build {
-                mesh,
+                triangles: &triangles,
                 edges: &edges,
                 plain: &plain,
                 mids: &mids,
             };
             ctx.node(&mut order, &mut tree);
         }
-        tree
+        Some(tree)
     }
+}
+
+/// A triangle as building [`ContourTree`] reads it.
+struct Triangle {
+    corners: [V3; 3],
+    normal: V3,
+    /// Twice its area.
+    area2: f64,
 }
 
 /// What building [`ContourTree`] reads.
 struct Build<'a> {
-    mesh: &'a TriMesh,
+    triangles: &'a [Triangle],
     edges: &'a [Edge],
     plain: &'a [bool],
     mids: &'a [V3],
@@ -226,7 +304,7 @@ impl Build<'_> {
     /// Appends the subtree over `set` to `tree` (pre-order); returns its
     /// index.
     fn node(&self, set: &mut [u32], tree: &mut ContourTree) -> usize {
-        let mesh = self.mesh;
+        let tri = self.triangles;
         let (mut lo, mut hi) = (V3::repeat(f64::INFINITY), V3::repeat(f64::NEG_INFINITY));
         let mut sum = V3::zeros();
         let mut min_area2 = f64::INFINITY;
@@ -234,60 +312,75 @@ impl Build<'_> {
         for &e in set.iter() {
             plain &= self.plain[e as usize];
             for t in self.triangles(e) {
-                for c in mesh.corners(t) {
-                    lo = lo.inf(&c.coords);
-                    hi = hi.sup(&c.coords);
+                for c in &tri[t].corners {
+                    lo = lo.inf(c);
+                    hi = hi.sup(c);
                 }
-                sum += mesh.normals[t];
-                let c = mesh.corners(t);
-                min_area2 = min_area2.min((c[1] - c[0]).cross(&(c[2] - c[0])).norm());
+                sum += tri[t].normal;
+                min_area2 = min_area2.min(tri[t].area2);
             }
         }
-        let mid = (lo + hi) * 0.5;
-        let (axis, cos_a, sin_a) = if sum.norm() < 1e-9 {
-            (V3::z(), -1.0, 0.0)
+        // The box in f32, and its centre as the walk takes it.
+        let (lo32, hi32) = (lo.map(f32_below), hi.map(f32_above));
+        let mid = (lo32.map(f64::from) + hi32.map(f64::from)) * 0.5;
+        // The cone's axis rounded toward zero, no longer than 1, and the
+        // unit `â` along it that the bounds below refer to.
+        let (axis, unit, s, cos_a, sin_a) = if sum.norm() < 1e-9 {
+            ([0.0, 0.0, 1.0], V3::z(), 1.0, -1.0, 0.0)
         } else {
-            let axis = sum.normalize();
+            let mut axis = sum.normalize();
+            let (a, s) = loop {
+                let a = axis.map(f32_toward_zero);
+                let s = a.map(f64::from).norm();
+                if s <= 1.0 {
+                    break (a, s);
+                }
+                axis *= 1.0 - f64::from(f32::EPSILON);
+            };
+            let unit = a.map(f64::from) / s;
             let mut cos_a: f64 = 1.0;
             for &e in set.iter() {
                 for t in self.triangles(e) {
-                    cos_a = cos_a.min(axis.dot(&mesh.normals[t]));
+                    cos_a = cos_a.min(unit.dot(&tri[t].normal));
                 }
             }
             // Widened a little for round-off.
             let half = cos_a.clamp(-1.0, 1.0).acos() + 1e-12;
-            (axis, half.cos(), half.sin())
+            ([a.x, a.y, a.z], unit, s, half.cos(), half.sin())
         };
+        let a = widen(&axis);
         let (mut below, mut above, mut across) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
         for &e in set.iter() {
             for t in self.triangles(e) {
-                for c in mesh.corners(t) {
-                    let h = axis.dot(&c.coords);
-                    let off = c.coords - mid;
+                for c in &tri[t].corners {
+                    let off = c - mid;
+                    let h = a.dot(&off) / (s * s);
                     below = below.min(h);
                     above = above.max(h);
-                    across = across.max((off - axis * axis.dot(&off)).norm());
+                    across = across.max((off - unit * unit.dot(&off)).norm());
                 }
             }
         }
+        // Of no use for the facing test: see `Node::cos_a`.
+        let cos_a = if plain && min_area2 > 0.0 && cos_a > 0.0 {
+            f32_below(cos_a / s)
+        } else {
+            -1.0
+        };
         let index = tree.nodes.len();
         tree.nodes.push(Node {
-            lo,
-            hi,
+            lo: [lo32.x, lo32.y, lo32.z],
+            hi: [hi32.x, hi32.y, hi32.z],
             axis,
             cos_a,
-            sin_a,
-            along: (below, above),
-            across,
-            min_area2,
+            sin_a: f32_above(sin_a / s),
+            along: [f32_below(below), f32_above(above)],
+            across: f32_above(across),
+            min_area2: f32_below(min_area2),
             link: 0,
-            count: 0,
-            plain,
         });
         if set.len() <= LEAF_EDGES {
-            let node = &mut tree.nodes[index];
-            node.link = tree.edges.len() as u32;
-            node.count = set.len() as u8;
+            tree.nodes[index].link = tree.edges.len() as u32 | (set.len() as u32) << LINK_BITS;
             tree.edges
                 .extend(set.iter().map(|&e| self.edges[e as usize]));
         } else {
@@ -310,82 +403,116 @@ impl Build<'_> {
 }
 
 impl ContourTree {
-    /// Bounds (least, most) of `n·x` over the corners of node `b`: from
-    /// the box, and from the extent along the axis of the normals (much
-    /// tighter than the box for a curved piece of surface).
-    fn heights(b: &Node, n: &V3) -> (f64, f64) {
+    /// Bounds (least, most) of `n·x` over the corners of node `b` from its
+    /// box: looser than [`ContourTree::axis_heights`] on a curved piece of
+    /// surface, but cheap enough to try first. The walk takes the tighter
+    /// of the two on each side, the box's alone when it already decides.
+    fn box_heights(b: &Node, n: &V3) -> (f64, f64) {
         let (mut box_lo, mut box_hi) = (0.0, 0.0);
         for k in 0..3 {
-            let (lo, hi) = (n[k] * b.lo[k], n[k] * b.hi[k]);
+            let (lo, hi) = (n[k] * f64::from(b.lo[k]), n[k] * f64::from(b.hi[k]));
             box_lo += lo.min(hi);
             box_hi += lo.max(hi);
         }
-        // n = na·axis + perp: n·x = na·(axis·x) + perp·x, and perp·x is
-        // perp·mid within |perp|·across.
-        let na = n.dot(&b.axis);
-        let mid = b.mid();
-        let base = n.dot(&mid) - na * b.axis.dot(&mid);
-        let spread = (1.0 - na * na).max(0.0).sqrt() * b.across;
-        let (h_far, h_near) = if na >= 0.0 {
-            (b.along.1, b.along.0)
-        } else {
-            (b.along.0, b.along.1)
-        };
-        (
-            box_lo.max(na * h_near + base - spread),
-            box_hi.min(na * h_far + base + spread),
-        )
+        (box_lo, box_hi)
+    }
+
+    /// Bounds (least, most) of `n·x` over the corners of node `b` from
+    /// their extent along the axis of the normals (much tighter than the
+    /// box for a curved piece of surface).
+    fn axis_heights(b: &Node, n: &V3) -> (f64, f64) {
+        // n = (n·â)·â + perp: n·x = n·mid + (n·â)·(â·(x − mid)) +
+        // perp·(x − mid), the last within |perp|·across. With the stored
+        // `a = s·â`, (n·a)·along = (n·â)·(â·(x − mid)) exactly, and
+        // |perp| = √(1 − (n·â)²) ≤ √(1 − (n·a)²) as s ≤ 1.
+        let na = n.dot(&b.axis());
+        let base = n.dot(&b.mid());
+        let spread = (1.0 - na * na).max(0.0).sqrt() * f64::from(b.across);
+        let [lo, hi] = b.along.map(f64::from);
+        let (h_far, h_near) = if na >= 0.0 { (hi, lo) } else { (lo, hi) };
+        (na * h_near + base - spread, na * h_far + base + spread)
     }
 
     /// Whether every triangle of node `i` faces the patch the same way,
     /// with a margin that keeps the edge tests' signs and [`Cone::new`]
     /// certain, and whether all are occluders; `None` when the node lies
     /// behind the plane.
+    #[cfg(test)]
     fn facing(&self, i: usize, p: &PatchFrame, level: f64, t_min: f64) -> Option<Facing> {
+        self.facing_within(i, p, level, t_min, false).map(|f| f.0)
+    }
+
+    /// [`ContourTree::facing`], and whether every corner of node `i` lies
+    /// in front of the plane (past `level` by the slack); `in_front`: that
+    /// is known already (of an ancestor, so of every corner of this node),
+    /// and the node's own bounds are not taken.
+    fn facing_within(
+        &self,
+        i: usize,
+        p: &PatchFrame,
+        level: f64,
+        t_min: f64,
+        in_front: bool,
+    ) -> Option<(Facing, bool)> {
         let b = &self.nodes[i];
-        let (near, far) = Self::heights(b, p.normal);
-        if far <= level - Self::slack(t_min) {
-            return None;
-        }
-        if !b.plain || b.cos_a <= 0.0 || b.min_area2 <= 0.0 {
-            return Some(Facing::Mixed);
+        let in_front = in_front || {
+            // The box first: most nodes it puts behind the plane need no
+            // more.
+            let (box_near, box_far) = Self::box_heights(b, p.normal);
+            if box_far <= level - Self::slack(t_min) {
+                return None;
+            }
+            let (axis_near, axis_far) = Self::axis_heights(b, p.normal);
+            let (near, far) = (box_near.max(axis_near), box_far.min(axis_far));
+            if far <= level - Self::slack(t_min) {
+                return None;
+            }
+            near > level + Self::slack(t_min)
+        };
+        if b.cos_a <= 0.0 {
+            return Some((Facing::Mixed, in_front));
         }
         let mid = b.mid();
-        let radius = b.radius();
-        let axis_mid = b.axis.dot(&mid);
         let u = p.origin.coords - mid;
-        let dist = u.norm();
-        if dist == 0.0 {
-            return Some(Facing::Mixed);
-        }
         // Each triangle's n̂·(o − x) = n̂·u − n̂·(x − mid): n̂·u is at least
         // |u|·cos(β + α) (β the angle from the cone's axis to u; positive
         // only when β + α < 90°), and n̂·(x − mid) at most the corners' reach
         // along the axis past mid plus sin α times their distance from it
-        // (n̂ = cos θ·axis + sin θ·e, θ ≤ α), or the radius. The opposite
-        // for triangles facing away.
-        let side = b.sin_a * b.across;
-        let up = radius.min((b.along.1 - axis_mid).max(0.0) + side);
-        let down = radius.min((axis_mid - b.along.0).max(0.0) + side);
-        let cos_b = b.axis.dot(&u) / dist;
-        let sin_b = (1.0 - cos_b * cos_b).max(0.0).sqrt();
-        let front = dist * (cos_b * b.cos_a - sin_b * b.sin_a) - up;
-        let back = dist * (-cos_b * b.cos_a - sin_b * b.sin_a) - down;
+        // (n̂ = cos θ·â + sin θ·e, θ ≤ α), or the radius. The opposite
+        // for triangles facing away. |u|·cos β and |u|·sin β are taken
+        // as `a·u` and `|a × u|` (no division, no cancellation), s times
+        // them, which the stored `cos_a`, `sin_a` (over s) make up for;
+        // the stored reach along the axis is over s too (only larger).
+        let (axis, cos_a, sin_a) = (b.axis(), f64::from(b.cos_a), f64::from(b.sin_a));
+        let radius = b.radius();
+        let side = sin_a * f64::from(b.across);
+        let [below, above] = b.along.map(f64::from);
+        let up = radius.min(above.max(0.0) + side);
+        let down = radius.min((-below).max(0.0) + side);
+        let (along_u, across_u) = (axis.dot(&u), axis.cross(&u).norm());
+        let front = along_u * cos_a - across_u * sin_a - up;
+        let back = -along_u * cos_a - across_u * sin_a - down;
+        // The margin below is at least 2·t_min: a node short of that needs
+        // no more.
+        if front <= 2.0 * t_min && back <= 2.0 * t_min {
+            return Some((Facing::Mixed, in_front));
+        }
         // The edge tests' products and the cone's distance test carry
         // round-off of about ε·|corner − o|³; each triangle's n̂·(o − x) times
         // its twice-area must stay well above it.
-        let reach = dist + radius;
-        let margin = 2.0 * t_min + 64.0 * f64::EPSILON * reach * reach * reach / b.min_area2;
+        let reach = u.norm() + radius;
+        let margin =
+            2.0 * t_min + 64.0 * f64::EPSILON * reach * reach * reach / f64::from(b.min_area2);
         if front > margin || back > margin {
             // Every triangle has a cone; those with a corner in front are
             // the occluders.
-            if near > level + Self::slack(t_min) {
-                Some(Facing::Uniform)
+            if in_front {
+                Some((Facing::Uniform, true))
             } else {
-                Some(Facing::Cut)
+                Some((Facing::Cut, false))
             }
         } else {
-            Some(Facing::Mixed)
+            Some((Facing::Mixed, in_front))
         }
     }
 
@@ -456,15 +583,15 @@ impl ExactScratch {
     /// Whether triangle `t` is an occluder of the patch: not the patch,
     /// a corner in front of its plane, and a cone. Computed once per patch.
     fn occluder(&mut self, caster: &RayCaster, p: &PatchFrame, level: f64, t: usize) -> bool {
-        if self.occ_stamp[t] == self.generation {
-            return self.occ[t];
+        let (stamp, yes) = self.occ[t];
+        if stamp == self.generation {
+            return yes;
         }
         let tri = &caster.shapes[t].corners;
         let yes = t != p.skip
             && tri.iter().any(|c| p.normal.dot(&c.coords) > level)
             && super::blocks(p.origin, tri, caster.t_min);
-        self.occ_stamp[t] = self.generation;
-        self.occ[t] = yes;
+        self.occ[t] = (self.generation, yes);
         yes
     }
 }
@@ -1083,20 +1210,27 @@ impl Exact<'_> {
     fn mark_contour(&self, tree: &ContourTree, p: &PatchFrame, level: f64, w: &mut ExactScratch) {
         let caster = self.caster;
         let mut i = 0;
+        // The nodes before this one lie in a subtree wholly in front of the
+        // plane (pre-order: a subtree is a run of indices).
+        let mut in_front_until = 0;
         while i < tree.nodes.len() {
             let node = &tree.nodes[i];
-            match tree.facing(i, p, level, caster.t_min) {
+            match tree.facing_within(i, p, level, caster.t_min, i < in_front_until) {
                 // Behind the plane, or every edge interior.
-                None | Some(Facing::Uniform) => {
+                None | Some((Facing::Uniform, _)) => {
                     i = node.end(i);
                     continue;
                 }
-                Some(Facing::Cut) => {
+                Some((Facing::Cut, _)) => {
                     self.mark_cut(tree, i, p, level, w);
                     i = node.end(i);
                     continue;
                 }
-                Some(Facing::Mixed) => {}
+                Some((Facing::Mixed, in_front)) => {
+                    if in_front {
+                        in_front_until = in_front_until.max(node.end(i));
+                    }
+                }
             }
             i += 1;
             for e in &tree.edges[node.edges()] {
@@ -1130,8 +1264,14 @@ impl Exact<'_> {
             if j != i {
                 // Wholly behind (no occluder) or wholly in front (all
                 // occluders): no contour.
-                let (near, far) = ContourTree::heights(node, n);
-                if far <= level - slack || near > level + slack {
+                // The box first (the tighter bound needs no more when it
+                // decides).
+                let (box_near, box_far) = ContourTree::box_heights(node, n);
+                let beyond = |near: f64, far: f64| far <= level - slack || near > level + slack;
+                if beyond(box_near, box_far) || {
+                    let (axis_near, axis_far) = ContourTree::axis_heights(node, n);
+                    beyond(box_near.max(axis_near), box_far.min(axis_far))
+                } {
                     j = node.end(j);
                     continue;
                 }
@@ -1322,7 +1462,7 @@ mod tests {
             for soup in [soup.clone(), rotated(&soup, &tilt)] {
                 let mesh = TriMesh::from_triangles(&soup, WeldOptions::default()).unwrap();
                 let caster = RayCaster::new(&mesh);
-                let tree = ContourTree::new(&mesh, &caster);
+                let tree = ContourTree::new(&mesh, &caster).unwrap();
                 let exact = Exact {
                     caster: &caster,
                     grid: &grid,
@@ -1367,5 +1507,64 @@ mod tests {
             arcs > 10_000 && cut > 1_000,
             "{arcs} arcs, {cut} cut subtrees"
         );
+    }
+
+    /// Each node's `f32` bounds hold its subtree's triangles: the box and
+    /// the reach along and across the axis every corner, the cone every
+    /// normal, with the axis no longer than 1; and the roundings go the
+    /// safe way by at most one step. The walk skips a subtree on these
+    /// bounds alone.
+    #[test]
+    fn each_node_bounds_its_triangles() {
+        let soup = rotated(
+            &teapot(10, 12, 5, 6),
+            &z_to(&V3::new(0.3, -0.2, 0.9).normalize()),
+        );
+        let mesh = TriMesh::from_triangles(&soup, WeldOptions::default()).unwrap();
+        let caster = RayCaster::new(&mesh);
+        let tree = ContourTree::new(&mesh, &caster).unwrap();
+        let (mut checked, mut coned) = (0, 0);
+        for (i, node) in tree.nodes.iter().enumerate() {
+            let (a, mid) = (node.axis(), node.mid());
+            let s = a.norm();
+            assert!(s <= 1.0 && s > 1.0 - 1e-6, "node {i}: |axis| {s}");
+            let unit = a / s;
+            let leaves = (i..node.end(i)).filter(|&j| tree.nodes[j].count() > 0);
+            for e in leaves.flat_map(|j| &tree.edges[tree.nodes[j].edges()]) {
+                for t in [e.t, e.t2].into_iter().filter(|&t| t != NONE) {
+                    let t = t as usize;
+                    if node.cos_a > 0.0 {
+                        let (cos, sin) = (f64::from(node.cos_a) * s, f64::from(node.sin_a) * s);
+                        let n = mesh.normals[t];
+                        assert!(unit.dot(&n) >= cos, "node {i}: normal of {t} outside");
+                        assert!(
+                            unit.cross(&n).norm() <= sin,
+                            "node {i}: normal of {t} outside"
+                        );
+                        coned += 1;
+                    }
+                    for c in mesh.corners(t) {
+                        let (x, off) = (c.coords, c.coords - mid);
+                        for k in 0..3 {
+                            assert!(f64::from(node.lo[k]) <= x[k] && x[k] <= f64::from(node.hi[k]));
+                        }
+                        let h = a.dot(&off) / (s * s);
+                        assert!(f64::from(node.along[0]) <= h && h <= f64::from(node.along[1]));
+                        assert!((off - unit * unit.dot(&off)).norm() <= f64::from(node.across));
+                        checked += 1;
+                    }
+                }
+            }
+        }
+        assert!(checked > 10_000 && coned > 1_000, "{checked} {coned}");
+        for x in [0.1, -0.1, 1e-40, 3.0, -7.25, 1e30] {
+            let (up, down, zero) = (f32_above(x), f32_below(x), f32_toward_zero(x));
+            assert!(f64::from(up) >= x && f64::from(up.next_down()) < x, "{x}");
+            assert!(f64::from(down) <= x && f64::from(down.next_up()) > x, "{x}");
+            assert!(
+                f64::from(zero).abs() <= x.abs() && (zero == up || zero == down),
+                "{x}"
+            );
+        }
     }
 }
