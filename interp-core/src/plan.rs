@@ -720,6 +720,11 @@ impl Data {
             let v = sp.machine.min(sp.feed);
             push(sp.x0);
             push(sp.x1);
+            // A rest point inside the span is slower still, and graded
+            // already: grading the span too spends cuts for nothing.
+            if self.stop_within(sp.x0 - sliver, sp.x1 + sliver) {
+                continue;
+            }
             if RUN_RATIO * v < sub(sp.x0 - hs, sp.x0) {
                 for f in GRADE {
                     push(sp.x0 - self.h.min(sp.x0 - p.x0) * f);
