@@ -538,10 +538,12 @@ fn solve(m: &mut [[f64; interp_core::fiveaxis::BEZIER + 3]], n: usize) -> Vec<[f
 /// `o` over a parameter range that ends at `u1`.
 fn with_end_parameter(o: CoreOrientation, u1: f64) -> CoreOrientation {
     match o {
-        CoreOrientation::Axes { u0, .. }
-        | CoreOrientation::ToolAxis { u0, .. }
-        | CoreOrientation::AxesCurve { u0, .. }
-        | CoreOrientation::ToolAxisCurve { u0, .. } => o.with_range(u0, u1),
+        CoreOrientation::Axes { u0, .. } | CoreOrientation::ToolAxis { u0, .. } => {
+            o.with_range(u0, u1)
+        }
+        CoreOrientation::AxesCurve { curve, .. } | CoreOrientation::ToolAxisCurve { curve } => {
+            o.with_range(curve.u0, u1)
+        }
     }
 }
 

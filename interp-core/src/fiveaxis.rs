@@ -105,16 +105,8 @@ pub enum Orientation {
     /// ([`Machine::place_tip`]): the tool axis is the machine's at those
     /// rotary positions ([`Orientation::axis_at`]).
     AxesCurve {
-        /// A B C of the control points, degrees.
-        values: [[f64; 3]; BEZIER],
-        /// Their weights.
-        w: [f64; BEZIER],
-        /// Degree (`degree + 1` control points are used).
-        degree: u8,
-        /// The span's parameter range.
-        u0: f64,
-        /// See `u0`.
-        u1: f64,
+        /// A B C of the control points, degrees, with their weights.
+        curve: BezierSpan,
         /// Under tool-centre-point control (G43.4): the path is the tool tip.
         tcp: bool,
     },
@@ -128,17 +120,72 @@ pub enum Orientation {
     /// angle by angle; the joints are the inverse nearest the previous ones.
     ToolAxisCurve {
         /// Tool vectors of the control points (any length; their lengths
-        /// act as weights of the vector curve).
-        values: [[f64; 3]; BEZIER],
-        /// The path's weights.
-        w: [f64; BEZIER],
-        /// Degree (`degree + 1` control points are used).
-        degree: u8,
-        /// The span's parameter range.
-        u0: f64,
-        /// See `u0`.
-        u1: f64,
+        /// act as weights of the vector curve), with the path's weights.
+        curve: BezierSpan,
     },
+}
+
+/// One knot span of a second curve beside a NURBS path, with the path's
+/// weights and knots: the rational Bézier in `t = (u − u0)/(u1 − u0)` of
+/// three values per control point (A B C, or a tool vector).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BezierSpan {
+    /// The control points' values.
+    pub values: [[f64; 3]; BEZIER],
+    /// Their weights.
+    pub w: [f64; BEZIER],
+    /// Degree (`degree + 1` control points are used).
+    pub degree: u8,
+    /// The span's parameter range.
+    pub u0: f64,
+    /// See `u0`.
+    pub u1: f64,
+}
+
+impl BezierSpan {
+    /// The span `u0..u1` of `degree` with `values[k]` and weights `w[k]`
+    /// on its `degree + 1` control points; refused unless all are finite,
+    /// the weights positive and the range increasing.
+    pub fn new(
+        degree: usize,
+        values: &[[f64; 3]],
+        w: &[f64],
+        u0: f64,
+        u1: f64,
+    ) -> Result<Self, OrientationError> {
+        let n = degree + 1;
+        if !(1..BEZIER).contains(&degree)
+            || values.len() != n
+            || w.len() != n
+            || !(u0 < u1 && u0.is_finite() && u1.is_finite())
+            || !values.iter().flatten().all(|v| v.is_finite())
+            || !w.iter().all(|w| *w > 0.0 && w.is_finite())
+        {
+            return Err(OrientationError::BadValue);
+        }
+        let mut vs = [[0.0; 3]; BEZIER];
+        let mut ws = [1.0; BEZIER];
+        vs[..n].copy_from_slice(values);
+        ws[..n].copy_from_slice(w);
+        Ok(BezierSpan {
+            values: vs,
+            w: ws,
+            degree: degree as u8,
+            u0,
+            u1,
+        })
+    }
+
+    /// The curve's value at parameter `u` of the block.
+    #[inline]
+    pub fn at(&self, u: f64) -> [f64; 3] {
+        rational_bezier(
+            &self.values,
+            &self.w,
+            self.degree as usize,
+            Orientation::fraction(u, self.u0, self.u1),
+        )
+    }
 }
 
 /// Why an [`Orientation`] was refused.
@@ -237,26 +284,8 @@ impl Orientation {
         u0: f64,
         u1: f64,
     ) -> Result<Self, OrientationError> {
-        let n = degree + 1;
-        if !(1..BEZIER).contains(&degree)
-            || values.len() != n
-            || w.len() != n
-            || !(u0 < u1 && u0.is_finite() && u1.is_finite())
-            || !values.iter().flatten().all(|v| v.is_finite())
-            || !w.iter().all(|w| *w > 0.0 && w.is_finite())
-        {
-            return Err(OrientationError::BadValue);
-        }
-        let mut vs = [[0.0; 3]; BEZIER];
-        let mut ws = [1.0; BEZIER];
-        vs[..n].copy_from_slice(values);
-        ws[..n].copy_from_slice(w);
         Ok(Orientation::AxesCurve {
-            values: vs,
-            w: ws,
-            degree: degree as u8,
-            u0,
-            u1,
+            curve: BezierSpan::new(degree, values, w, u0, u1)?,
             tcp: false,
         })
     }
@@ -275,15 +304,7 @@ impl Orientation {
         u0: f64,
         u1: f64,
     ) -> Result<Self, OrientationError> {
-        let Orientation::AxesCurve {
-            values: vs,
-            w: ws,
-            degree: d,
-            ..
-        } = Self::axes_curve(degree, values, w, u0, u1)?
-        else {
-            return Err(OrientationError::BadValue);
-        };
+        let curve = BezierSpan::new(degree, values, w, u0, u1)?;
         // With positive weights the curve is a positive combination of the
         // control vectors: strictly on the side of a plane through the
         // origin where they all are, so never zero.
@@ -307,13 +328,7 @@ impl Orientation {
         if !(spread < core::f64::consts::FRAC_PI_2) {
             return Err(OrientationError::VectorSpread(spread.to_degrees()));
         }
-        Ok(Orientation::ToolAxisCurve {
-            values: vs,
-            w: ws,
-            degree: d,
-            u0,
-            u1,
-        })
+        Ok(Orientation::ToolAxisCurve { curve })
     }
 
     /// The same rotary curve under tool-centre-point control (G43.4): the
@@ -354,10 +369,12 @@ impl Orientation {
     /// or joined keeps one orientation over its whole range).
     pub fn with_range(mut self, from: f64, to: f64) -> Self {
         match &mut self {
-            Orientation::Axes { u0, u1, .. }
-            | Orientation::ToolAxis { u0, u1, .. }
-            | Orientation::AxesCurve { u0, u1, .. }
-            | Orientation::ToolAxisCurve { u0, u1, .. } => (*u0, *u1) = (from, to),
+            Orientation::Axes { u0, u1, .. } | Orientation::ToolAxis { u0, u1, .. } => {
+                (*u0, *u1) = (from, to)
+            }
+            Orientation::AxesCurve { curve, .. } | Orientation::ToolAxisCurve { curve } => {
+                (curve.u0, curve.u1) = (from, to)
+            }
         }
         self
     }
@@ -421,28 +438,9 @@ impl Orientation {
                 let phi = theta * Self::fraction(u, u0, u1);
                 OrientationAt::ToolAxis(start * libm::cos(phi) + w * libm::sin(phi))
             }
-            Orientation::AxesCurve {
-                values,
-                w,
-                degree,
-                u0,
-                u1,
-                ..
-            } => OrientationAt::Axes(rational_bezier(
-                &values,
-                &w,
-                degree as usize,
-                Self::fraction(u, u0, u1),
-            )),
-            Orientation::ToolAxisCurve {
-                values,
-                w,
-                degree,
-                u0,
-                u1,
-            } => {
-                let [x, y, z] =
-                    rational_bezier(&values, &w, degree as usize, Self::fraction(u, u0, u1));
+            Orientation::AxesCurve { curve, .. } => OrientationAt::Axes(curve.at(u)),
+            Orientation::ToolAxisCurve { curve } => {
+                let [x, y, z] = curve.at(u);
                 let v = Vec3::new(x, y, z);
                 OrientationAt::ToolAxis(v / v.norm())
             }
