@@ -463,6 +463,33 @@ fn rotary_at(p: usize, rot: &[[f64; 3]], ws: &[f64], knots: &[f64], u: f64) -> [
 /// rotary curve; at every parameter the blocks give what the program's
 /// NURBS gives by its definition within 1e-9 degrees, neighbouring blocks
 /// meet bit for bit, and X Y Z are the program's curve.
+/// The second curve of a G6.2 cut into one block per knot span: checks
+/// that consecutive blocks meet bit for bit, and returns each block's
+/// orientation at 21 parameters of its span, and its orientation at the
+/// curve's end.
+fn span_samples(
+    curve: &[&interp_core::Block],
+) -> (
+    Vec<(interp_core::fiveaxis::OrientationAt, f64)>,
+    Option<interp_core::fiveaxis::OrientationAt>,
+) {
+    let mut samples = Vec::new();
+    let mut prev_end = None;
+    for blk in curve {
+        let o = blk.orientation.expect("a curve's orientation");
+        let (ua, ub) = (blk.path.u_start(), blk.path.u_end());
+        if let Some(e) = prev_end {
+            assert_eq!(o.at(ua), e, "blocks meet bit for bit");
+        }
+        prev_end = Some(o.at(ub));
+        for k in 0..=20 {
+            let u = ua + (ub - ua) * k as f64 / 20.0;
+            samples.push((o.at(u), u));
+        }
+    }
+    (samples, prev_end)
+}
+
 #[test]
 fn g6_2_rotary_coordinates_are_coordinates_of_the_curve() {
     use interp_core::fiveaxis::OrientationAt;
@@ -480,25 +507,20 @@ fn g6_2_rotary_coordinates_are_coordinates_of_the_curve() {
         .filter(|b| matches!(b.path, Path::Nurbs(_)))
         .collect();
     assert_eq!(curve.len(), pts.len() - p, "one block per knot span");
+    assert!(
+        curve
+            .iter()
+            .all(|b| !b.orientation.expect("rotary curve").is_tcp())
+    );
+    let (samples, prev_end) = span_samples(&curve);
     let mut worst = 0.0f64;
-    let mut prev_end: Option<OrientationAt> = None;
-    for blk in &curve {
-        let o = blk.orientation.expect("rotary curve");
-        assert!(!o.is_tcp());
-        let (ua, ub) = (blk.path.u_start(), blk.path.u_end());
-        if let Some(e) = prev_end {
-            assert_eq!(o.at(ua), e, "blocks meet bit for bit");
-        }
-        prev_end = Some(o.at(ub));
-        for k in 0..=20 {
-            let u = ua + (ub - ua) * k as f64 / 20.0;
-            let OrientationAt::Axes(got) = o.at(u) else {
-                panic!("axes")
-            };
-            let want = rotary_at(p, &rot, &ws, &knots, u);
-            for j in 0..3 {
-                worst = worst.max((got[j] - want[j]).abs());
-            }
+    for (at, u) in samples {
+        let OrientationAt::Axes(got) = at else {
+            panic!("axes")
+        };
+        let want = rotary_at(p, &rot, &ws, &knots, u);
+        for j in 0..3 {
+            worst = worst.max((got[j] - want[j]).abs());
         }
     }
     assert!(worst < 1e-9, "rotary curve off by {worst} degrees");
@@ -637,24 +659,19 @@ fn g6_2_tool_vectors_under_g43_5_are_a_second_curve_for_the_tool_axis() {
         panic!("a tool axis")
     };
     assert!((a - unit(vectors[0])).norm() < 1e-12, "{a:?}");
+    assert!(
+        curve
+            .iter()
+            .all(|b| b.orientation.expect("tool vector curve").is_tcp() && b.is_tcp())
+    );
+    let (samples, prev_end) = span_samples(&curve);
     let mut worst = 0.0f64;
-    let mut prev_end: Option<OrientationAt> = None;
-    for blk in &curve {
-        let o = blk.orientation.expect("tool vector curve");
-        assert!(o.is_tcp() && blk.is_tcp());
-        let (ua, ub) = (blk.path.u_start(), blk.path.u_end());
-        if let Some(e) = prev_end {
-            assert_eq!(o.at(ua), e, "blocks meet bit for bit");
-        }
-        prev_end = Some(o.at(ub));
-        for k in 0..=20 {
-            let u = ua + (ub - ua) * k as f64 / 20.0;
-            let OrientationAt::ToolAxis(got) = o.at(u) else {
-                panic!("a tool axis")
-            };
-            let want = unit(rotary_at(p, &vectors, &ws, &knots, u));
-            worst = worst.max(got.cross(&want).norm().atan2(got.dot(&want)));
-        }
+    for (at, u) in samples {
+        let OrientationAt::ToolAxis(got) = at else {
+            panic!("a tool axis")
+        };
+        let want = unit(rotary_at(p, &vectors, &ws, &knots, u));
+        worst = worst.max(got.cross(&want).norm().atan2(got.dot(&want)));
     }
     assert!(worst < 1e-12, "tool axis off its curve by {worst} rad");
     assert_eq!(
