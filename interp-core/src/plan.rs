@@ -355,6 +355,20 @@ struct Scratch {
     backup_n: usize,
 }
 
+/// What [`Window::roll_back`] restores: the window's intervals and rest
+/// points at the end of the queue before a block was sampled into it.
+#[derive(Clone, Debug)]
+pub struct QueueEndMark {
+    /// End of the queue, mm.
+    s: f64,
+    /// One past the last interval held.
+    g_end: i64,
+    /// The interval holding the end of the queue, as it was (if held).
+    tail: Option<(i64, Interval)>,
+    /// Whether a rest point lay at the end of the queue.
+    stop_at_s: bool,
+}
+
 /// The look-ahead window and its solver.
 #[derive(Clone, Debug)]
 pub struct Window {
@@ -1085,6 +1099,50 @@ impl Window {
         } else {
             None
         }
+    }
+
+    /// Remember the intervals and rest points at the end of the queue (at
+    /// arc length `s`), to [`Self::roll_back`] to if the next block is
+    /// refused.
+    pub fn mark(&self, s: f64) -> QueueEndMark {
+        let d = &self.data;
+        let g = index_of(s, d.h);
+        let held = g >= d.g_base && g < d.g_base + d.n_int as i64;
+        QueueEndMark {
+            s,
+            g_end: d.g_base + d.n_int as i64,
+            tail: held.then(|| (g, *d.interval(g))),
+            stop_at_s: d.stops[..d.n_stops].contains(&s),
+        }
+    }
+
+    /// Undo what a refused block sampled past `mark` (its intervals, the
+    /// samples and spans it added to the one it starts in, its rest
+    /// points), so that the next attempt samples it afresh: a sample
+    /// appended again at every retry would fill its interval, which then
+    /// lowers the speed there. Intervals released behind the machine meanwhile
+    /// stay released.
+    pub fn roll_back(&mut self, mark: &QueueEndMark) {
+        let d = &mut self.data;
+        let held_end = d.g_base + d.n_int as i64;
+        if held_end > mark.g_end {
+            d.n_int = (mark.g_end - d.g_base).max(0) as usize;
+        }
+        if let Some((g, it)) = mark.tail
+            && g >= d.g_base
+            && g < d.g_base + d.n_int as i64
+        {
+            let k = d.slot(g);
+            d.ints[k] = it;
+        }
+        let keep = d.stops[..d.n_stops]
+            .partition_point(|&x| x < mark.s || (x == mark.s && mark.stop_at_s));
+        d.n_stops = keep;
+    }
+
+    /// The rest points held, in order, mm.
+    pub fn rest_points(&self) -> &[f64] {
+        &self.data.stops[..self.data.n_stops]
     }
 
     /// Add a rest point at `s` (at or after every one held). False when full.

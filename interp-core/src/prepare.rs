@@ -508,7 +508,20 @@ impl BlockPlanner {
         Ok(())
     }
 
+    /// Plan `block` (a part of at most a chunk) onto the queue. All or
+    /// nothing: a refused block leaves the window as it was, so that the
+    /// next attempt (the caller retries while the look-ahead is full)
+    /// samples it afresh.
     fn plan_part(&mut self, block: &Block, out: &mut PlannedBlock) -> Result<(), PushError> {
+        let mark = self.window.mark(self.tail_s);
+        let r = self.sample_and_plan(block, out);
+        if r.is_err() {
+            self.window.roll_back(&mark);
+        }
+        r
+    }
+
+    fn sample_and_plan(&mut self, block: &Block, out: &mut PlannedBlock) -> Result<(), PushError> {
         let cfg = self.cfg;
         let mut pieces = [block.path; MAX_PIECES];
         let mut singular = [false; MAX_PIECES + 1];
@@ -701,8 +714,8 @@ impl BlockPlanner {
             Ok(())
         };
         if r.is_err() {
-            // All or nothing: the queue end stays where it was (the limits
-            // sampled past it are the block's own; planning it again finds them).
+            // All or nothing: the queue end stays where it was (and
+            // `plan_part` rolls the window back).
             (
                 self.tail,
                 self.tail_s,

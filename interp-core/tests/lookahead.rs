@@ -681,3 +681,52 @@ fn a_slow_fillet_between_exact_stops_slows_only_itself() {
         "filleted corner {tf} ticks, sharp corner {ts} ticks"
     );
 }
+
+/// A block refused after it was sampled (the look-ahead full, the caller
+/// retries) leaves the window as it was: its samples appended again at
+/// every retry would fill their interval, which then lowers the speed.
+#[test]
+fn a_refused_block_leaves_the_window_as_it_was() {
+    use interp_core::plan::{AxisSample, Window};
+    let cfg = InterpConfig::default();
+    let h = 0.25;
+    let mut w = Window::new(cfg, h, 0.0);
+    let sample = |s: f64| AxisSample {
+        s,
+        t: [1.0, 0.0, 0.0],
+        css: [0.0, 2.0, 0.0],
+        csss: [0.0, 0.0, 30.0],
+        side: 0,
+        reserve: 0.0,
+    };
+    // A queue ending at 1.1 mm, inside interval 4, with a rest point.
+    assert!(w.extend_to(4));
+    assert!(w.interval_mut(4).unwrap().add_sample(sample(1.05)));
+    assert!(w.add_stop(0.6));
+    w.lower_range(0.9, 1.1, 0, 50.0);
+    let snapshot = |w: &Window| -> Vec<_> {
+        (0..12)
+            .map(|g| w.interval_at(g as f64 * h + 0.1).copied())
+            .collect()
+    };
+    let before = (snapshot(&w), w.rest_points().to_vec());
+    let mark = w.mark(1.1);
+    // The next block samples its own stretch, adds to the interval it
+    // starts in, and rests at its start and inside.
+    for _ in 0..3 {
+        assert!(w.extend_to(9));
+        for k in 0..6 {
+            assert!(
+                w.interval_mut(4 + k / 2)
+                    .unwrap()
+                    .add_sample(sample(1.1 + 0.1 * k as f64))
+            );
+        }
+        assert!(w.add_stop(1.1));
+        assert!(w.add_stop(1.7));
+        w.lower_range(1.1, 2.2, 0, 20.0);
+        assert_ne!((snapshot(&w), w.rest_points().to_vec()), before);
+        w.roll_back(&mark);
+        assert_eq!((snapshot(&w), w.rest_points().to_vec()), before);
+    }
+}
