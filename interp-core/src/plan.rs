@@ -291,6 +291,10 @@ pub struct PlanTotals {
     pub crawled: u64,
     /// Rebuilds that left pieces uncut for lack of room in the program.
     pub uncut: u64,
+    /// Of those, rebuilds that left a rest point ungraded (the grading next
+    /// to rest points goes first: only where the rests alone need more
+    /// room than there is).
+    pub ungraded: u64,
     /// The last solver failure (a fallback or crawl followed).
     pub last_failure: Option<LpError>,
 }
@@ -335,6 +339,8 @@ struct Data {
     origin: f64,
     /// Rebuilds that left pieces uncut (see [`PlanTotals::uncut`]).
     uncut: u64,
+    /// See [`PlanTotals::ungraded`].
+    ungraded: u64,
 }
 
 /// Scratch of the linear program.
@@ -347,6 +353,9 @@ struct Scratch {
     x: [f64; REGION],
     /// Per piece: the squared speed no plan can exceed there (see [`reach_caps`]).
     cap2: [f64; WINDOW],
+    /// The unknowns' caps of the first pass (`cap2` from `first` on), which
+    /// every refinement pass's trust region stays within.
+    first_cap2: [f64; REGION],
     /// The unknowns before a refinement pass.
     backup_x: [f64; REGION],
     /// The plan before a solve, to fall back on.
@@ -356,17 +365,43 @@ struct Scratch {
 }
 
 /// What [`Window::roll_back`] restores: the window's intervals and rest
-/// points at the end of the queue before a block was sampled into it.
-#[derive(Clone, Debug)]
+/// points at the end of the queue before a block was sampled into it (the
+/// intervals themselves are kept in the window, one mark at a time).
+#[derive(Clone, Copy, Debug)]
 pub struct QueueEndMark {
     /// End of the queue, mm.
     s: f64,
     /// One past the last interval held.
     g_end: i64,
-    /// The interval holding the end of the queue, as it was (if held).
-    tail: Option<(i64, Interval)>,
+    /// The intervals kept: `n` of them from `g0`.
+    g0: i64,
+    n: usize,
     /// Whether a rest point lay at the end of the queue.
     stop_at_s: bool,
+}
+
+/// Intervals a mark keeps, up to the one holding the end of the queue: a
+/// junction's limit reaches back two ticks at its speed and a stationary
+/// point's law window (each at most a grid step, which is at least a
+/// tick's travel at the top speed), its samples lie at the end.
+const MARK_INTERVALS: usize = 6;
+
+/// Where the machine is among the window's pieces, intervals and rest
+/// points: all a solve or a push depends on its position through.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MachinePlace {
+    /// Pieces that start at or before it.
+    started: usize,
+    /// Pieces that end at or before it.
+    ended: usize,
+    /// Its grid interval.
+    g: i64,
+    /// Rest points before it.
+    rests_behind: usize,
+    /// The window's first interval (moved on as the machine goes).
+    g_base: i64,
+    /// The window's pieces.
+    n_pieces: usize,
 }
 
 /// The look-ahead window and its solver.
@@ -381,6 +416,8 @@ pub struct Window {
     pub totals: PlanTotals,
     /// Called after every iteration of the linear program (diagnostics).
     pub trace: Option<fn(lp::Iteration)>,
+    /// The intervals of the last [`Self::mark`].
+    saved: [Interval; MARK_INTERVALS],
 }
 
 impl Data {
@@ -694,7 +731,15 @@ impl Data {
     ///   ([`GRADE`]): leaving a rest with bounded jerk, `S` grows like
     ///   `s^(4/3)`, which one quadratic piece of the grid's length follows
     ///   poorly (the plan would creep out of every rest).
-    fn cuts(&self, p: &WPiece, rest_end: bool, out: &mut [f64; MAX_CUTS]) -> usize {
+    ///
+    /// `level` says which of them (see [`CutLevel`]).
+    fn cuts(
+        &self,
+        p: &WPiece,
+        rest_end: bool,
+        level: CutLevel,
+        out: &mut [f64; MAX_CUTS],
+    ) -> usize {
         let len = p.x1 - p.x0;
         let sliver = SLIVER * self.h;
         let mut raw = [0.0; MAX_CUTS];
@@ -727,7 +772,10 @@ impl Data {
             }
         }
         // Spans inside: cut at their ends, graded away from a slow one.
-        for sp in self.spans_near(p.x0, p.x1) {
+        for sp in self
+            .spans_near(p.x0, p.x1)
+            .filter(|_| level >= CutLevel::SpanEnds)
+        {
             if !sp.overlaps(p.x0, p.x1, hs) {
                 continue;
             }
@@ -736,7 +784,7 @@ impl Data {
             push(sp.x1);
             // A rest point inside the span is slower still, and graded
             // already: grading the span too spends cuts for nothing.
-            if self.stop_within(sp.x0 - sliver, sp.x1 + sliver) {
+            if level < CutLevel::All || self.stop_within(sp.x0 - sliver, sp.x1 + sliver) {
                 continue;
             }
             if RUN_RATIO * v < sub(sp.x0 - hs, sp.x0) {
@@ -758,7 +806,7 @@ impl Data {
             let v = sub(p.x0, b.min(p.x1));
             (v, v)
         };
-        while b < p.x1 - sliver {
+        while level == CutLevel::All && b < p.x1 - sliver {
             let v = sub(b, (b + hs).min(p.x1));
             let (nlo, nhi) = (lo.min(v), hi.max(v));
             if nhi > RUN_RATIO * nlo {
@@ -784,8 +832,8 @@ impl Data {
     }
 
     /// Cut the pieces `from..` (see [`Self::cuts`]), as many cuts as one
-    /// linear program can hold, nearest the start first; then give every
-    /// piece its speed limits.
+    /// linear program can hold, level by level ([`CutLevel`]), each level
+    /// nearest the start first; then give every piece its speed limits.
     fn refine_pieces(&mut self, from: usize) {
         let n = self.n_pieces;
         if n <= from {
@@ -793,19 +841,48 @@ impl Data {
         }
         let budget = REGION.saturating_sub(n - from + 8).min(WINDOW - n);
         let mut counts = [0u8; WINDOW];
+        let mut levels = [CutLevel::Rests; WINDOW];
         let mut cut = [0.0; MAX_CUTS];
         let mut extra = 0usize;
-        for i in from..n {
-            let rest_end = i + 1 >= n || self.pieces[i + 1].rest_start;
-            let p = self.pieces[i];
-            let m = self.cuts(&p, rest_end, &mut cut);
-            if extra + m > budget {
-                self.uncut += 1;
-                break;
+        let rest_end = |d: &Self, i: usize| i + 1 >= n || d.pieces[i + 1].rest_start;
+        // Pieces `a..b` take the cuts of `level`, nearest first, while
+        // they fit; returns where they stopped.
+        let mut claim = |d: &Self, a: usize, b: usize, level: CutLevel| {
+            let mut i = a;
+            while i < b {
+                let p = d.pieces[i];
+                let m = d.cuts(&p, rest_end(d, i), level, &mut cut);
+                let total = extra - counts[i] as usize + m;
+                if total > budget {
+                    break;
+                }
+                counts[i] = m as u8;
+                levels[i] = level;
+                extra = total;
+                i += 1;
             }
-            counts[i] = m as u8;
-            extra += m;
+            i
+        };
+        // The stretch up to the first rest point joins the kept plan at
+        // speed: all its cuts first (a slow span left uncut there holds
+        // the whole piece below the speed the kept plan arrives with).
+        let head = (from + 1..n)
+            .find(|&i| self.pieces[i].rest_start)
+            .unwrap_or(n);
+        let mut reach = claim(self, from, head, CutLevel::All);
+        if reach == head {
+            // Pieces `head..reach` hold the cuts of the last level.
+            reach = n;
+            for level in [CutLevel::Rests, CutLevel::SpanEnds, CutLevel::All] {
+                reach = claim(self, head, reach, level);
+                if level == CutLevel::Rests && reach < n {
+                    self.ungraded += 1;
+                }
+            }
+        } else if head < n {
+            self.ungraded += 1;
         }
+        self.uncut += u64::from(reach < n);
         let mut w = n + extra;
         for i in (from..n).rev() {
             let p = self.pieces[i];
@@ -815,8 +892,7 @@ impl Data {
                 self.pieces[w] = p;
                 continue;
             }
-            let rest_end = i + 1 >= n || self.pieces[i + 1].rest_start;
-            let mm = self.cuts(&p, rest_end, &mut cut);
+            let mm = self.cuts(&p, rest_end(self, i), levels[i], &mut cut);
             debug_assert_eq!(mm, m);
             let mut x1 = p.x1;
             for j in (0..=m).rev() {
@@ -866,6 +942,7 @@ impl Window {
                 tail: s,
                 origin: s,
                 uncut: 0,
+                ungraded: 0,
             },
             scratch: Scratch {
                 lp: LpWork::new(),
@@ -874,6 +951,7 @@ impl Window {
                 hi: [0.0; REGION],
                 x: [0.0; REGION],
                 cap2: [0.0; WINDOW],
+                first_cap2: [0.0; REGION],
                 backup_x: [0.0; REGION],
                 backup: [WPiece::default(); WINDOW],
                 backup_n: 0,
@@ -882,6 +960,7 @@ impl Window {
             last: SolveStats::default(),
             totals: PlanTotals::default(),
             trace: None,
+            saved: [open; MARK_INTERVALS],
         }
     }
 
@@ -1104,40 +1183,61 @@ impl Window {
     /// Remember the intervals and rest points at the end of the queue (at
     /// arc length `s`), to [`Self::roll_back`] to if the next block is
     /// refused.
-    pub fn mark(&self, s: f64) -> QueueEndMark {
+    pub fn mark(&mut self, s: f64) -> QueueEndMark {
         let d = &self.data;
         let g = index_of(s, d.h);
-        let held = g >= d.g_base && g < d.g_base + d.n_int as i64;
+        let g0 = (g + 1 - MARK_INTERVALS as i64).max(d.g_base);
+        let g1 = g.min(d.g_base + d.n_int as i64 - 1);
+        let n = (g1 - g0 + 1).max(0) as usize;
+        for k in 0..n {
+            self.saved[k] = *d.interval(g0 + k as i64);
+        }
         QueueEndMark {
             s,
             g_end: d.g_base + d.n_int as i64,
-            tail: held.then(|| (g, *d.interval(g))),
+            g0,
+            n,
             stop_at_s: d.stops[..d.n_stops].contains(&s),
         }
     }
 
-    /// Undo what a refused block sampled past `mark` (its intervals, the
-    /// samples and spans it added to the one it starts in, its rest
+    /// Undo what a refused block sampled past `mark` (its intervals, what
+    /// it added to those before it: junction limits and samples, its rest
     /// points), so that the next attempt samples it afresh: a sample
     /// appended again at every retry would fill its interval, which then
-    /// lowers the speed there. Intervals released behind the machine meanwhile
-    /// stay released.
+    /// lowers the speed there. Intervals released behind the machine
+    /// meanwhile stay released.
     pub fn roll_back(&mut self, mark: &QueueEndMark) {
         let d = &mut self.data;
         let held_end = d.g_base + d.n_int as i64;
         if held_end > mark.g_end {
             d.n_int = (mark.g_end - d.g_base).max(0) as usize;
         }
-        if let Some((g, it)) = mark.tail
-            && g >= d.g_base
-            && g < d.g_base + d.n_int as i64
-        {
-            let k = d.slot(g);
-            d.ints[k] = it;
+        for k in 0..mark.n {
+            let g = mark.g0 + k as i64;
+            if g >= d.g_base && g < d.g_base + d.n_int as i64 {
+                let slot = d.slot(g);
+                d.ints[slot] = self.saved[k];
+            }
         }
         let keep = d.stops[..d.n_stops]
             .partition_point(|&x| x < mark.s || (x == mark.s && mark.stop_at_s));
         d.n_stops = keep;
+    }
+
+    /// Where the machine, at arc length `machine`, is among the pieces,
+    /// intervals and rest points (see [`MachinePlace`]).
+    pub fn machine_place(&self, machine: f64) -> MachinePlace {
+        let d = &self.data;
+        let p = &d.pieces[..d.n_pieces];
+        MachinePlace {
+            started: p.partition_point(|q| q.x0 <= machine),
+            ended: p.partition_point(|q| q.x1 <= machine),
+            g: index_of(machine, d.h),
+            rests_behind: d.stops[..d.n_stops].partition_point(|&s| s < machine),
+            g_base: d.g_base,
+            n_pieces: d.n_pieces,
+        }
     }
 
     /// The rest points held, in order, mm.
@@ -1394,6 +1494,7 @@ impl Window {
                     t.iterations += u64::from(st.iterations);
                     t.fell_back += u64::from(fell_back);
                     t.uncut = self.data.uncut;
+                    t.ungraded = self.data.ungraded;
                     self.commit_region(freeze, keep_from, from_x);
                     return Ok(changed);
                 }
@@ -1558,12 +1659,14 @@ fn assemble_and_solve(
     let lo_i = first.saturating_sub(1);
     if pass == Pass::Refine {
         // Cap each unknown piece near what the last pass planned there
-        // (kept in `backup_x` to restore if this pass fails).
+        // (kept in `backup_x` to restore if this pass fails), within the
+        // first pass's caps: not within the last pass's, or no pass after
+        // the first could go further than it.
         for i in first..n {
             let p = d.piece(i);
             let smax = p.e0.max(p.d).max(p.e1).max(0.0);
             let floor = MIN_SPEED2 * cfg.max_path_speed * cfg.max_path_speed;
-            sc.cap2[i] = sc.cap2[i].min((REFINE_TRUST * smax).max(floor));
+            sc.cap2[i] = sc.first_cap2[i - first].min((REFINE_TRUST * smax).max(floor));
             sc.backup_x[i - first] = p.d;
         }
     } else {
@@ -1578,6 +1681,7 @@ fn assemble_and_solve(
         if pass == Pass::KeptRows {
             kept_caps(d, &mut sc.cap2, &sc.backup[..sc.backup_n], first);
         }
+        sc.first_cap2[..nv].copy_from_slice(&sc.cap2[first..n]);
     }
     let mut needed = 0usize;
     for i in lo_i..n {
@@ -1888,6 +1992,26 @@ const RUN_RATIO: f64 = 1.5;
 /// Most cuts inside one piece (grading at both ends, every sub-range
 /// boundary, and the spans near it, graded both ways).
 const MAX_CUTS: usize = 2 * GRADE.len() + SUB + SPANS * (2 + 2 * GRADE.len());
+
+/// Which cuts of a piece [`Data::refine_pieces`] makes, in the order they
+/// claim room in the linear program: where short moves and slow points
+/// crowd the look-ahead, the far pieces get only the first levels, or
+/// none. A rest left ungraded creeps out of it, and a piece not cut at a
+/// slow span's end is held to the span's speed over its whole length (a
+/// 0.25 mm piece of a straight line at 2 mm/s for an 8 µm junction span
+/// overlapping it by 1.3 µm), if the machine gets there before a solve
+/// plans it again; without the rest, a piece is only held to its slowest
+/// sub-range.
+#[derive(Clone, Copy, PartialEq, PartialOrd)]
+enum CutLevel {
+    /// The grading next to rest points.
+    Rests,
+    /// And the ends of spans.
+    SpanEnds,
+    /// And the grading away from slow spans, and the sub-range boundaries
+    /// where the limit changes.
+    All,
+}
 
 /// Refinement passes after the first solve.
 const REFINE_PASSES: usize = 1;

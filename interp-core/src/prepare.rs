@@ -27,7 +27,8 @@ use crate::kinematics::Machine;
 use crate::nurbs::Side;
 use crate::path::{Blending, Block, Path};
 use crate::plan::{
-    AxisSample, CHUNK, Freeze, PlanError, SLIVER, WINDOW, Window, index_of, sample_interval,
+    AxisSample, CHUNK, Freeze, MachinePlace, PlanError, SLIVER, WINDOW, Window, index_of,
+    sample_interval,
 };
 use crate::spline::Piece;
 use crate::stop::Stop;
@@ -188,6 +189,9 @@ pub struct BlockPlanner {
     /// The last block measured and its length: a block refused for room is
     /// offered again every tick, and a NURBS's length costs a quadrature.
     length_memo: Option<(Block, f64)>,
+    /// The last part refused and what refused it, with everything its
+    /// planning depends on (see [`Self::plan_part`]).
+    refused: Option<(Refusal, PushError)>,
     /// The five-axis machine, if configured, and the joints, frame and
     /// joint rates at the end of the queue (`crate::fiveaxis`).
     machine_kin: Option<Machine>,
@@ -223,6 +227,7 @@ impl BlockPlanner {
             planned_to: tail_s,
             finished: false,
             length_memo: None,
+            refused: None,
             machine_kin,
             five,
         })
@@ -297,6 +302,7 @@ impl BlockPlanner {
         self.machine_at_rest = true;
         self.planned_to = tail_s;
         self.finished = false;
+        self.refused = None;
         self.window.reset(tail_s);
         let abc = [
             self.five.joints[3],
@@ -512,11 +518,36 @@ impl BlockPlanner {
     /// nothing: a refused block leaves the window as it was, so that the
     /// next attempt (the caller retries while the look-ahead is full)
     /// samples it afresh.
+    ///
+    /// The same part asked for again before anything it depends on moved
+    /// (the caller retries every tick while the look-ahead is full) gets
+    /// the same answer without planning it again: planning is a function
+    /// of the window, the queue end, and where the machine is among the
+    /// pieces, intervals and rest points.
     fn plan_part(&mut self, block: &Block, out: &mut PlannedBlock) -> Result<(), PushError> {
+        let key = Refusal {
+            block: *block,
+            tail_s: self.tail_s,
+            planned_to: self.planned_to,
+            machine: self.window.machine_place(self.machine),
+            at_rest: self.machine_at_rest,
+            ovr: self.ovr,
+            finished: self.finished,
+            solves: (self.window.totals.solves, self.window.totals.crawled),
+        };
+        if let Some((k, e)) = &self.refused
+            && *k == key
+        {
+            return Err(*e);
+        }
         let mark = self.window.mark(self.tail_s);
         let r = self.sample_and_plan(block, out);
-        if r.is_err() {
-            self.window.roll_back(&mark);
+        match r {
+            Ok(()) => self.refused = None,
+            Err(e) => {
+                self.window.roll_back(&mark);
+                self.refused = Some((key, e));
+            }
         }
         r
     }
@@ -1307,4 +1338,19 @@ pub(crate) fn split_at_tangent_breaks(
     }
     singular[count] = n.is_stationary(ub, Side::Before);
     Ok(count)
+}
+
+/// What planning a part depends on besides the window's contents (which a
+/// refusal leaves as they were, and which only a solve changes).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Refusal {
+    block: Block,
+    tail_s: f64,
+    planned_to: f64,
+    machine: MachinePlace,
+    at_rest: bool,
+    ovr: f64,
+    finished: bool,
+    /// Solves and crawls so far: the window changes only through them.
+    solves: (u64, u64),
 }

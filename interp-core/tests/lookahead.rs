@@ -711,10 +711,13 @@ fn a_refused_block_leaves_the_window_as_it_was() {
     };
     let before = (snapshot(&w), w.rest_points().to_vec());
     let mark = w.mark(1.1);
-    // The next block samples its own stretch, adds to the interval it
-    // starts in, and rests at its start and inside.
+    // The next block samples its own stretch, adds to the intervals before
+    // its start (its junction's limit and samples), and rests at its start
+    // and inside.
     for _ in 0..3 {
         assert!(w.extend_to(9));
+        w.lower_junction(1.1, 0.05, 30.0);
+        assert!(w.interval_mut(3).unwrap().add_sample(sample(0.99)));
         for k in 0..6 {
             assert!(
                 w.interval_mut(4 + k / 2)
