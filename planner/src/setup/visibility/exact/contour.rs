@@ -620,6 +620,12 @@ fn arc_max_dot(u: &V3, v: &V3, n: &V3) -> (f64, V3) {
     best
 }
 
+/// Whether some point of the arc from `u` to `v` (as [`arc_max_dot`]) has
+/// `d·n > level`: an end that does answers without the arc's top.
+fn arc_rises_above(u: &V3, v: &V3, n: &V3, level: f64) -> bool {
+    u.dot(n) > level || v.dot(n) > level || arc_max_dot(u, v, n).0 > level
+}
+
 /// Sign tests closer to zero than this (on unit vectors) are not trusted:
 /// the count is then not propagated through the cell.
 const SIDE_TOL: f64 = 1e-12;
@@ -846,7 +852,7 @@ impl Exact<'_> {
                 {
                     continue;
                 }
-                if arc_max_dot(&corners[(j + 1) % 3], &corners[(j + 2) % 3], n).0 <= p.min_dot {
+                if !arc_rises_above(&corners[(j + 1) % 3], &corners[(j + 2) % 3], n, p.min_dot) {
                     continue;
                 }
                 if !self.settle_by_ray(c, p, level, row, w) {
@@ -963,7 +969,7 @@ impl Exact<'_> {
                 }
                 // Joined when the shared edge has a point in front.
                 let joined = (front_c && is_open(&w.front, nb))
-                    || arc_max_dot(&corners[(k + 1) % 3], &corners[(k + 2) % 3], n).0 > p.min_dot;
+                    || arc_rises_above(&corners[(k + 1) % 3], &corners[(k + 2) % 3], n, p.min_dot);
                 if joined {
                     w.todo[nb / 64] |= 1 << (nb % 64);
                     w.dfs.push(nb as u32);
@@ -1083,8 +1089,12 @@ impl Exact<'_> {
                 continue;
             }
             if !boundary
-                && arc_max_dot(&corners[(j + 1) % 3], &corners[(j + 2) % 3], p.normal).0
-                    <= p.min_dot
+                && !arc_rises_above(
+                    &corners[(j + 1) % 3],
+                    &corners[(j + 2) % 3],
+                    p.normal,
+                    p.min_dot,
+                )
             {
                 continue;
             }
