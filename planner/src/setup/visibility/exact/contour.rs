@@ -96,6 +96,21 @@ struct Node {
 
 const _: () = assert!(std::mem::size_of::<Node>() == 64);
 
+impl Node {
+    /// A placeholder, overwritten by the build.
+    const EMPTY: Self = Self {
+        lo: [0.0; 3],
+        hi: [0.0; 3],
+        axis: [0.0; 3],
+        cos_a: 0.0,
+        sin_a: 0.0,
+        along: [0.0; 2],
+        across: 0.0,
+        min_area2: 0.0,
+        link: 0,
+    };
+}
+
 /// Bits of [`Node::link`] that hold the index (the rest the leaf's count).
 const LINK_BITS: u32 = 29;
 const _: () = assert!(LEAF_EDGES < 1 << (32 - LINK_BITS));
@@ -249,8 +264,8 @@ impl ContourTree {
         }
         let mut order: Vec<u32> = (0..edges.len() as u32).collect();
         let mut tree = Self {
-            nodes: Vec::with_capacity(2 * edges.len() / LEAF_EDGES + 1),
-            edges: Vec::with_capacity(edges.len()),
+            nodes: Vec::new(),
+            edges: Vec::new(),
             points: mesh.vertices.iter().map(|v| v.coords).collect(),
         };
         if !edges.is_empty() {
@@ -272,7 +287,12 @@ impl ContourTree {
                 plain: &plain,
                 mids: &mids,
             };
-            ctx.node(&mut order, &mut tree);
+            // Every subtree's size follows from its number of edges, so the
+            // halves are built side by side into their own parts of the
+            // arrays, as the serial pre-order build would lay them out.
+            tree.nodes = vec![Node::EMPTY; subtree_nodes(edges.len())];
+            tree.edges = vec![edges[0]; edges.len()];
+            ctx.fill(&mut order, &mut tree.nodes, &mut tree.edges, 0, 0);
         }
         Some(tree)
     }
@@ -301,9 +321,62 @@ impl Build<'_> {
         std::iter::once(e.t as usize).chain((e.t2 != NONE).then_some(e.t2 as usize))
     }
 
-    /// Appends the subtree over `set` to `tree` (pre-order); returns its
-    /// index.
-    fn node(&self, set: &mut [u32], tree: &mut ContourTree) -> usize {
+    /// Writes the subtree over `set` (pre-order) into `nodes` (exactly
+    /// [`subtree_nodes`] of `set.len()`, the first at index `first_node` of
+    /// the tree) and its leaves' edges into `edges` (`set.len()`, the first
+    /// at `first_edge`).
+    fn fill(
+        &self,
+        set: &mut [u32],
+        nodes: &mut [Node],
+        edges: &mut [Edge],
+        first_node: usize,
+        first_edge: usize,
+    ) {
+        /// Below this many edges a subtree is built on one thread.
+        const PARALLEL_EDGES: usize = 4096;
+        let (node, extent) = self.bound(set);
+        nodes[0] = node;
+        if set.len() <= LEAF_EDGES {
+            nodes[0].link = first_edge as u32 | (set.len() as u32) << LINK_BITS;
+            for (slot, &e) in edges.iter_mut().zip(set.iter()) {
+                *slot = self.edges[e as usize];
+            }
+            return;
+        }
+        nodes[0].link = (first_node + nodes.len()) as u32;
+        // Median split of the midpoints along the box's longest side.
+        let axis = extent.imax();
+        let (len, half) = (set.len(), set.len() / 2);
+        set.select_nth_unstable_by(half, |&a, &b| {
+            self.mids[a as usize][axis].total_cmp(&self.mids[b as usize][axis])
+        });
+        let (left, right) = set.split_at_mut(half);
+        let (left_nodes, right_nodes) = nodes[1..].split_at_mut(subtree_nodes(half));
+        let (left_edges, right_edges) = edges.split_at_mut(half);
+        let right_first = first_node + 1 + left_nodes.len();
+        let mut build_left =
+            move || self.fill(left, left_nodes, left_edges, first_node + 1, first_edge);
+        let mut build_right = move || {
+            self.fill(
+                right,
+                right_nodes,
+                right_edges,
+                right_first,
+                first_edge + half,
+            )
+        };
+        if len >= PARALLEL_EDGES {
+            rayon::join(build_left, build_right);
+        } else {
+            build_left();
+            build_right();
+        }
+    }
+
+    /// The bounds of the triangles of the edges `set`: the node over them
+    /// (its link not set), and the extent of their box (unrounded).
+    fn bound(&self, set: &[u32]) -> (Node, V3) {
         let tri = self.triangles;
         let (mut lo, mut hi) = (V3::repeat(f64::INFINITY), V3::repeat(f64::NEG_INFINITY));
         let mut sum = V3::zeros();
@@ -367,8 +440,7 @@ impl Build<'_> {
         } else {
             -1.0
         };
-        let index = tree.nodes.len();
-        tree.nodes.push(Node {
+        let node = Node {
             lo: [lo32.x, lo32.y, lo32.z],
             hi: [hi32.x, hi32.y, hi32.z],
             axis,
@@ -378,27 +450,18 @@ impl Build<'_> {
             across: f32_above(across),
             min_area2: f32_below(min_area2),
             link: 0,
-        });
-        if set.len() <= LEAF_EDGES {
-            tree.nodes[index].link = tree.edges.len() as u32 | (set.len() as u32) << LINK_BITS;
-            tree.edges
-                .extend(set.iter().map(|&e| self.edges[e as usize]));
-        } else {
-            // Median split of the midpoints along the box's longest side.
-            let extent = hi - lo;
-            let axis = extent.imax();
-            let half = set.len() / 2;
-            set.select_nth_unstable_by(half, |&a, &b| {
-                self.mids[a as usize][axis].total_cmp(&self.mids[b as usize][axis])
-            });
-            let (left, right) = set.split_at_mut(half);
-            self.node(left, tree);
-            self.node(right, tree);
-        }
-        if set.len() > LEAF_EDGES {
-            tree.nodes[index].link = tree.nodes.len() as u32;
-        }
-        index
+        };
+        (node, hi - lo)
+    }
+}
+
+/// The number of nodes of a subtree over `edges` edges (median splits,
+/// [`LEAF_EDGES`] per leaf).
+fn subtree_nodes(edges: usize) -> usize {
+    if edges <= LEAF_EDGES {
+        1
+    } else {
+        1 + subtree_nodes(edges / 2) + subtree_nodes(edges - edges / 2)
     }
 }
 
