@@ -1050,11 +1050,17 @@ impl Exact<'_> {
     }
 
     /// A point of the edge of `b` opposite corner `j`, in front and off
-    /// every arc of `b`, if one of a few tried is.
-    fn edge_point(&self, b: usize, j: usize, p: &PatchFrame, w: &ExactScratch) -> Option<V3> {
+    /// every arc of `b` (`ids`), if one of a few tried is.
+    fn edge_point(
+        &self,
+        b: usize,
+        j: usize,
+        ids: &[u32],
+        p: &PatchFrame,
+        w: &ExactScratch,
+    ) -> Option<V3> {
         let corners = self.cells.corners[b];
         let (e1, e2) = (corners[(j + 1) % 3], corners[(j + 2) % 3]);
-        let ids = Self::arcs_of(b, w);
         // The highest point of the edge, and points between it and the
         // ends, and the ends' middle.
         let (top, high) = arc_max_dot(&e1, &e2, p.normal);
@@ -1074,7 +1080,7 @@ impl Exact<'_> {
             if q.dot(p.normal) <= p.min_dot {
                 continue;
             }
-            let clear = w.arc_of[ids.clone()].iter().all(|&(_, a)| {
+            let clear = ids.iter().all(|&a| {
                 let a = &w.arcs[a as usize];
                 a.m.dot(&q).abs() >= SIDE_TOL
                     || a.u.cross(&q).dot(&a.m) < -SIDE_TOL
@@ -1169,7 +1175,7 @@ impl Exact<'_> {
                 continue;
             }
             let Some(k) = self
-                .edge_point(b, j, p, w)
+                .edge_point(b, j, ids, p, w)
                 .and_then(|q| Some((q, count_at(&q, w)?)))
             else {
                 // No count to pass on: a ray decides that cell later.
