@@ -84,8 +84,11 @@ struct Node {
     /// the line along `â` through `mid` (rounded up).
     along: [f32; 2],
     across: f32,
-    /// Smallest twice-area of a triangle (rounded down).
-    min_area2: f32,
+    /// The largest distance of a corner from [`Node::mid`] (rounded up).
+    /// The smallest twice-area of a triangle, needed only by nodes that
+    /// pass the rest of the facing test, is kept apart
+    /// ([`ContourTree::min_area2`]).
+    radius: f32,
     /// The low [`LINK_BITS`] bits: an inner node (count 0) holds the index
     /// of the first node after its subtree (pre-order; its children are at
     /// `i + 1` and after that child's subtree); a leaf its first edge, of
@@ -95,6 +98,21 @@ struct Node {
 }
 
 const _: () = assert!(std::mem::size_of::<Node>() == 64);
+
+impl Node {
+    /// A placeholder, overwritten by the build.
+    const EMPTY: Self = Self {
+        lo: [0.0; 3],
+        hi: [0.0; 3],
+        axis: [0.0; 3],
+        cos_a: 0.0,
+        sin_a: 0.0,
+        along: [0.0; 2],
+        across: 0.0,
+        radius: 0.0,
+        link: 0,
+    };
+}
 
 /// Bits of [`Node::link`] that hold the index (the rest the leaf's count).
 const LINK_BITS: u32 = 29;
@@ -139,11 +157,6 @@ impl Node {
         (self.lo() + self.hi()) * 0.5
     }
 
-    /// The radius of a sphere around [`Node::mid`] holding the box.
-    fn radius(&self) -> f64 {
-        (self.hi() - self.lo()).norm() * 0.5
-    }
-
     fn count(&self) -> usize {
         (self.link >> LINK_BITS) as usize
     }
@@ -186,8 +199,11 @@ struct Edge {
 #[derive(Debug)]
 pub(in crate::setup::visibility) struct ContourTree {
     nodes: Vec<Node>,
+    /// Per node, the smallest twice-area of its triangles (rounded down).
+    min_area2: Vec<f32>,
     edges: Vec<Edge>,
-    /// The mesh's vertices (a compact copy the walk reads).
+    /// The mesh's vertices (a compact copy the walk reads), in the order
+    /// the edges name them ([`ContourTree::renumber_points`]).
     points: Vec<V3>,
 }
 
@@ -249,8 +265,9 @@ impl ContourTree {
         }
         let mut order: Vec<u32> = (0..edges.len() as u32).collect();
         let mut tree = Self {
-            nodes: Vec::with_capacity(2 * edges.len() / LEAF_EDGES + 1),
-            edges: Vec::with_capacity(edges.len()),
+            nodes: Vec::new(),
+            min_area2: Vec::new(),
+            edges: Vec::new(),
             points: mesh.vertices.iter().map(|v| v.coords).collect(),
         };
         if !edges.is_empty() {
@@ -272,10 +289,49 @@ impl ContourTree {
                 plain: &plain,
                 mids: &mids,
             };
-            ctx.node(&mut order, &mut tree);
+            // Every subtree's size follows from its number of edges, so the
+            // halves are built side by side into their own parts of the
+            // arrays, as the serial pre-order build would lay them out.
+            tree.nodes = vec![Node::EMPTY; subtree_nodes(edges.len())];
+            tree.min_area2 = vec![0.0; tree.nodes.len()];
+            tree.edges = vec![edges[0]; edges.len()];
+            let out = Out {
+                nodes: &mut tree.nodes,
+                min_area2: &mut tree.min_area2,
+                edges: &mut tree.edges,
+            };
+            ctx.fill(&mut order, out, 0, 0);
+            tree.renumber_points();
         }
         Some(tree)
     }
+}
+
+impl ContourTree {
+    /// Numbers the points in the order the leaves' edges first name them,
+    /// so that the edges of nearby leaves read nearby points.
+    fn renumber_points(&mut self) {
+        let mut new = vec![NONE; self.points.len()];
+        let mut points = Vec::with_capacity(self.points.len());
+        for e in &mut self.edges {
+            for v in &mut e.corners {
+                let old = *v as usize;
+                if new[old] == NONE {
+                    new[old] = points.len() as u32;
+                    points.push(self.points[old]);
+                }
+                *v = new[old];
+            }
+        }
+        self.points = points;
+    }
+}
+
+/// The parts of [`ContourTree`]'s arrays a subtree is written to.
+struct Out<'a> {
+    nodes: &'a mut [Node],
+    min_area2: &'a mut [f32],
+    edges: &'a mut [Edge],
 }
 
 /// A triangle as building [`ContourTree`] reads it.
@@ -301,9 +357,64 @@ impl Build<'_> {
         std::iter::once(e.t as usize).chain((e.t2 != NONE).then_some(e.t2 as usize))
     }
 
-    /// Appends the subtree over `set` to `tree` (pre-order); returns its
-    /// index.
-    fn node(&self, set: &mut [u32], tree: &mut ContourTree) -> usize {
+    /// Writes the subtree over `set` (pre-order) into `out`: its nodes
+    /// (exactly [`subtree_nodes`] of `set.len()`, the first at index
+    /// `first_node` of the tree) and its leaves' edges (`set.len()`, the
+    /// first at `first_edge`).
+    fn fill(&self, set: &mut [u32], out: Out<'_>, first_node: usize, first_edge: usize) {
+        /// Below this many edges a subtree is built on one thread.
+        const PARALLEL_EDGES: usize = 4096;
+        let Out {
+            nodes,
+            min_area2,
+            edges,
+        } = out;
+        let (node, area2, extent) = self.bound(set);
+        nodes[0] = node;
+        min_area2[0] = area2;
+        if set.len() <= LEAF_EDGES {
+            nodes[0].link = first_edge as u32 | (set.len() as u32) << LINK_BITS;
+            for (slot, &e) in edges.iter_mut().zip(set.iter()) {
+                *slot = self.edges[e as usize];
+            }
+            return;
+        }
+        nodes[0].link = (first_node + nodes.len()) as u32;
+        // Median split of the midpoints along the box's longest side.
+        let axis = extent.imax();
+        let (len, half) = (set.len(), set.len() / 2);
+        set.select_nth_unstable_by(half, |&a, &b| {
+            self.mids[a as usize][axis].total_cmp(&self.mids[b as usize][axis])
+        });
+        let (left, right) = set.split_at_mut(half);
+        let (left_nodes, right_nodes) = nodes[1..].split_at_mut(subtree_nodes(half));
+        let (left_areas, right_areas) = min_area2[1..].split_at_mut(left_nodes.len());
+        let (left_edges, right_edges) = edges.split_at_mut(half);
+        let right_first = first_node + 1 + left_nodes.len();
+        let left_out = Out {
+            nodes: left_nodes,
+            min_area2: left_areas,
+            edges: left_edges,
+        };
+        let right_out = Out {
+            nodes: right_nodes,
+            min_area2: right_areas,
+            edges: right_edges,
+        };
+        let build_left = move || self.fill(left, left_out, first_node + 1, first_edge);
+        let build_right = move || self.fill(right, right_out, right_first, first_edge + half);
+        if len >= PARALLEL_EDGES {
+            rayon::join(build_left, build_right);
+        } else {
+            build_left();
+            build_right();
+        }
+    }
+
+    /// The bounds of the triangles of the edges `set`: the node over them
+    /// (its link not set), their least twice-area (rounded down) and the
+    /// extent of their box (unrounded).
+    fn bound(&self, set: &[u32]) -> (Node, f32, V3) {
         let tri = self.triangles;
         let (mut lo, mut hi) = (V3::repeat(f64::INFINITY), V3::repeat(f64::NEG_INFINITY));
         let mut sum = V3::zeros();
@@ -350,6 +461,7 @@ impl Build<'_> {
         };
         let a = widen(&axis);
         let (mut below, mut above, mut across) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
+        let mut radius = 0.0f64;
         for &e in set.iter() {
             for t in self.triangles(e) {
                 for c in &tri[t].corners {
@@ -357,7 +469,9 @@ impl Build<'_> {
                     let h = a.dot(&off) / (s * s);
                     below = below.min(h);
                     above = above.max(h);
-                    across = across.max((off - unit * unit.dot(&off)).norm());
+                    // Squared: the root of the largest is the largest root.
+                    across = across.max((off - unit * unit.dot(&off)).norm_squared());
+                    radius = radius.max(off.norm_squared());
                 }
             }
         }
@@ -367,44 +481,34 @@ impl Build<'_> {
         } else {
             -1.0
         };
-        let index = tree.nodes.len();
-        tree.nodes.push(Node {
+        let node = Node {
             lo: [lo32.x, lo32.y, lo32.z],
             hi: [hi32.x, hi32.y, hi32.z],
             axis,
             cos_a,
             sin_a: f32_above(sin_a / s),
             along: [f32_below(below), f32_above(above)],
-            across: f32_above(across),
-            min_area2: f32_below(min_area2),
+            across: f32_above(across.sqrt()),
+            radius: f32_above(radius.sqrt()),
             link: 0,
-        });
-        if set.len() <= LEAF_EDGES {
-            tree.nodes[index].link = tree.edges.len() as u32 | (set.len() as u32) << LINK_BITS;
-            tree.edges
-                .extend(set.iter().map(|&e| self.edges[e as usize]));
-        } else {
-            // Median split of the midpoints along the box's longest side.
-            let extent = hi - lo;
-            let axis = extent.imax();
-            let half = set.len() / 2;
-            set.select_nth_unstable_by(half, |&a, &b| {
-                self.mids[a as usize][axis].total_cmp(&self.mids[b as usize][axis])
-            });
-            let (left, right) = set.split_at_mut(half);
-            self.node(left, tree);
-            self.node(right, tree);
-        }
-        if set.len() > LEAF_EDGES {
-            tree.nodes[index].link = tree.nodes.len() as u32;
-        }
-        index
+        };
+        (node, f32_below(min_area2), hi - lo)
+    }
+}
+
+/// The number of nodes of a subtree over `edges` edges (median splits,
+/// [`LEAF_EDGES`] per leaf).
+fn subtree_nodes(edges: usize) -> usize {
+    if edges <= LEAF_EDGES {
+        1
+    } else {
+        1 + subtree_nodes(edges / 2) + subtree_nodes(edges - edges / 2)
     }
 }
 
 impl ContourTree {
     /// Bounds (least, most) of `n·x` over the corners of node `b` from its
-    /// box: looser than [`ContourTree::axis_heights`] on a curved piece of
+    /// box: looser than [`ContourTree::axis_beyond`] on a curved piece of
     /// surface, but cheap enough to try first. The walk takes the tighter
     /// of the two on each side, the box's alone when it already decides.
     fn box_heights(b: &Node, n: &V3) -> (f64, f64) {
@@ -419,7 +523,10 @@ impl ContourTree {
 
     /// Bounds (least, most) of `n·x` over the corners of node `b` from
     /// their extent along the axis of the normals (much tighter than the
-    /// box for a curved piece of surface).
+    /// box for a curved piece of surface). The walk decides with
+    /// [`ContourTree::axis_beyond`], without its root; this form is the
+    /// tests' reference.
+    #[cfg(test)]
     fn axis_heights(b: &Node, n: &V3) -> (f64, f64) {
         // n = (n·â)·â + perp: n·x = n·mid + (n·â)·(â·(x − mid)) +
         // perp·(x − mid), the last within |perp|·across. With the stored
@@ -431,6 +538,26 @@ impl ContourTree {
         let [lo, hi] = b.along.map(f64::from);
         let (h_far, h_near) = if na >= 0.0 { (hi, lo) } else { (lo, hi) };
         (na * h_near + base - spread, na * h_far + base + spread)
+    }
+
+    /// Whether [`ContourTree::axis_heights`] puts node `b` behind `lo`
+    /// (most `n·x` at or below it) and whether past `hi` (least `n·x`
+    /// above it), decided without the root of `1 − (n·a)²`: the spread
+    /// across the axis is compared with the room the rest leaves, squared.
+    #[inline(always)]
+    fn axis_beyond(b: &Node, n: &V3, lo: f64, hi: f64) -> (bool, bool) {
+        let na = n.dot(&b.axis());
+        let base = n.dot(&b.mid());
+        let across = f64::from(b.across);
+        let spread2 = (1.0 - na * na).max(0.0) * (across * across);
+        let [low, high] = b.along.map(f64::from);
+        let (h_far, h_near) = if na >= 0.0 { (high, low) } else { (low, high) };
+        let room_far = lo - (na * h_far + base);
+        let room_near = (na * h_near + base) - hi;
+        (
+            room_far >= 0.0 && spread2 <= room_far * room_far,
+            room_near > 0.0 && spread2 < room_near * room_near,
+        )
     }
 
     /// Whether every triangle of node `i` faces the patch the same way,
@@ -446,6 +573,7 @@ impl ContourTree {
     /// in front of the plane (past `level` by the slack); `in_front`: that
     /// is known already (of an ancestor, so of every corner of this node),
     /// and the node's own bounds are not taken.
+    #[inline(always)]
     fn facing_within(
         &self,
         i: usize,
@@ -459,15 +587,15 @@ impl ContourTree {
             // The box first: most nodes it puts behind the plane need no
             // more.
             let (box_near, box_far) = Self::box_heights(b, p.normal);
-            if box_far <= level - Self::slack(t_min) {
+            let (lo, hi) = (level - Self::slack(t_min), level + Self::slack(t_min));
+            if box_far <= lo {
                 return None;
             }
-            let (axis_near, axis_far) = Self::axis_heights(b, p.normal);
-            let (near, far) = (box_near.max(axis_near), box_far.min(axis_far));
-            if far <= level - Self::slack(t_min) {
+            let (behind, ahead) = Self::axis_beyond(b, p.normal, lo, hi);
+            if behind {
                 return None;
             }
-            near > level + Self::slack(t_min)
+            box_near > hi || ahead
         };
         if b.cos_a <= 0.0 {
             return Some((Facing::Mixed, in_front));
@@ -484,26 +612,38 @@ impl ContourTree {
         // them, which the stored `cos_a`, `sin_a` (over s) make up for;
         // the stored reach along the axis is over s too (only larger).
         let (axis, cos_a, sin_a) = (b.axis(), f64::from(b.cos_a), f64::from(b.sin_a));
-        let radius = b.radius();
+        let radius = f64::from(b.radius);
         let side = sin_a * f64::from(b.across);
         let [below, above] = b.along.map(f64::from);
         let up = radius.min(above.max(0.0) + side);
         let down = radius.min((-below).max(0.0) + side);
-        let (along_u, across_u) = (axis.dot(&u), axis.cross(&u).norm());
-        let front = along_u * cos_a - across_u * sin_a - up;
-        let back = -along_u * cos_a - across_u * sin_a - down;
+        // front = toward − |a × u|·sin_a − up and back = −toward − |a × u|·
+        // sin_a − down; front > x when toward − up − x exceeds the term
+        // across the axis, compared squared (no roots).
+        let toward = axis.dot(&u) * cos_a;
+        let (front_room, back_room) = (toward - up, -toward - down);
         // The margin below is at least 2·t_min: a node short of that needs
-        // no more.
-        if front <= 2.0 * t_min && back <= 2.0 * t_min {
+        // no more, and those short of it without the term across the axis
+        // need not even take it.
+        if front_room <= 2.0 * t_min && back_room <= 2.0 * t_min {
+            return Some((Facing::Mixed, in_front));
+        }
+        let across2 = axis.cross(&u).norm_squared() * (sin_a * sin_a);
+        let beyond = |x: f64| {
+            let (f, b) = (front_room - x, back_room - x);
+            (f > 0.0 && across2 < f * f) || (b > 0.0 && across2 < b * b)
+        };
+        if !beyond(2.0 * t_min) {
             return Some((Facing::Mixed, in_front));
         }
         // The edge tests' products and the cone's distance test carry
         // round-off of about ε·|corner − o|³; each triangle's n̂·(o − x) times
-        // its twice-area must stay well above it.
-        let reach = u.norm() + radius;
-        let margin =
-            2.0 * t_min + 64.0 * f64::EPSILON * reach * reach * reach / f64::from(b.min_area2);
-        if front > margin || back > margin {
+        // its twice-area must stay well above it. |u| is taken as the sum
+        // of its coordinates' sizes (no smaller, no root).
+        let reach = u.abs().sum() + radius;
+        let margin = 2.0 * t_min
+            + 64.0 * f64::EPSILON * reach * reach * reach / f64::from(self.min_area2[i]);
+        if beyond(margin) {
             // Every triangle has a cone; those with a corner in front are
             // the occluders.
             if in_front {
@@ -618,6 +758,12 @@ fn arc_max_dot(u: &V3, v: &V3, n: &V3) -> (f64, V3) {
         }
     }
     best
+}
+
+/// Whether some point of the arc from `u` to `v` (as [`arc_max_dot`]) has
+/// `d·n > level`: an end that does answers without the arc's top.
+fn arc_rises_above(u: &V3, v: &V3, n: &V3, level: f64) -> bool {
+    u.dot(n) > level || v.dot(n) > level || arc_max_dot(u, v, n).0 > level
 }
 
 /// Sign tests closer to zero than this (on unit vectors) are not trusted:
@@ -846,7 +992,7 @@ impl Exact<'_> {
                 {
                     continue;
                 }
-                if arc_max_dot(&corners[(j + 1) % 3], &corners[(j + 2) % 3], n).0 <= p.min_dot {
+                if !arc_rises_above(&corners[(j + 1) % 3], &corners[(j + 2) % 3], n, p.min_dot) {
                     continue;
                 }
                 if !self.settle_by_ray(c, p, level, row, w) {
@@ -963,7 +1109,7 @@ impl Exact<'_> {
                 }
                 // Joined when the shared edge has a point in front.
                 let joined = (front_c && is_open(&w.front, nb))
-                    || arc_max_dot(&corners[(k + 1) % 3], &corners[(k + 2) % 3], n).0 > p.min_dot;
+                    || arc_rises_above(&corners[(k + 1) % 3], &corners[(k + 2) % 3], n, p.min_dot);
                 if joined {
                     w.todo[nb / 64] |= 1 << (nb % 64);
                     w.dfs.push(nb as u32);
@@ -974,11 +1120,17 @@ impl Exact<'_> {
     }
 
     /// A point of the edge of `b` opposite corner `j`, in front and off
-    /// every arc of `b`, if one of a few tried is.
-    fn edge_point(&self, b: usize, j: usize, p: &PatchFrame, w: &ExactScratch) -> Option<V3> {
+    /// every arc of `b` (`ids`), if one of a few tried is.
+    fn edge_point(
+        &self,
+        b: usize,
+        j: usize,
+        ids: &[u32],
+        p: &PatchFrame,
+        w: &ExactScratch,
+    ) -> Option<V3> {
         let corners = self.cells.corners[b];
         let (e1, e2) = (corners[(j + 1) % 3], corners[(j + 2) % 3]);
-        let ids = Self::arcs_of(b, w);
         // The highest point of the edge, and points between it and the
         // ends, and the ends' middle.
         let (top, high) = arc_max_dot(&e1, &e2, p.normal);
@@ -998,7 +1150,7 @@ impl Exact<'_> {
             if q.dot(p.normal) <= p.min_dot {
                 continue;
             }
-            let clear = w.arc_of[ids.clone()].iter().all(|&(_, a)| {
+            let clear = ids.iter().all(|&a| {
                 let a = &w.arcs[a as usize];
                 a.m.dot(&q).abs() >= SIDE_TOL
                     || a.u.cross(&q).dot(&a.m) < -SIDE_TOL
@@ -1083,13 +1235,17 @@ impl Exact<'_> {
                 continue;
             }
             if !boundary
-                && arc_max_dot(&corners[(j + 1) % 3], &corners[(j + 2) % 3], p.normal).0
-                    <= p.min_dot
+                && !arc_rises_above(
+                    &corners[(j + 1) % 3],
+                    &corners[(j + 2) % 3],
+                    p.normal,
+                    p.min_dot,
+                )
             {
                 continue;
             }
             let Some(k) = self
-                .edge_point(b, j, p, w)
+                .edge_point(b, j, ids, p, w)
                 .and_then(|q| Some((q, count_at(&q, w)?)))
             else {
                 // No count to pass on: a ray decides that cell later.
@@ -1267,10 +1423,10 @@ impl Exact<'_> {
                 // The box first (the tighter bound needs no more when it
                 // decides).
                 let (box_near, box_far) = ContourTree::box_heights(node, n);
-                let beyond = |near: f64, far: f64| far <= level - slack || near > level + slack;
-                if beyond(box_near, box_far) || {
-                    let (axis_near, axis_far) = ContourTree::axis_heights(node, n);
-                    beyond(box_near.max(axis_near), box_far.min(axis_far))
+                let (lo, hi) = (level - slack, level + slack);
+                if box_far <= lo || box_near > hi || {
+                    let (behind, ahead) = ContourTree::axis_beyond(node, n, lo, hi);
+                    behind || ahead
                 } {
                     j = node.end(j);
                     continue;
@@ -1509,9 +1665,68 @@ mod tests {
         );
     }
 
-    /// Each node's `f32` bounds hold its subtree's triangles: the box and
-    /// the reach along and across the axis every corner, the cone every
-    /// normal, with the axis no longer than 1; and the roundings go the
+    /// The plane bound the walk takes from the axis (`axis_beyond`, no
+    /// roots) puts a node behind a level only when every corner of its
+    /// subtree is at or below it, and past a level only when every corner
+    /// is above it; and it decides as the heights along the axis do
+    /// (`axis_heights`, with the root) but for levels within round-off of
+    /// them. Levels at and around the corners' own extremes and the
+    /// bound's, for normals of every direction.
+    #[test]
+    fn the_axis_bound_puts_a_node_beyond_a_level_only_with_all_its_corners() {
+        let soup = rotated(
+            &teapot(20, 32, 9, 16),
+            &z_to(&V3::new(0.3, -0.2, 0.9).normalize()),
+        );
+        let mesh = TriMesh::from_triangles(&soup, WeldOptions::default()).unwrap();
+        let caster = RayCaster::new(&mesh);
+        let tree = ContourTree::new(&mesh, &caster).unwrap();
+        let normals = GeodesicSphere::with_frequency(2);
+        let (mut behind, mut ahead) = (0, 0);
+        for (i, node) in tree.nodes.iter().enumerate() {
+            let leaves = (i..node.end(i)).filter(|&j| tree.nodes[j].count() > 0);
+            let corners: Vec<V3> = leaves
+                .flat_map(|j| &tree.edges[tree.nodes[j].edges()])
+                .flat_map(|e| [e.t, e.t2])
+                .filter(|&t| t != NONE)
+                .flat_map(|t| mesh.corners(t as usize).map(|c| c.coords))
+                .collect();
+            for n in normals.cells() {
+                let heights = corners.iter().map(|c| n.dot(c));
+                let least = heights.clone().fold(f64::INFINITY, f64::min);
+                let most = heights.fold(f64::NEG_INFINITY, f64::max);
+                let (near, far) = ContourTree::axis_heights(node, n);
+                for at in [least, most, near, far] {
+                    for d in [0.0, 1e-9, 1e-6, 1e-3, 1.0] {
+                        for level in [at - d, at + d] {
+                            let (b, a) = ContourTree::axis_beyond(node, n, level, level);
+                            if b {
+                                assert!(most <= level, "node {i}: behind {level}, {most}");
+                                behind += 1;
+                            }
+                            if a {
+                                assert!(least > level, "node {i}: past {level}, {least}");
+                                ahead += 1;
+                            }
+                            let tol = 1e-12 * (1.0 + level.abs());
+                            if (far - level).abs() > tol {
+                                assert_eq!(b, far <= level, "node {i}: {far} {level}");
+                            }
+                            if (near - level).abs() > tol {
+                                assert_eq!(a, near > level, "node {i}: {near} {level}");
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        assert!(behind > 10_000 && ahead > 10_000, "{behind} {ahead}");
+    }
+
+    /// Each node's `f32` bounds hold its subtree's triangles: the box, the
+    /// reach along and across the axis and the radius every corner, the
+    /// cone every normal, with the axis no longer than 1, the least
+    /// twice-area every triangle's; and the roundings go the
     /// safe way by at most one step. The walk skips a subtree on these
     /// bounds alone.
     #[test]
@@ -1533,6 +1748,12 @@ mod tests {
             for e in leaves.flat_map(|j| &tree.edges[tree.nodes[j].edges()]) {
                 for t in [e.t, e.t2].into_iter().filter(|&t| t != NONE) {
                     let t = t as usize;
+                    let [a0, a1, a2] = mesh.corners(t).map(|c| c.coords);
+                    let area2 = (a1 - a0).cross(&(a2 - a0)).norm();
+                    assert!(
+                        f64::from(tree.min_area2[i]) <= area2,
+                        "node {i}: area of {t}"
+                    );
                     if node.cos_a > 0.0 {
                         let (cos, sin) = (f64::from(node.cos_a) * s, f64::from(node.sin_a) * s);
                         let n = mesh.normals[t];
@@ -1551,6 +1772,7 @@ mod tests {
                         let h = a.dot(&off) / (s * s);
                         assert!(f64::from(node.along[0]) <= h && h <= f64::from(node.along[1]));
                         assert!((off - unit * unit.dot(&off)).norm() <= f64::from(node.across));
+                        assert!(off.norm() <= f64::from(node.radius), "node {i}: radius");
                         checked += 1;
                     }
                 }
