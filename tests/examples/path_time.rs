@@ -30,6 +30,10 @@
 //!
 //! `--no-deviation` skips the two deviation columns (printed NaN): on NURBS
 //! curves at production feed the reference search takes minutes per program.
+//!
+//! The last two columns are the lower bound of any jerk-limited schedule
+//! (`path_time::jerk_aware_bound`: the optimum with the jerk-limited ramps at
+//! rests and slow points and the curvature steps' caps) and our time over it.
 
 use std::path::{Path, PathBuf};
 
@@ -109,7 +113,7 @@ fn main() {
     };
     let cfg = InterpConfig::default();
     println!(
-        "program | part | blocks in | out | length mm | ours s | trapezoid s | optimum s | ours/opt | trap/opt | setpoint dev um | chord dev um"
+        "program | part | blocks in | out | length mm | ours s | trapezoid s | optimum s | ours/opt | trap/opt | setpoint dev um | chord dev um | bound s | ours/bound"
     );
     for f in files {
         let blocks = match load(&f, feed, g64) {
@@ -140,7 +144,7 @@ fn main() {
                 Ok(r) => {
                     let t = r.times;
                     println!(
-                        "{name} | {part} | {} | {} | {:.1} | {:.3} | {:.3} | {:.3} | {:.4} | {:.4} | {:.3} | {:.3}",
+                        "{name} | {part} | {} | {} | {:.1} | {:.3} | {:.3} | {:.3} | {:.4} | {:.4} | {:.3} | {:.3} | {:.3} | {:.4}",
                         r.blocks_in,
                         r.blocks_out,
                         length,
@@ -151,6 +155,8 @@ fn main() {
                         t.trapezoid / t.optimum,
                         r.max_point_deviation * 1e3,
                         r.max_chord_deviation * 1e3,
+                        t.bound,
+                        t.ours / t.bound,
                     )
                 }
                 Err(e) => {
