@@ -221,6 +221,49 @@ pub fn program_run(
     })
 }
 
+/// The blocks of a G-code file as the drivers take them, with `feed`
+/// (mm/min) replacing every programmed feed (rapids stay at the machine's
+/// top speed) and `g64` (mm) setting `G64 P` on every move.
+pub fn load_program(
+    path: &std::path::Path,
+    feed: Option<f64>,
+    g64: Option<f64>,
+) -> Result<Vec<Block>, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let program = gcode::parse(&text).map_err(|e| format!("{}:{e}", path.display()))?;
+    let opts = gcode::CoreOptions::default();
+    let mut blocks = program
+        .to_core_blocks(&opts)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    if let Some(f) = feed {
+        for b in &mut blocks {
+            if b.feed < opts.rapid_speed {
+                b.feed = f / 60.0;
+            }
+        }
+    }
+    if let Some(p) = g64 {
+        for b in &mut blocks {
+            b.blending = Blending::Within { tolerance: Some(p) };
+        }
+    }
+    Ok(blocks)
+}
+
+/// A program's first NURBS curve: its contiguous run of NURBS blocks (empty
+/// without one).
+pub fn first_curve(blocks: &[Block]) -> Vec<Block> {
+    let is_curve = |b: &Block| matches!(b.path, Path::Nurbs(_));
+    match blocks.iter().position(is_curve) {
+        Some(i) => blocks[i..]
+            .iter()
+            .take_while(|b| is_curve(b))
+            .copied()
+            .collect(),
+        None => Vec::new(),
+    }
+}
+
 /// A run is abandoned after this many ticks (5.6 h at 1 kHz): a stall.
 pub const MAX_TICKS: u64 = 20_000_000;
 
@@ -389,8 +432,32 @@ pub fn stop_allowance(blocks: &[Block], cfg: &InterpConfig, every_block: bool) -
 /// them (the bound holds to that sampling), so the bound is at least the
 /// optimum.
 pub fn jerk_aware_bound(blocks: &[Block], cfg: &InterpConfig) -> f64 {
-    let grid = bound_grid(blocks, cfg);
-    envelope_time(&grid, cfg.max_path_accel, cfg.max_path_jerk)
+    jerk_aware_bound_with(blocks, cfg, BoundTerms::ALL)
+}
+
+/// Which of [`jerk_aware_bound`]'s tightenings to apply (the ramps at rests
+/// and slow points always): to see what each costs.
+#[derive(Debug, Clone, Copy)]
+pub struct BoundTerms {
+    /// The jerk-down before local top speeds (the passes after the first).
+    pub tops: bool,
+    /// The curvature steps' caps at C1 joints.
+    pub steps: bool,
+}
+
+impl BoundTerms {
+    /// All of them: [`jerk_aware_bound`].
+    pub const ALL: BoundTerms = BoundTerms {
+        tops: true,
+        steps: true,
+    };
+}
+
+/// [`jerk_aware_bound`] with only the tightenings of `terms`.
+pub fn jerk_aware_bound_with(blocks: &[Block], cfg: &InterpConfig, terms: BoundTerms) -> f64 {
+    let grid = bound_grid(blocks, cfg, terms.steps);
+    let passes = if terms.tops { MAX_PASSES } else { 1 };
+    envelope_time(&grid, cfg.max_path_accel, cfg.max_path_jerk, passes)
 }
 
 /// The optimum's grid (Δs, speed limit) with the nodes and caps of
@@ -399,7 +466,7 @@ pub fn jerk_aware_bound(blocks: &[Block], cfg: &InterpConfig) -> f64 {
 /// known. A line's laws are the same all along: it is at most
 /// [`LINE_CELLS`] cells with its limit inside (the flows are exact over any
 /// length), not the optimum's million for a move of metres.
-fn bound_grid(blocks: &[Block], cfg: &InterpConfig) -> Vec<(f64, f64, f64)> {
+fn bound_grid(blocks: &[Block], cfg: &InterpConfig, steps: bool) -> Vec<(f64, f64, f64)> {
     let laws = InterpConfig {
         planning_margin: 0.0,
         ..without_jerk(cfg)
@@ -407,6 +474,13 @@ fn bound_grid(blocks: &[Block], cfg: &InterpConfig) -> Vec<(f64, f64, f64)> {
     let real = InterpConfig {
         planning_margin: 0.0,
         ..*cfg
+    };
+    let step_cap = |l: &Derivs, r: &Derivs| {
+        if steps {
+            step_cap(l, r, &real)
+        } else {
+            f64::INFINITY
+        }
     };
     let mut grid: Vec<(f64, f64, f64)> = vec![(0.0, 0.0, f64::INFINITY)];
     for (i, b) in blocks.iter().enumerate() {
@@ -420,7 +494,7 @@ fn bound_grid(blocks: &[Block], cfg: &InterpConfig) -> Vec<(f64, f64, f64)> {
                 // The optimum's junction, and the step's cap.
                 let v = junction_speed(&l, &r, &laws);
                 let v = if v < laws.junction_min_speed { 0.0 } else { v };
-                v.min(step_cap(&l, &r, &real))
+                v.min(step_cap(&l, &r))
             };
             let last = grid.last_mut().unwrap();
             last.1 = last.1.min(v);
@@ -433,7 +507,7 @@ fn bound_grid(blocks: &[Block], cfg: &InterpConfig) -> Vec<(f64, f64, f64)> {
             grid.extend(std::iter::repeat_n((len / n as f64, v, v), n));
             continue;
         }
-        let marks = joint_marks(path, &real, limit);
+        let marks = joint_marks(path, &real, limit, step_cap);
         let len = path.length();
         let n = (len / REFERENCE_STEP).ceil().max(1.0) as usize;
         let (ua, ub) = (path.u_start(), path.u_end());
@@ -462,7 +536,12 @@ fn bound_grid(blocks: &[Block], cfg: &InterpConfig) -> Vec<(f64, f64, f64)> {
 /// order: `(u, cap)`. Knots of a NURBS of continuity C1 or less (the laws
 /// of both sides, the step's cap, a rest where the planner stops at a
 /// tangent break) and its cusps (rests).
-fn joint_marks(path: &Path, cfg: &InterpConfig, limit: impl Fn(&Derivs) -> f64) -> Vec<(f64, f64)> {
+pub(crate) fn joint_marks(
+    path: &Path,
+    cfg: &InterpConfig,
+    limit: impl Fn(&Derivs) -> f64,
+    step_cap: impl Fn(&Derivs, &Derivs) -> f64,
+) -> Vec<(f64, f64)> {
     let Path::Nurbs(n) = path else {
         return Vec::new();
     };
@@ -488,7 +567,7 @@ fn joint_marks(path: &Path, cfg: &InterpConfig, limit: impl Fn(&Derivs) -> f64) 
             let cap = if stop {
                 0.0
             } else {
-                limit(&l).min(limit(&r)).min(step_cap(&l, &r, cfg))
+                limit(&l).min(limit(&r)).min(step_cap(&l, &r))
             };
             marks.push((u, cap));
         }
@@ -586,7 +665,7 @@ const MAX_PASSES: usize = 64;
 
 /// The time of the speed envelope of `grid` (Δs, cap) under the tangential
 /// limits `a`, `j`: see [`jerk_aware_bound`].
-fn envelope_time(grid: &[(f64, f64, f64)], a: f64, j: f64) -> f64 {
+fn envelope_time(grid: &[(f64, f64, f64)], a: f64, j: f64, passes: usize) -> f64 {
     let n = grid.len();
     let ds: Vec<f64> = grid.iter().map(|g| g.0).collect();
     let mut s = vec![0.0; n];
@@ -599,7 +678,7 @@ fn envelope_time(grid: &[(f64, f64, f64)], a: f64, j: f64) -> f64 {
     let mut w_bwd = vec![f64::INFINITY; n];
     let mut best = 0.0f64;
     let mut prev = f64::NAN;
-    for _ in 0..MAX_PASSES {
+    for _ in 0..passes {
         let v = sweep(&caps, &ds, &w_fwd, &w_bwd, a, j);
         let t = cells_time(&v, &ds, &inner, &w_fwd, &w_bwd, a, j);
         best = best.max(t);
@@ -711,7 +790,7 @@ fn crossing(v0: f64, v1: f64, d: f64, inner: f64, wf: f64, wb: f64, a: f64, j: f
 
 /// The speed after `d` mm of the flow from `v0` (at most `cap`, which is
 /// returned when the flow reaches it).
-fn reach(v0: f64, cap: f64, d: f64, w: f64, a: f64, j: f64) -> f64 {
+pub(crate) fn reach(v0: f64, cap: f64, d: f64, w: f64, a: f64, j: f64) -> f64 {
     if cap <= v0 {
         return cap;
     }
