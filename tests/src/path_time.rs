@@ -411,7 +411,7 @@ pub fn stop_allowance(blocks: &[Block], cfg: &InterpConfig, every_block: bool) -
 ///   distance `(s̈/J)·W` ahead (behind, for braking). Each pass is a bound
 ///   and tightens the last; they close in on a top speed below the feed
 ///   slowly, and stop after [`MAX_PASSES`]: on a line that cruises this is
-///   the seven-phase time, on one too short to reach its feed within 0.3 %
+///   the seven-phase time, on one too short to reach its feed within 0.4 %
 ///   below it.
 /// - **Curvature steps.** At a C1 joint (block junctions and knots of
 ///   multiplicity `p − 1`) the axis acceleration steps by `v²·Δκᵢ`; one of
