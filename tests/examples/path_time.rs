@@ -30,14 +30,21 @@
 //!
 //! `--no-deviation` skips the two deviation columns (printed NaN): on NURBS
 //! curves at production feed the reference search takes minutes per program.
+//!
+//! The last two columns are the lower bound of any jerk-limited schedule
+//! (`path_time::jerk_aware_bound`: the optimum with the jerk-limited ramps at
+//! rests and slow points and the curvature steps' caps) and our time over it.
+//! `--bound-parts` adds two columns: the bound without the curvature
+//! steps' caps, and with the ramps at rests and slow points alone (no
+//! jerk-down before top speeds either), to see what each part costs.
 
 use std::path::{Path, PathBuf};
 
-use gcode::CoreOptions;
 use interp_core::InterpConfig;
-use interp_core::path::{Blending, Block, Path as CorePath};
 use interp_core::smooth::Policy;
-use interpd_tests::path_time::program_run;
+use interpd_tests::path_time::{
+    BoundTerms, first_curve, jerk_aware_bound_with, load_program, program_run, smoothed,
+};
 
 const CORPUS: &str = "../shared/corpus/nurbs-linuxcnc/g6";
 const DEFAULT_SET: [&str; 4] = [
@@ -47,28 +54,6 @@ const DEFAULT_SET: [&str; 4] = [
     "homer-q1.ngc",
 ];
 
-fn load(path: &Path, feed: Option<f64>, g64: Option<f64>) -> Result<Vec<Block>, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let program = gcode::parse(&text).map_err(|e| format!("{}:{e}", path.display()))?;
-    let opts = CoreOptions::default();
-    let mut blocks = program
-        .to_core_blocks(&opts)
-        .map_err(|e| format!("{}: {e}", path.display()))?;
-    if let Some(f) = feed {
-        for b in &mut blocks {
-            if b.feed < opts.rapid_speed {
-                b.feed = f / 60.0;
-            }
-        }
-    }
-    if let Some(p) = g64 {
-        for b in &mut blocks {
-            b.blending = Blending::Within { tolerance: Some(p) };
-        }
-    }
-    Ok(blocks)
-}
-
 fn main() {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
     let deviation = match args.iter().position(|a| a == "--no-deviation") {
@@ -77,6 +62,13 @@ fn main() {
             false
         }
         None => true,
+    };
+    let parts = match args.iter().position(|a| a == "--bound-parts") {
+        Some(i) => {
+            args.remove(i);
+            true
+        }
+        None => false,
     };
     let mut flag = |name: &str| {
         let i = args.iter().position(|a| a == name)?;
@@ -109,27 +101,22 @@ fn main() {
     };
     let cfg = InterpConfig::default();
     println!(
-        "program | part | blocks in | out | length mm | ours s | trapezoid s | optimum s | ours/opt | trap/opt | setpoint dev um | chord dev um"
+        "program | part | blocks in | out | length mm | ours s | trapezoid s | optimum s | ours/opt | trap/opt | setpoint dev um | chord dev um | bound s | ours/bound{}",
+        if parts {
+            " | bound w/o steps s | bound rests s"
+        } else {
+            ""
+        }
     );
     for f in files {
-        let blocks = match load(&f, feed, g64) {
+        let blocks = match load_program(&f, feed, g64) {
             Ok(b) => b,
             Err(e) => {
                 eprintln!("{e}");
                 std::process::exit(1);
             }
         };
-        let first = blocks
-            .iter()
-            .position(|b| matches!(b.path, CorePath::Nurbs(_)));
-        let curve: Vec<Block> = match first {
-            Some(i) => blocks[i..]
-                .iter()
-                .take_while(|b| matches!(b.path, CorePath::Nurbs(_)))
-                .copied()
-                .collect(),
-            None => Vec::new(),
-        };
+        let curve = first_curve(&blocks);
         let name = f.file_name().unwrap().to_string_lossy().to_string();
         for (part, set) in [("curve", &curve), ("program", &blocks)] {
             if set.is_empty() {
@@ -139,8 +126,18 @@ fn main() {
             match program_run(set, &cfg, policy, deviation) {
                 Ok(r) => {
                     let t = r.times;
+                    let extra = if parts {
+                        let out = smoothed(set, &cfg, policy).0;
+                        let without = |tops| {
+                            let terms = BoundTerms { tops, steps: false };
+                            jerk_aware_bound_with(&out, &cfg, terms)
+                        };
+                        format!(" | {:.3} | {:.3}", without(true), without(false))
+                    } else {
+                        String::new()
+                    };
                     println!(
-                        "{name} | {part} | {} | {} | {:.1} | {:.3} | {:.3} | {:.3} | {:.4} | {:.4} | {:.3} | {:.3}",
+                        "{name} | {part} | {} | {} | {:.1} | {:.3} | {:.3} | {:.3} | {:.4} | {:.4} | {:.3} | {:.3} | {:.3} | {:.4}{extra}",
                         r.blocks_in,
                         r.blocks_out,
                         length,
@@ -151,6 +148,8 @@ fn main() {
                         t.trapezoid / t.optimum,
                         r.max_point_deviation * 1e3,
                         r.max_chord_deviation * 1e3,
+                        t.bound,
+                        t.ours / t.bound,
                     )
                 }
                 Err(e) => {

@@ -9,6 +9,8 @@
 pub mod five_axis;
 pub mod path_time;
 pub mod polyline;
+#[cfg(feature = "scp")]
+pub mod scp;
 
 use std::io::Cursor;
 use std::path::{Path, PathBuf};

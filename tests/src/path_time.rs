@@ -10,12 +10,19 @@
 //! chord error, MRR, centripetal acceleration, per-axis velocity and
 //! acceleration with the same tangential/curvature shares) at the machine's
 //! real limits (no planning margin), with jerk switched off.
+//!
+//! [`jerk_aware_bound`] adds what the jerk limits make every schedule pay
+//! (issue 15): the ramps at every rest and slow point, the jerk-down before
+//! a local top speed, and the speed caps of the curvature steps at C1
+//! joints. It is a lower bound of any jerk-limited schedule on the same
+//! laws, so `ours / bound` is the part of our time the planner could win.
 
 use core::convert::Infallible;
 
-use interp_core::feed::{junction_speed, speed_limit};
-use interp_core::geom::Curve;
-use interp_core::path::{Block, Path};
+use interp_core::feed::{ArcLengthDerivs, junction_speed, speed_limit};
+use interp_core::geom::{Curve, Derivs};
+use interp_core::nurbs::Side;
+use interp_core::path::{Blending, Block, Path};
 use interp_core::smooth::{Policy, SmoothError, SmoothStats, Smoother};
 use interp_core::{InterpConfig, RunState, Vec3};
 use interp_run::Run;
@@ -204,6 +211,7 @@ pub fn program_run(
             ours,
             trapezoid: interpolated_time(&out, &without_jerk(cfg))?,
             optimum: accel_only_optimum(&out, cfg),
+            bound: jerk_aware_bound(&out, cfg),
         },
         blocks_in: blocks.len(),
         blocks_out: out.len(),
@@ -211,6 +219,49 @@ pub fn program_run(
         max_point_deviation,
         max_chord_deviation,
     })
+}
+
+/// The blocks of a G-code file as the drivers take them, with `feed`
+/// (mm/min) replacing every programmed feed (rapids stay at the machine's
+/// top speed) and `g64` (mm) setting `G64 P` on every move.
+pub fn load_program(
+    path: &std::path::Path,
+    feed: Option<f64>,
+    g64: Option<f64>,
+) -> Result<Vec<Block>, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let program = gcode::parse(&text).map_err(|e| format!("{}:{e}", path.display()))?;
+    let opts = gcode::CoreOptions::default();
+    let mut blocks = program
+        .to_core_blocks(&opts)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    if let Some(f) = feed {
+        for b in &mut blocks {
+            if b.feed < opts.rapid_speed {
+                b.feed = f / 60.0;
+            }
+        }
+    }
+    if let Some(p) = g64 {
+        for b in &mut blocks {
+            b.blending = Blending::Within { tolerance: Some(p) };
+        }
+    }
+    Ok(blocks)
+}
+
+/// A program's first NURBS curve: its contiguous run of NURBS blocks (empty
+/// without one).
+pub fn first_curve(blocks: &[Block]) -> Vec<Block> {
+    let is_curve = |b: &Block| matches!(b.path, Path::Nurbs(_));
+    match blocks.iter().position(is_curve) {
+        Some(i) => blocks[i..]
+            .iter()
+            .take_while(|b| is_curve(b))
+            .copied()
+            .collect(),
+        None => Vec::new(),
+    }
 }
 
 /// A run is abandoned after this many ticks (5.6 h at 1 kHz): a stall.
@@ -260,13 +311,665 @@ pub struct PathTimes {
     pub trapezoid: f64,
     /// Acceleration-only optimum.
     pub optimum: f64,
+    /// Lower bound of any jerk-limited schedule ([`jerk_aware_bound`]).
+    pub bound: f64,
 }
 
-/// All three path times of a program.
+/// All four path times of a program.
 pub fn path_times(blocks: &[Block], cfg: &InterpConfig) -> Result<PathTimes, String> {
     Ok(PathTimes {
         ours: interpolated_time(blocks, cfg)?,
         trapezoid: interpolated_time(blocks, &without_jerk(cfg))?,
         optimum: accel_only_optimum(blocks, cfg),
+        bound: jerk_aware_bound(blocks, cfg),
     })
+}
+
+/// Shortest time of a rest-to-rest move of `d` mm along a line at speed,
+/// acceleration and jerk limits `v`, `a`, `j` (the symmetric seven-phase
+/// profile; `j = ∞` gives the trapezoid). Each half accelerates from rest to
+/// the peak speed `w` in `w/a + a/j` (or `2·√(w/j)` below `a²/j`), covering
+/// `w·t/2`.
+pub fn rest_to_rest(d: f64, v: f64, a: f64, j: f64) -> f64 {
+    let ramp = |w: f64| {
+        if w * j >= a * a {
+            w / a + a / j
+        } else {
+            2.0 * (w / j).sqrt()
+        }
+    };
+    if v * ramp(v) <= d {
+        return 2.0 * ramp(v) + (d - v * ramp(v)) / v;
+    }
+    // The peak speed where the two halves meet: bisection on w·ramp(w) = d.
+    let (mut lo, mut hi) = (0.0, v);
+    for _ in 0..100 {
+        let w = 0.5 * (lo + hi);
+        if w * ramp(w) < d {
+            lo = w;
+        } else {
+            hi = w;
+        }
+    }
+    2.0 * ramp(0.5 * (lo + hi))
+}
+
+/// Whether the program comes to rest after block `k` of `blocks`, as the
+/// planner treats it: the last block, a `G61.1` block, or a junction slower
+/// than a stop (`plan::stop_speed`, from the planner's own junction speed).
+pub fn stops_after(blocks: &[Block], k: usize, cfg: &InterpConfig) -> bool {
+    let Some(next) = blocks.get(k + 1) else {
+        return true;
+    };
+    let (a, b) = (&blocks[k].path, &next.path);
+    blocks[k].blending == Blending::ExactStop
+        || junction_speed(&a.eval(a.u_end(), 3), &b.eval(b.u_start(), 3), cfg)
+            < interp_core::plan::stop_speed(cfg)
+}
+
+/// An allowance for the jerk limits at the stops of a program of lines
+/// (the random programs' reference, with [`accel_only_optimum`]): each
+/// stretch between two stops ([`stops_after`], or every block with
+/// `every_block`) run rest to rest at its top feed, jerk-limited against
+/// acceleration-only, plus a tick at each stop (a stop lands on a
+/// setpoint). Returns the allowance (s) and the number of stops. A yardstick,
+/// not a lower bound: on a stretch whose laws hold the speed below its feed
+/// the ramps cost less ([`jerk_aware_bound`] is the bound).
+pub fn stop_allowance(blocks: &[Block], cfg: &InterpConfig, every_block: bool) -> (f64, usize) {
+    let (a, j) = (cfg.max_path_accel, cfg.max_path_jerk);
+    let mut allowance = 0.0;
+    let (mut stretch, mut top, mut stops) = (0.0, 0.0f64, 0);
+    for (k, b) in blocks.iter().enumerate() {
+        stretch += b.path.length();
+        top = top.max(b.feed.min(cfg.max_path_speed));
+        if every_block || stops_after(blocks, k, cfg) {
+            allowance += rest_to_rest(stretch, top, a, j)
+                - rest_to_rest(stretch, top, a, f64::INFINITY)
+                + cfg.period;
+            stops += 1;
+            (stretch, top) = (0.0, 0.0);
+        }
+    }
+    (allowance, stops)
+}
+
+/// A lower bound (s) of the path time of any schedule of `blocks` that
+/// holds the limits of `cfg` (no planning margin), tangential jerk and the
+/// per-axis jerk of the setpoints included: the acceleration-only optimum's
+/// grid and laws, tightened three ways, each a condition every feasible
+/// schedule meets.
+///
+/// - **Rests and slow points.** With `|s⃛| ≤ J` and the acceleration zero
+///   at rest, while `s̈ > 0` the quantity `v − s̈²/(2J)` never decreases
+///   (its rate is `s̈·(1 − s⃛/J) ≥ 0`), so `s̈ ≤ √(2J·v)` everywhere, and
+///   `−s̈ ≤ √(2J·v)` likewise towards the end. The forward and backward
+///   passes integrate `dv/dt ≤ min(A, √(2Jv), …)` exactly: from a rest this
+///   is the seven-phase profile's ramp.
+/// - **Local top speeds.** Where `s̈ > 0` the speed still rises by `s̈²/(2J)`
+///   before the acceleration can reach zero, within `s̈/J` s; so `v + s̈²/(2J)`
+///   is at most `W`, the largest speed an earlier pass allows within the
+///   distance `(s̈/J)·W` ahead (behind, for braking). Each pass is a bound
+///   and tightens the last; they close in on a top speed below the feed
+///   slowly, and stop after [`MAX_PASSES`]: on a line that cruises this is
+///   the seven-phase time, on one too short to reach its feed within 0.4 %
+///   below it.
+/// - **Curvature steps.** At a C1 joint (block junctions and knots of
+///   multiplicity `p − 1`) the axis acceleration steps by `v²·Δκᵢ`; one of
+///   the third differences of the setpoints sees at least half of it,
+///   `v²·|Δκᵢ|/(2·Ts)`, whatever the phase of the joint within a tick. The
+///   smooth part of the axis jerk in that difference may cancel some of it,
+///   at most `Jᵢ + |tᵢ|·J + 3·|κᵢ|·v·A + |C‴ᵢ|·v³` (the limit, the
+///   tangential jerk and acceleration terms, the curvature's own), so the
+///   joint is passed no faster than the largest `v` where the step fits in
+///   that ([`step_cap`]; a tangent break likewise, on the second and third
+///   differences).
+///
+/// The stops are those the program makes: a cusp inside a curve, where the
+/// tangent reverses, and those of [`stops_after`] (a junction the planner
+/// stops at, below `plan::stop_speed`, might be passed at a few mm/s: a
+/// few ms per such stop are the planner's rule, not the limits'). The laws
+/// are sampled on the optimum's grid as [`accel_only_optimum`] samples
+/// them (the bound holds to that sampling), so the bound is at least the
+/// optimum.
+pub fn jerk_aware_bound(blocks: &[Block], cfg: &InterpConfig) -> f64 {
+    jerk_aware_bound_with(blocks, cfg, BoundTerms::ALL)
+}
+
+/// Which of [`jerk_aware_bound`]'s tightenings to apply (the ramps at rests
+/// and slow points always): to see what each costs.
+#[derive(Debug, Clone, Copy)]
+pub struct BoundTerms {
+    /// The jerk-down before local top speeds (the passes after the first).
+    pub tops: bool,
+    /// The curvature steps' caps at C1 joints.
+    pub steps: bool,
+}
+
+impl BoundTerms {
+    /// All of them: [`jerk_aware_bound`].
+    pub const ALL: BoundTerms = BoundTerms {
+        tops: true,
+        steps: true,
+    };
+}
+
+/// [`jerk_aware_bound`] with only the tightenings of `terms`.
+pub fn jerk_aware_bound_with(blocks: &[Block], cfg: &InterpConfig, terms: BoundTerms) -> f64 {
+    let grid = bound_grid(blocks, cfg, terms.steps);
+    let passes = if terms.tops { MAX_PASSES } else { 1 };
+    envelope_time(&grid, cfg.max_path_accel, cfg.max_path_jerk, passes)
+}
+
+/// The optimum's grid (Δs, speed limit) with the nodes and caps of
+/// [`jerk_aware_bound`]: curvature-step caps at C1 joints, rests at the
+/// program's stops and cusps; and the limit inside each cell, where it is
+/// known. A line's laws are the same all along: it is at most
+/// [`LINE_CELLS`] cells with its limit inside (the flows are exact over any
+/// length), not the optimum's million for a move of metres.
+fn bound_grid(blocks: &[Block], cfg: &InterpConfig, steps: bool) -> Vec<(f64, f64, f64)> {
+    let laws = InterpConfig {
+        planning_margin: 0.0,
+        ..without_jerk(cfg)
+    };
+    let real = InterpConfig {
+        planning_margin: 0.0,
+        ..*cfg
+    };
+    let step_cap = |l: &Derivs, r: &Derivs| {
+        if steps {
+            step_cap(l, r, &real)
+        } else {
+            f64::INFINITY
+        }
+    };
+    let mut grid: Vec<(f64, f64, f64)> = vec![(0.0, 0.0, f64::INFINITY)];
+    for (i, b) in blocks.iter().enumerate() {
+        let path = &b.path;
+        if i > 0 {
+            let prev = &blocks[i - 1].path;
+            let (l, r) = (prev.eval(prev.u_end(), 3), path.eval(path.u_start(), 3));
+            let v = if stops_after(blocks, i - 1, cfg) {
+                0.0
+            } else {
+                // The optimum's junction, and the step's cap.
+                let v = junction_speed(&l, &r, &laws);
+                let v = if v < laws.junction_min_speed { 0.0 } else { v };
+                v.min(step_cap(&l, &r))
+            };
+            let last = grid.last_mut().unwrap();
+            last.1 = last.1.min(v);
+        }
+        let limit = |d: &Derivs| speed_limit(d, b.feed, b.mrr.as_ref(), &laws);
+        if let Path::Line(_) = path {
+            let v = limit(&path.eval(path.u_end(), 3));
+            let len = path.length();
+            let n = (len / REFERENCE_STEP).ceil().clamp(1.0, LINE_CELLS as f64) as usize;
+            grid.extend(std::iter::repeat_n((len / n as f64, v, v), n));
+            continue;
+        }
+        let marks = joint_marks(path, &real, limit, step_cap);
+        let len = path.length();
+        let n = (len / REFERENCE_STEP).ceil().max(1.0) as usize;
+        let (ua, ub) = (path.u_start(), path.u_end());
+        let mut u_prev = ua;
+        let mut m = 0;
+        for k in 1..=n {
+            let u = ua + (ub - ua) * k as f64 / n as f64;
+            // The joints between the previous node and this one first.
+            while m < marks.len() && marks[m].0 < u {
+                let (um, cap) = marks[m];
+                grid.push((path.arc_length(u_prev, um), cap, f64::INFINITY));
+                u_prev = um;
+                m += 1;
+            }
+            let ds = path.arc_length(u_prev, u);
+            grid.push((ds, limit(&path.eval(u, 3)), f64::INFINITY));
+            u_prev = u;
+        }
+    }
+    let last = grid.len() - 1;
+    grid[last].1 = 0.0;
+    grid
+}
+
+/// The joints inside a path where [`jerk_aware_bound`] caps the speed, in
+/// order: `(u, cap)`. Knots of a NURBS of continuity C1 or less (the laws
+/// of both sides, the step's cap, a rest where the planner stops at a
+/// tangent break) and its cusps (rests).
+pub(crate) fn joint_marks(
+    path: &Path,
+    cfg: &InterpConfig,
+    limit: impl Fn(&Derivs) -> f64,
+    step_cap: impl Fn(&Derivs, &Derivs) -> f64,
+) -> Vec<(f64, f64)> {
+    let Path::Nurbs(n) = path else {
+        return Vec::new();
+    };
+    let mut marks = Vec::new();
+    let (ua, ub) = (n.u_start(), n.u_end());
+    let stationary = |u: f64| n.is_stationary(u, Side::Before) || n.is_stationary(u, Side::After);
+    let p = n.degree();
+    let knots = n.knots();
+    let mut i = p + 1;
+    while i + p + 1 < knots.len() {
+        let u = knots[i];
+        let mut mult = 1;
+        while i + mult < knots.len() && knots[i + mult] == u {
+            mult += 1;
+        }
+        if u > ua && u < ub && mult + 1 >= p && !stationary(u) {
+            let (l, r) = (
+                n.eval_side(u, 3, Side::Before),
+                n.eval_side(u, 3, Side::After),
+            );
+            let stop = l.d1.normalize().dot(&r.d1.normalize()) < 1.0 - 1e-12
+                && junction_speed(&l, &r, cfg) < interp_core::plan::stop_speed(cfg);
+            let cap = if stop {
+                0.0
+            } else {
+                limit(&l).min(limit(&r)).min(step_cap(&l, &r))
+            };
+            marks.push((u, cap));
+        }
+        i += mult;
+    }
+    // A cusp (the tangent turns back) is a rest: the velocity is continuous.
+    n.for_each_stationary(0.0, |u| {
+        if n.tangent(u, Side::Before).dot(&n.tangent(u, Side::After)) < 0.0 {
+            marks.push((u, 0.0));
+        }
+    });
+    marks.sort_by(|a, b| a.0.total_cmp(&b.0));
+    marks
+}
+
+/// The fastest a joint from `left` to `right` derivatives may be passed
+/// by any schedule whose setpoints hold the axis limits of `cfg`, mm/s
+/// (infinity where no step binds below the top speed; see
+/// [`jerk_aware_bound`]). Each condition is `f(v) ≥ 0` with `f(0) > 0` and
+/// at most two positive roots, so where it fails at the top speed, the cap
+/// is its first root.
+pub fn step_cap(left: &Derivs, right: &Derivs, cfg: &InterpConfig) -> f64 {
+    let (Some(l), Some(r)) = (ArcLengthDerivs::new(left), ArcLengthDerivs::new(right)) else {
+        // At a stationary point the curvature is unbounded: no cap.
+        return f64::INFINITY;
+    };
+    let (ts, a, j) = (cfg.period, cfg.max_path_accel, cfg.max_path_jerk);
+    let top = cfg.max_path_speed;
+    let mut cap = f64::INFINITY;
+    for i in 0..3 {
+        let t = l.t[i].abs().max(r.t[i].abs());
+        let k = l.c_ss[i].abs().max(r.c_ss[i].abs());
+        let c = l.c_sss[i].abs().max(r.c_sss[i].abs());
+        let dt = (r.t[i] - l.t[i]).abs();
+        let dk = (r.c_ss[i] - l.c_ss[i]).abs();
+        let (ai, ji) = (cfg.axis_max_accel[i], cfg.axis_max_jerk[i]);
+        // The smooth jerk that may cancel part of a step in one difference.
+        let smooth = |v: f64| ji + t * j + 3.0 * k * v * a + c * v * v * v;
+        if dt > 0.0 {
+            // A velocity step `v·Δtᵢ`: at least half of it in one second
+            // difference (a step at a fraction φ of a tick splits φ, 1 − φ),
+            // and in one third difference (φ, 1 − 2φ, φ − 1).
+            cap = cap.min(first_root(
+                |v| ai + t * a + k * v * v - v * dt / (2.0 * ts),
+                top,
+            ));
+            cap = cap.min(first_root(
+                |v| smooth(v) + 0.75 * dk * v * v / ts - v * dt / (2.0 * ts * ts),
+                top,
+            ));
+        }
+        if dk > 0.0 {
+            // The curvature's step (its velocity step, if any, may cancel
+            // up to `v·Δtᵢ/Ts²` of it).
+            cap = cap.min(first_root(
+                |v| smooth(v) + v * dt / (ts * ts) - v * v * dk / (2.0 * ts),
+                top,
+            ));
+        }
+    }
+    cap
+}
+
+/// The root of `f` in `(0, top)` where `f(0) > 0 > f(top)`, else infinity.
+fn first_root(f: impl Fn(f64) -> f64, top: f64) -> f64 {
+    if f(top) >= 0.0 {
+        return f64::INFINITY;
+    }
+    let (mut lo, mut hi) = (0.0, top);
+    for _ in 0..100 {
+        let m = 0.5 * (lo + hi);
+        if f(m) >= 0.0 {
+            lo = m;
+        } else {
+            hi = m;
+        }
+    }
+    lo
+}
+
+/// A line is cut into at most this many cells of the bound's grid: the
+/// passes close in on its top speed faster than on one cell.
+const LINE_CELLS: usize = 64;
+
+/// Whether a cell with limit `inner` inside is long enough that the speed
+/// may rise well above both its ends (its time is then that of the flows
+/// to their meeting; the grid's short cells take the faster estimates).
+fn long_cell(inner: f64, d: f64) -> bool {
+    inner.is_finite() && d > 4.0 * REFERENCE_STEP
+}
+
+/// At most this many passes of [`envelope_time`] (it settles in a few on
+/// the corpus; a lone short line takes the most).
+const MAX_PASSES: usize = 64;
+
+/// The time of the speed envelope of `grid` (Δs, cap) under the tangential
+/// limits `a`, `j`: see [`jerk_aware_bound`].
+fn envelope_time(grid: &[(f64, f64, f64)], a: f64, j: f64, passes: usize) -> f64 {
+    let n = grid.len();
+    let ds: Vec<f64> = grid.iter().map(|g| g.0).collect();
+    let mut s = vec![0.0; n];
+    for i in 1..n {
+        s[i] = s[i - 1] + ds[i];
+    }
+    let caps: Vec<f64> = grid.iter().map(|g| g.1).collect();
+    let inner: Vec<f64> = grid.iter().map(|g| g.2).collect();
+    let mut w_fwd = vec![f64::INFINITY; n];
+    let mut w_bwd = vec![f64::INFINITY; n];
+    let mut best = 0.0f64;
+    let mut prev = f64::NAN;
+    for _ in 0..passes {
+        let v = sweep(&caps, &ds, &w_fwd, &w_bwd, a, j);
+        let t = cells_time(&v, &ds, &inner, &w_fwd, &w_bwd, a, j);
+        best = best.max(t);
+        if (t - prev).abs() <= 1e-7 * t {
+            break;
+        }
+        prev = t;
+        (w_fwd, w_bwd) = tops(&v, &s, &inner, (&w_fwd, &w_bwd), a, j);
+    }
+    best
+}
+
+/// Forward then backward: each node's speed at most its cap and what the
+/// flow allows from its neighbour.
+fn sweep(caps: &[f64], ds: &[f64], w_fwd: &[f64], w_bwd: &[f64], a: f64, j: f64) -> Vec<f64> {
+    let mut v = caps.to_vec();
+    for i in 0..v.len() - 1 {
+        v[i + 1] = v[i + 1].min(reach(v[i], v[i + 1], ds[i + 1], w_fwd[i], a, j));
+    }
+    for i in (0..v.len() - 1).rev() {
+        v[i] = v[i].min(reach(v[i + 1], v[i], ds[i + 1], w_bwd[i + 1], a, j));
+    }
+    v
+}
+
+/// Each cell's time from its end speeds: the larger of the trapezoid (as
+/// the optimum counts it) and the flow's time between them (exact where the
+/// flow binds: near a rest the trapezoid undercounts the ramp).
+fn cells_time(
+    v: &[f64],
+    ds: &[f64],
+    inner: &[f64],
+    w_fwd: &[f64],
+    w_bwd: &[f64],
+    a: f64,
+    j: f64,
+) -> f64 {
+    (1..v.len())
+        .map(|i| {
+            let (v0, v1, d) = (v[i - 1], v[i], ds[i]);
+            if d == 0.0 {
+                return 0.0;
+            }
+            if long_cell(inner[i], d) {
+                // A long cell with its limit inside: the flows to their
+                // meeting or to a cruise at the limit.
+                return crossing(v0, v1, d, inner[i], w_fwd[i - 1], w_bwd[i], a, j).1;
+            }
+            if v0 == 0.0 || v1 == 0.0 {
+                // From or to a rest: the flows' own time, to their meeting.
+                let t = crossing(v0, v1, d, f64::INFINITY, w_fwd[i - 1], w_bwd[i], a, j).1;
+                return if v0 + v1 > 0.0 {
+                    t.max(2.0 * d / (v0 + v1))
+                } else {
+                    t
+                };
+            }
+            let trapezoid = 2.0 * d / (v0 + v1);
+            let flow = if v1 > v0 {
+                let (x, t) = flow(v0, v1, w_fwd[i - 1], a, j);
+                t + (d - x).max(0.0) / v1
+            } else if v0 > v1 {
+                let (x, t) = flow(v1, v0, w_bwd[i], a, j);
+                t + (d - x).max(0.0) / v0
+            } else {
+                d / v0
+            };
+            trapezoid.max(flow)
+        })
+        .sum()
+}
+
+/// Where the forward flow from `v0` (top `wf`) meets the backward flow
+/// from `v1` (top `wb`) over a cell of `d` mm with the limit `inner`
+/// inside: the highest speed between them (s) and the time along the
+/// lower of the two (s).
+#[allow(clippy::too_many_arguments)]
+fn crossing(v0: f64, v1: f64, d: f64, inner: f64, wf: f64, wb: f64, a: f64, j: f64) -> (f64, f64) {
+    let lo = v0.max(v1);
+    let hi = wf
+        .min(wb)
+        .min(inner)
+        .min((0.5 * (v0 * v0 + v1 * v1) + a * d).sqrt())
+        .max(lo);
+    let both = |p: f64| {
+        let (xf, tf) = flow(v0, p, wf, a, j);
+        let (xb, tb) = flow(v1, p, wb, a, j);
+        (xf + xb, tf + tb)
+    };
+    let (x, t) = both(hi);
+    if x <= d {
+        // The flows reach the top before they meet: a plateau.
+        return (hi, if hi > 0.0 { t + (d - x) / hi } else { t });
+    }
+    let (mut lo, mut hi) = (lo, hi);
+    for _ in 0..200 {
+        let m = 0.5 * (lo + hi);
+        if m <= lo || m >= hi {
+            break;
+        }
+        if both(m).0 <= d {
+            lo = m;
+        } else {
+            hi = m;
+        }
+    }
+    (hi, both(hi).1)
+}
+
+/// The speed after `d` mm of the flow from `v0` (at most `cap`, which is
+/// returned when the flow reaches it).
+pub(crate) fn reach(v0: f64, cap: f64, d: f64, w: f64, a: f64, j: f64) -> f64 {
+    if cap <= v0 {
+        return cap;
+    }
+    // The flow's acceleration is at most `a`.
+    let hi = cap.min(w).min((v0 * v0 + 2.0 * a * d).sqrt());
+    if hi <= v0 {
+        return v0;
+    }
+    if flow(v0, hi, w, a, j).0 <= d {
+        return hi;
+    }
+    let (mut lo, mut hi) = (v0, hi);
+    for _ in 0..200 {
+        let m = 0.5 * (lo + hi);
+        if m <= lo || m >= hi {
+            break;
+        }
+        if flow(v0, m, w, a, j).0 <= d {
+            lo = m;
+        } else {
+            hi = m;
+        }
+    }
+    lo
+}
+
+/// Distance (mm) and time (s) of the flow `dv/dt = min(a, √(2jv), √(2j(w − v)))`
+/// from `v0` to `v1` (`v0 ≤ v1 ≤ w`): the ramp from rest, the constant
+/// acceleration, the ramp down to the top speed `w`.
+fn flow(v0: f64, v1: f64, w: f64, a: f64, j: f64) -> (f64, f64) {
+    let b = a * a / (2.0 * j);
+    let (p1, p2) = if w.is_finite() {
+        (b.min(0.5 * w), (w - b).max(0.5 * w))
+    } else {
+        (b, f64::INFINITY)
+    };
+    let (r2j, r2oj) = ((2.0 * j).sqrt(), (2.0 / j).sqrt());
+    let (mut x, mut t) = (0.0, 0.0);
+    // Ramp from rest: v = j·τ²/2.
+    let (x0, x1) = (v0.min(p1), v1.min(p1));
+    if x1 > x0 {
+        x += 2.0 / 3.0 * (x1 * x1.sqrt() - x0 * x0.sqrt()) / r2j;
+        t += r2oj * (x1.sqrt() - x0.sqrt());
+    }
+    // Constant acceleration.
+    let (x0, x1) = (v0.clamp(p1, p2), v1.clamp(p1, p2));
+    if x1 > x0 {
+        x += (x1 * x1 - x0 * x0) / (2.0 * a);
+        t += (x1 - x0) / a;
+    }
+    // Ramp down to `w`, in `q = w − v`.
+    if w.is_finite() {
+        let (x0, x1) = (v0.max(p2), v1.max(p2));
+        if x1 > x0 {
+            let (q0, q1) = ((w - x0).max(0.0), (w - x1).max(0.0));
+            let (r0, r1) = (q0.sqrt(), q1.sqrt());
+            x += (2.0 * w * (r0 - r1) - 2.0 / 3.0 * (q0 * r0 - q1 * r1)) / r2j;
+            t += r2oj * (r0 - r1);
+        }
+    }
+    (x, t)
+}
+
+/// The top speeds `W` of the next pass for each cell `(i, i + 1)`, indexed
+/// forward by `i` (the cell and the distance after it within which the
+/// acceleration can reach zero) and backward by `i + 1` (the cell and
+/// behind), from the node speeds `v` of the last pass and its tops. Between
+/// two nodes the speed may rise above both: as `dv/ds = g(v)/v` of the flow
+/// falls with `v` in each of its three parts, the flows from the two ends
+/// lie below their tangent lines, and the speed below where those meet (and
+/// below `√((v_i² + v_{i+1}²)/2 + a·Δs)`, where parabolas of acceleration `a`
+/// meet).
+fn tops(
+    v: &[f64],
+    s: &[f64],
+    inner: &[f64],
+    tops: (&[f64], &[f64]),
+    a: f64,
+    j: f64,
+) -> (Vec<f64>, Vec<f64>) {
+    let n = v.len();
+    let mut w_fwd = vec![f64::INFINITY; n];
+    let mut w_bwd = vec![f64::INFINITY; n];
+    if n < 2 {
+        return (w_fwd, w_bwd);
+    }
+    let peak: Vec<f64> = (0..n - 1)
+        .map(|c| {
+            let (v0, v1, d) = (v[c], v[c + 1], s[c + 1] - s[c]);
+            let parabolas = (0.5 * (v0 * v0 + v1 * v1) + a * d).sqrt();
+            // Slopes of the two flows at the ends, dv/ds.
+            let slope = |v: f64, w: f64| {
+                let g = a
+                    .min((2.0 * j * v).sqrt())
+                    .min((2.0 * j * (w - v).max(0.0)).sqrt());
+                g / v
+            };
+            let (k0, k1) = (slope(v0, tops.0[c]), slope(v1, tops.1[c + 1]));
+            let (wf, wb) = (tops.0[c], tops.1[c + 1]);
+            if long_cell(inner[c + 1], d) {
+                return crossing(v0, v1, d, inner[c + 1], wf, wb, a, j).0;
+            }
+            let lines = if k0.is_finite() && k1.is_finite() {
+                let x = ((v1 - v0 + k1 * d) / (k0 + k1)).clamp(0.0, d);
+                (v0 + k0 * x).max(v1 + k1 * (d - x))
+            } else {
+                // From a rest the slope is infinite: the flows' meeting.
+                crossing(v0, v1, d, f64::INFINITY, wf, wb, a, j).0
+            };
+            parabolas.min(lines).min(inner[c + 1]).max(v0).max(v1)
+        })
+        .collect();
+    let table = RangeMax::new(&peak);
+    let last = n - 2;
+    for i in 0..n - 1 {
+        // The acceleration reaches zero within `τ` s at most.
+        let tau = a.min((2.0 * j * peak[i]).sqrt()) / j;
+        // Forward: cells i..=hi, those within `τ·W` after the cell.
+        let mut hi = i;
+        loop {
+            let m = table.max(i, hi);
+            let end = s[i + 1] + tau * m;
+            let next = (s.partition_point(|&x| x < end).max(1) - 1).clamp(i, last);
+            if next <= hi {
+                w_fwd[i] = m;
+                break;
+            }
+            hi = next;
+        }
+        // Backward: cells lo..=i, those within `τ·W` before the cell.
+        let mut lo = i;
+        loop {
+            let m = table.max(lo, i);
+            let start = s[i] - tau * m;
+            let next = (s.partition_point(|&x| x <= start).max(1) - 1).min(i);
+            if next >= lo {
+                w_bwd[i + 1] = m;
+                break;
+            }
+            lo = next;
+        }
+    }
+    (w_fwd, w_bwd)
+}
+
+/// Maxima of index ranges of a slice (a segment tree: two words a value,
+/// as the grid of a move of metres has millions of nodes).
+struct RangeMax {
+    n: usize,
+    tree: Vec<f64>,
+}
+
+impl RangeMax {
+    fn new(v: &[f64]) -> Self {
+        let n = v.len();
+        let mut tree = vec![f64::NEG_INFINITY; 2 * n];
+        tree[n..].copy_from_slice(v);
+        for i in (1..n).rev() {
+            tree[i] = tree[2 * i].max(tree[2 * i + 1]);
+        }
+        RangeMax { n, tree }
+    }
+
+    /// The largest of `v[lo..=hi]`.
+    fn max(&self, lo: usize, hi: usize) -> f64 {
+        let (mut l, mut r) = (lo + self.n, hi + self.n + 1);
+        let mut m = f64::NEG_INFINITY;
+        while l < r {
+            if l & 1 == 1 {
+                m = m.max(self.tree[l]);
+                l += 1;
+            }
+            if r & 1 == 1 {
+                r -= 1;
+                m = m.max(self.tree[r]);
+            }
+            l /= 2;
+            r /= 2;
+        }
+        m
+    }
 }

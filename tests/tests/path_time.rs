@@ -1,10 +1,14 @@
 //! Issue 9: path time against the acceleration-only optimum, on the bundled
-//! butterfly (the corpus curves run with the `path_time` example).
+//! butterfly (the corpus curves run with the `path_time` example); issue
+//! 15: the lower bound of any jerk-limited schedule between the two.
 
+use interp_core::Curve;
 use interp_core::path::{Block, Path};
 use interp_core::samples::butterfly;
 use interp_core::{InterpConfig, nurbs::split_program_curve};
-use interpd_tests::path_time::{accel_only_optimum, path_times};
+use interpd_tests::path_time::{
+    PathTimes, accel_only_optimum, jerk_aware_bound, path_times, rest_to_rest, step_cap,
+};
 
 /// The issue's target: total path time ≤ 1.10 × the acceleration-only optimum.
 const TARGET_RATIO: f64 = 1.10;
@@ -38,6 +42,7 @@ fn butterfly_at_its_program_feed_is_within_the_target_of_the_optimum() {
     );
     assert!(t.optimum <= t.ours, "the optimum is a lower bound: {t:?}");
     assert!(t.optimum <= t.trapezoid, "{t:?}");
+    assert_bound_between(&t);
     assert!(
         t.ours <= TARGET_RATIO * t.optimum,
         "ratio {} {t:?}",
@@ -58,6 +63,7 @@ fn at_high_feed_jerk_limits_cost_time_but_the_order_holds() {
         t.ours / t.optimum
     );
     assert!(t.optimum <= t.trapezoid && t.trapezoid <= t.ours, "{t:?}");
+    assert_bound_between(&t);
     // The trapezoidal schedule of the core issue is near the optimum.
     assert!(t.trapezoid <= TARGET_RATIO * t.optimum, "{t:?}");
 }
@@ -73,4 +79,142 @@ fn optimum_of_a_line_is_the_trapezoid_formula() {
     // Accelerate to F, cruise, brake: L/F + F/A.
     let want = l / f + f / a;
     assert!((t - want).abs() < 1e-3 * want, "{t} vs {want}");
+}
+
+/// The jerk-aware bound lies between the acceleration-only optimum and our
+/// jerk-limited time, and above the optimum by at least the ramps of the
+/// two rests (a start and an end cost `a/j` each, at least, on any curve
+/// fast enough to reach `a`: here the ramps from rest to a few mm/s).
+fn assert_bound_between(t: &PathTimes) {
+    assert!(t.optimum < t.bound, "{t:?}");
+    assert!(t.bound <= t.ours, "the bound is above our time: {t:?}");
+}
+
+fn line(from: [f64; 3], to: [f64; 3]) -> interp_core::path::Path {
+    use interp_core::geom::Vec3;
+    use interp_core::path::Line;
+    let v = |p: [f64; 3]| Vec3::new(p[0], p[1], p[2]);
+    Path::Line(Line::new(v(from), v(to)).unwrap())
+}
+
+#[test]
+fn bound_of_a_line_is_the_seven_phase_rest_to_rest_time() {
+    let cfg = InterpConfig::default();
+    let (a, j) = (cfg.max_path_accel, cfg.max_path_jerk);
+    // A cruise at the feed (50 mm): the seven-phase time. A peak below the
+    // feed (2 mm), a peak below a²/j, never at full acceleration (0.5 mm),
+    // a micro-move: the passes close in on the peak from above, to within
+    // a few tenths of a percent (and never past it).
+    for (l, f, tol) in [
+        (50.0, 100.0, 1e-4),
+        (2.0, 100.0, 5e-3),
+        (0.5, 100.0, 5e-3),
+        (0.001, 100.0, 5e-3),
+    ] {
+        let blocks = [Block::new(1, line([0.0; 3], [l, 0.0, 0.0]), f)];
+        let bound = jerk_aware_bound(&blocks, &cfg);
+        let want = rest_to_rest(l, f, a, j);
+        let opt = accel_only_optimum(&blocks, &cfg);
+        eprintln!("line {l} mm: bound {bound} s, seven-phase {want} s, optimum {opt} s");
+        assert!(bound <= want * (1.0 + 1e-6), "{l} mm: {bound} vs {want}");
+        assert!(bound >= want * (1.0 - tol), "{l} mm: {bound} vs {want}");
+        assert!(opt < bound, "{l} mm: {opt} vs {bound}");
+    }
+}
+
+#[test]
+fn bound_of_a_gentle_arc_is_the_seven_phase_time_on_the_fine_grid() {
+    // A line is one cell of the bound's grid; an arc is sampled every 5 µm
+    // like a curve. Radius 1 m: only the feed binds, as on a line.
+    use interp_core::geom::Vec3;
+    use interp_core::path::Arc;
+    let cfg = InterpConfig::default();
+    let r = 1000.0;
+    let (s, c) = (50.0f64 / r).sin_cos();
+    let arc = Arc::from_centre(
+        Vec3::new(0.0, 0.0, 0.0),
+        Vec3::new(r * s, r - r * c, 0.0),
+        Vec3::new(0.0, r, 0.0),
+        Vec3::z(),
+        0,
+    )
+    .unwrap();
+    let blocks = [Block::new(1, Path::Arc(arc), 100.0)];
+    let bound = jerk_aware_bound(&blocks, &cfg);
+    let want = rest_to_rest(50.0, 100.0, cfg.max_path_accel, cfg.max_path_jerk);
+    assert!((bound - want).abs() < 1e-4 * want, "{bound} vs {want}");
+}
+
+#[test]
+fn rest_to_rest_without_jerk_is_the_trapezoid() {
+    // Accelerate to F, cruise, brake: L/F + F/A; and the triangle 2·√(L/A).
+    let (a, inf) = (2000.0, f64::INFINITY);
+    assert!((rest_to_rest(50.0, 100.0, a, inf) - (0.5 + 0.05)).abs() < 1e-12);
+    assert!((rest_to_rest(1.0, 100.0, a, inf) - 2.0 * (1.0 / a).sqrt()).abs() < 1e-12);
+    // Jerk adds a/j to a move that cruises.
+    let j = 1e5;
+    let d = rest_to_rest(50.0, 100.0, a, j) - rest_to_rest(50.0, 100.0, a, inf);
+    assert!((d - a / j).abs() < 1e-12, "{d}");
+}
+
+/// A line into a tangent arc of radius `r` (along X, turning towards +Y).
+fn line_into_arc(r: f64, feed: f64) -> Vec<Block> {
+    use interp_core::geom::Vec3;
+    use interp_core::path::Arc;
+    let arc = Arc::from_centre(
+        Vec3::new(10.0, 0.0, 0.0),
+        Vec3::new(10.0 + r, r, 0.0),
+        Vec3::new(10.0, r, 0.0),
+        Vec3::z(),
+        0,
+    )
+    .unwrap();
+    vec![
+        Block::new(1, line([0.0; 3], [10.0, 0.0, 0.0]), feed),
+        Block::new(2, Path::Arc(arc), feed),
+    ]
+}
+
+#[test]
+fn the_step_cap_of_a_line_into_an_arc_is_the_lower_bound_formula() {
+    // Y's acceleration steps by v²/r; half of it in one third difference,
+    // less what the smooth jerk can cancel there, J + 3·v·A/r (t_y = 0,
+    // no C‴ in Y at the joint): v² − 6·A·Ts·v − 2·r·Ts·J = 0.
+    let cfg = InterpConfig::default();
+    let r = 5.0;
+    let blocks = line_into_arc(r, 100.0);
+    let (l, rt) = (&blocks[0].path, &blocks[1].path);
+    let (dl, dr) = (l.eval(l.u_end(), 3), rt.eval(rt.u_start(), 3));
+    let cap = step_cap(&dl, &dr, &cfg);
+    let (a, ts, j) = (cfg.max_path_accel, cfg.period, cfg.axis_max_jerk[1]);
+    let want = 3.0 * a * ts + (9.0 * a * a * ts * ts + 2.0 * r * ts * j).sqrt();
+    assert!((cap - want).abs() < 1e-9 * want, "{cap} vs {want}");
+    // The planner's own (conservative) junction is slower.
+    let planner = interp_core::feed::junction_speed(&dl, &dr, &cfg);
+    assert!(planner < cap, "{planner} vs {cap}");
+}
+
+#[test]
+fn the_bound_holds_below_our_time_where_steps_and_stops_bind() {
+    let cfg = InterpConfig::default();
+    // A curvature step passed at speed; corners of G61 lines (stops).
+    let mut corners = Vec::new();
+    let pts = [
+        [0.0, 0.0, 0.0],
+        [5.0, 0.0, 0.0],
+        [5.0, 3.0, 0.0],
+        [1.0, 4.0, 1.0],
+        [0.2, 0.1, 0.0],
+    ];
+    for (k, w) in pts.windows(2).enumerate() {
+        corners.push(Block::new(k as u32 + 1, line(w[0], w[1]), 80.0));
+    }
+    for (name, blocks) in [
+        ("line into arc", line_into_arc(5.0, 100.0)),
+        ("corners", corners),
+    ] {
+        let t = path_times(&blocks, &cfg).unwrap();
+        eprintln!("{name}: {t:?}");
+        assert_bound_between(&t);
+    }
 }

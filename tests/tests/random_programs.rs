@@ -17,43 +17,15 @@
 //! ```
 
 use gcode::CoreOptions;
-use interp_core::geom::Curve;
 use interp_core::smooth::Policy;
 use interp_core::{InterpConfig, Vec3};
-use interpd_tests::path_time::{accel_only_optimum, interpolated_run_within, smoothed};
+use interpd_tests::path_time::{
+    accel_only_optimum, interpolated_run_within, jerk_aware_bound, smoothed, stop_allowance,
+};
 use proptest::prelude::*;
 
 /// Bound on path time / reference (below).
 const RATIO_BOUND: f64 = 2.0;
-
-/// Shortest time of a rest-to-rest move of `d` mm along a line at speed,
-/// acceleration and jerk limits `v`, `a`, `j` (the symmetric seven-phase
-/// profile; `j = ∞` gives the trapezoid). Each half accelerates from rest to
-/// the peak speed `w` in `w/a + a/j` (or `2·√(w/j)` below `a²/j`), covering
-/// `w·t/2`.
-fn rest_to_rest(d: f64, v: f64, a: f64, j: f64) -> f64 {
-    let ramp = |w: f64| {
-        if w * j >= a * a {
-            w / a + a / j
-        } else {
-            2.0 * (w / j).sqrt()
-        }
-    };
-    if v * ramp(v) <= d {
-        return 2.0 * ramp(v) + (d - v * ramp(v)) / v;
-    }
-    // The peak speed where the two halves meet: bisection on w·ramp(w) = d.
-    let (mut lo, mut hi) = (0.0, v);
-    for _ in 0..100 {
-        let w = 0.5 * (lo + hi);
-        if w * ramp(w) < d {
-            lo = w;
-        } else {
-            hi = w;
-        }
-    }
-    2.0 * ramp(0.5 * (lo + hi))
-}
 
 struct Rng(u64);
 
@@ -145,29 +117,10 @@ fn check_text(
     assert_eq!(blocks.len(), moves, "{what}: zero-length moves are skipped");
     let (out, _) = smoothed(&blocks, &cfg, Policy::Auto);
     let optimum = accel_only_optimum(&out, &cfg);
-    // What jerk limits cost at least beyond the acceleration-only optimum:
-    // each stretch between two stops the schedule must make (every block
-    // under G61; else a junction slower than a stop, as the planner treats
-    // it) run rest to rest, jerk-limited against acceleration-only, plus a
-    // tick at each stop (a stop lands on a setpoint).
-    let (a, j) = (cfg.max_path_accel, cfg.max_path_jerk);
-    let mut allowance = 0.0;
-    let (mut stretch, mut top, mut stops) = (0.0, 0.0f64, 0);
-    for (k, b) in out.iter().enumerate() {
-        stretch += b.path.length();
-        top = top.max(b.feed.min(cfg.max_path_speed));
-        let stop = match out.get(k + 1) {
-            None => true,
-            Some(next) => exact || junction_slower_than_a_stop(&b.path, &next.path, &cfg),
-        };
-        if stop {
-            allowance += rest_to_rest(stretch, top, a, j)
-                - rest_to_rest(stretch, top, a, f64::INFINITY)
-                + cfg.period;
-            stops += 1;
-            (stretch, top) = (0.0, 0.0);
-        }
-    }
+    // What jerk limits cost at the stops the schedule must make (every
+    // block under G61; else a junction slower than a stop, as the planner
+    // treats it): `path_time::stop_allowance`.
+    let (allowance, stops) = stop_allowance(&out, &cfg, exact);
     let bound = RATIO_BOUND * (optimum + allowance);
     // Ticks past the bound fail the run (an error) instead of running on.
     let max_ticks = (bound / cfg.period).ceil() as u64 + 2;
@@ -176,18 +129,17 @@ fn check_text(
     let last = *setpoints.last().unwrap();
     assert_eq!(last, *pts.last().unwrap(), "{what}: ends on its last point");
     assert!(ours <= bound, "{what}: {ours} s against bound {bound} s");
+    // And no faster than any jerk-limited schedule can be (up to 10⁴
+    // moves: the bound's passes take ten minutes on 10⁵, 30× the run).
+    if out.len() <= 20_000 {
+        let lower = jerk_aware_bound(&out, &cfg);
+        assert!(
+            lower <= ours,
+            "{what}: {ours} s below the lower bound {lower} s"
+        );
+        eprintln!("{what}: ours/lower bound {:.3}", ours / lower);
+    }
     (ours, optimum + allowance, out.len(), stops)
-}
-
-/// Whether the junction of `a` to `b` is slower than a stop (the planner
-/// stops there: `plan::stop_speed`).
-fn junction_slower_than_a_stop(
-    a: &interp_core::Path,
-    b: &interp_core::Path,
-    cfg: &InterpConfig,
-) -> bool {
-    interp_core::feed::junction_speed(&a.eval(a.u_end(), 3), &b.eval(b.u_start(), 3), cfg)
-        < interp_core::plan::stop_speed(cfg)
 }
 
 proptest! {

@@ -1,0 +1,78 @@
+//! Our path time on each program's first NURBS curve next to the
+//! acceleration-only optimum, the jerk-aware lower bound and a feasible
+//! jerk-limited reference schedule by sequential linear programming
+//! (`interpd_tests::scp`): an upper reference of what a planner can reach.
+//!
+//! ```text
+//! cargo run --release -p interpd-tests --features scp --example scp_reference -- \
+//!     [--feed MM_PER_MIN] [--step MM] [--iterations N] FILE.ngc...
+//! ```
+//!
+//! `--step` is the reference's grid (0.1 mm), `--iterations` the most
+//! linear programs (30; it stops once one gains under 1e-5). Prints, times
+//! in s: ours, optimum, bound, the first and the last iterate of the
+//! reference, the number of programs and grid nodes, and ours over each.
+
+use std::path::PathBuf;
+
+use interp_core::InterpConfig;
+use interp_core::smooth::Policy;
+use interpd_tests::path_time::{
+    accel_only_optimum, first_curve, interpolated_time, jerk_aware_bound, load_program, smoothed,
+};
+use interpd_tests::scp::scp_reference;
+
+fn main() {
+    let mut args: Vec<String> = std::env::args().skip(1).collect();
+    let mut flag = |name: &str| {
+        let i = args.iter().position(|a| a == name)?;
+        let v = args.get(i + 1).cloned();
+        args.drain(i..(i + 2).min(args.len()));
+        v
+    };
+    let feed = flag("--feed").and_then(|v| v.parse::<f64>().ok());
+    let step = flag("--step")
+        .and_then(|v| v.parse::<f64>().ok())
+        .unwrap_or(0.1);
+    let iterations = flag("--iterations")
+        .and_then(|v| v.parse::<usize>().ok())
+        .unwrap_or(30);
+    let cfg = InterpConfig::default();
+    println!(
+        "program | ours s | optimum s | bound s | scp first s | scp s | programs | nodes | ours/opt | ours/bound | ours/scp | scp/opt"
+    );
+    for f in args.iter().map(PathBuf::from) {
+        let name = f
+            .file_name()
+            .unwrap_or_default()
+            .to_string_lossy()
+            .to_string();
+        let run = || -> Result<String, String> {
+            let curve = first_curve(&load_program(&f, feed, None)?);
+            if curve.is_empty() {
+                return Err("no NURBS curve".into());
+            }
+            let (out, _) = smoothed(&curve, &cfg, Policy::Auto);
+            let ours = interpolated_time(&out, &cfg)?;
+            let opt = accel_only_optimum(&out, &cfg);
+            let bound = jerk_aware_bound(&out, &cfg);
+            let r = scp_reference(&out, &cfg, step, iterations)?;
+            let (first, last) = (r.times[0], *r.times.last().unwrap_or(&f64::NAN));
+            Ok(format!(
+                "{name} | {ours:.3} | {opt:.3} | {bound:.3} | {first:.3} | {last:.3} | {} | {} | {:.4} | {:.4} | {:.4} | {:.4}",
+                r.times.len(),
+                r.nodes,
+                ours / opt,
+                ours / bound,
+                ours / last,
+                last / opt,
+            ))
+        };
+        match run() {
+            Ok(line) => println!("{line}"),
+            // (The others still run: a linear program the solver cannot
+            // finish is a fact about that curve and grid.)
+            Err(e) => println!("{name} | failed: {e}"),
+        }
+    }
+}
