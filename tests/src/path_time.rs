@@ -32,6 +32,20 @@ use crate::polyline::Polyline;
 /// Grid spacing of the reference integration, mm.
 pub const REFERENCE_STEP: f64 = 0.005;
 
+/// The machine's real limits: `cfg` without its planning margin.
+pub fn real_limits(cfg: &InterpConfig) -> InterpConfig {
+    InterpConfig {
+        planning_margin: 0.0,
+        ..*cfg
+    }
+}
+
+/// The pointwise laws of the references: the real limits with jerk
+/// switched off.
+pub fn reference_laws(cfg: &InterpConfig) -> InterpConfig {
+    real_limits(&without_jerk(cfg))
+}
+
 /// The configuration with jerk limits switched off (acceleration only).
 pub fn without_jerk(cfg: &InterpConfig) -> InterpConfig {
     InterpConfig {
@@ -46,10 +60,7 @@ pub fn without_jerk(cfg: &InterpConfig) -> InterpConfig {
 /// Minimum path time (s) of `blocks` under the acceleration-only limits of
 /// `cfg` (jerk ignored, no planning margin).
 pub fn accel_only_optimum(blocks: &[Block], cfg: &InterpConfig) -> f64 {
-    let laws = InterpConfig {
-        planning_margin: 0.0,
-        ..without_jerk(cfg)
-    };
+    let laws = reference_laws(cfg);
     // (Δs from the previous point, speed limit) along the whole program.
     let mut grid: Vec<(f64, f64)> = vec![(0.0, 0.0)];
     for (i, b) in blocks.iter().enumerate() {
@@ -467,14 +478,8 @@ pub fn jerk_aware_bound_with(blocks: &[Block], cfg: &InterpConfig, terms: BoundT
 /// [`LINE_CELLS`] cells with its limit inside (the flows are exact over any
 /// length), not the optimum's million for a move of metres.
 fn bound_grid(blocks: &[Block], cfg: &InterpConfig, steps: bool) -> Vec<(f64, f64, f64)> {
-    let laws = InterpConfig {
-        planning_margin: 0.0,
-        ..without_jerk(cfg)
-    };
-    let real = InterpConfig {
-        planning_margin: 0.0,
-        ..*cfg
-    };
+    let laws = reference_laws(cfg);
+    let real = real_limits(cfg);
     let step_cap = |l: &Derivs, r: &Derivs| {
         if steps {
             step_cap(l, r, &real)

@@ -36,7 +36,9 @@ use interp_core::feed::{ArcLengthDerivs, junction_speed, speed_limit};
 use interp_core::geom::{Curve, Derivs};
 use interp_core::path::Block;
 
-use crate::path_time::{REFERENCE_STEP, joint_marks, reach, stops_after, without_jerk};
+use crate::path_time::{
+    REFERENCE_STEP, joint_marks, reach, real_limits, reference_laws, stops_after,
+};
 
 /// The reference's path time, s, after each linear program (the first
 /// entry is the first feasible iterate; the last the reference).
@@ -206,14 +208,8 @@ fn path_time(s: &[f64], h: f64) -> f64 {
 
 /// The laws on the optimum's 5 µm grid, with the planner's junctions.
 fn sample(blocks: &[Block], cfg: &InterpConfig) -> Vec<Sample> {
-    let laws = InterpConfig {
-        planning_margin: 0.0,
-        ..without_jerk(cfg)
-    };
-    let real = InterpConfig {
-        planning_margin: 0.0,
-        ..*cfg
-    };
+    let laws = reference_laws(cfg);
+    let real = real_limits(cfg);
     let mut out = vec![Sample {
         s: 0.0,
         cap: 0.0,
