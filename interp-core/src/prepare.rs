@@ -516,14 +516,11 @@ impl BlockPlanner {
 
     /// Plan `block` (a part of at most a chunk) onto the queue. All or
     /// nothing: a refused block leaves the window as it was, so that the
-    /// next attempt (the caller retries while the look-ahead is full)
-    /// samples it afresh.
-    ///
-    /// The same part asked for again before anything it depends on moved
-    /// (the caller retries every tick while the look-ahead is full) gets
-    /// the same answer without planning it again: planning is a function
-    /// of the window, the queue end, and where the machine is among the
-    /// pieces, intervals and rest points.
+    /// next attempt (the caller retries every tick while the look-ahead is
+    /// full) samples it afresh. Asked for again before anything it depends
+    /// on moved, it gets the same answer without planning it again:
+    /// planning is a function of the window, the queue end, and where the
+    /// machine is among the pieces, intervals and rest points.
     fn plan_part(&mut self, block: &Block, out: &mut PlannedBlock) -> Result<(), PushError> {
         let key = Refusal {
             block: *block,

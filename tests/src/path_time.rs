@@ -76,18 +76,11 @@ pub fn accel_only_optimum(blocks: &[Block], cfg: &InterpConfig) -> f64 {
             let last = grid.last_mut().unwrap();
             last.1 = last.1.min(v);
         }
-        let len = path.length();
-        let n = (len / REFERENCE_STEP).ceil().max(1.0) as usize;
-        let (ua, ub) = (path.u_start(), path.u_end());
-        let mut u_prev = ua;
-        for k in 1..=n {
-            // Uniform in u is fine: the grid only needs to be fine, and Δs is exact.
-            let u = ua + (ub - ua) * k as f64 / n as f64;
-            let ds = path.arc_length(u_prev, u);
-            let v = speed_limit(&path.eval(u, 3), b.feed, b.mrr.as_ref(), &laws);
-            grid.push((ds, v));
-            u_prev = u;
-        }
+        walk_grid(path, &[], |ds, node| {
+            if let GridNode::Node(d) = node {
+                grid.push((ds, speed_limit(&d, b.feed, b.mrr.as_ref(), &laws)));
+            }
+        });
     }
     let last = grid.len() - 1;
     grid[last].1 = 0.0;
@@ -513,28 +506,54 @@ fn bound_grid(blocks: &[Block], cfg: &InterpConfig, steps: bool) -> Vec<(f64, f6
             continue;
         }
         let marks = joint_marks(path, &real, limit, step_cap);
-        let len = path.length();
-        let n = (len / REFERENCE_STEP).ceil().max(1.0) as usize;
-        let (ua, ub) = (path.u_start(), path.u_end());
-        let mut u_prev = ua;
-        let mut m = 0;
-        for k in 1..=n {
-            let u = ua + (ub - ua) * k as f64 / n as f64;
-            // The joints between the previous node and this one first.
-            while m < marks.len() && marks[m].0 < u {
-                let (um, cap) = marks[m];
-                grid.push((path.arc_length(u_prev, um), cap, f64::INFINITY));
-                u_prev = um;
-                m += 1;
-            }
-            let ds = path.arc_length(u_prev, u);
-            grid.push((ds, limit(&path.eval(u, 3)), f64::INFINITY));
-            u_prev = u;
-        }
+        walk_grid(path, &marks, |ds, node| {
+            let cap = match node {
+                GridNode::Joint(cap) => cap,
+                GridNode::Node(d) => limit(&d),
+            };
+            grid.push((ds, cap, f64::INFINITY));
+        });
     }
     let last = grid.len() - 1;
     grid[last].1 = 0.0;
     grid
+}
+
+/// A point of [`walk_grid`].
+pub(crate) enum GridNode {
+    /// A joint of [`joint_marks`], with its cap.
+    Joint(f64),
+    /// A grid node, with the path's derivatives there (order 3).
+    Node(Derivs),
+}
+
+/// Walk `path` on the references' grid: [`REFERENCE_STEP`] apart, uniform
+/// in `u` (the grid only needs to be fine, and `Δs` is exact), with the
+/// joints `marks` (`(u, cap)`, in order) between the nodes they fall
+/// between. `visit` gets each point's arc length from the previous one
+/// (from the path's start for the first). Returns the path's length.
+pub(crate) fn walk_grid(
+    path: &Path,
+    marks: &[(f64, f64)],
+    mut visit: impl FnMut(f64, GridNode),
+) -> f64 {
+    let len = path.length();
+    let n = (len / REFERENCE_STEP).ceil().max(1.0) as usize;
+    let (ua, ub) = (path.u_start(), path.u_end());
+    let mut u_prev = ua;
+    let mut m = 0;
+    for k in 1..=n {
+        let u = ua + (ub - ua) * k as f64 / n as f64;
+        while m < marks.len() && marks[m].0 < u {
+            let (um, cap) = marks[m];
+            visit(path.arc_length(u_prev, um), GridNode::Joint(cap));
+            u_prev = um;
+            m += 1;
+        }
+        visit(path.arc_length(u_prev, u), GridNode::Node(path.eval(u, 3)));
+        u_prev = u;
+    }
+    len
 }
 
 /// The joints inside a path where [`jerk_aware_bound`] caps the speed, in

@@ -37,7 +37,7 @@ use interp_core::geom::{Curve, Derivs};
 use interp_core::path::Block;
 
 use crate::path_time::{
-    REFERENCE_STEP, joint_marks, reach, real_limits, reference_laws, stops_after,
+    GridNode, joint_marks, reach, real_limits, reference_laws, stops_after, walk_grid,
 };
 
 /// The reference's path time, s, after each linear program (the first
@@ -239,39 +239,26 @@ fn sample(blocks: &[Block], cfg: &InterpConfig) -> Vec<Sample> {
         }
         let limit = |d: &Derivs| speed_limit(d, b.feed, b.mrr.as_ref(), &laws);
         let marks = joint_marks(path, &real, limit, |l, r| junction_speed(l, r, &real));
-        let len = path.length();
-        let m = (len / REFERENCE_STEP).ceil().max(1.0) as usize;
-        let (ua, ub) = (path.u_start(), path.u_end());
-        let mut u_prev = ua;
         let mut s = s0;
-        let mut j = 0;
-        for k in 1..=m {
-            let u = ua + (ub - ua) * k as f64 / m as f64;
-            while j < marks.len() && marks[j].0 < u {
-                let (um, c) = marks[j];
-                s += path.arc_length(u_prev, um);
-                out.push(Sample {
+        s0 += walk_grid(path, &marks, |ds, node| {
+            s += ds;
+            out.push(match node {
+                GridNode::Joint(c) => Sample {
                     s,
                     cap: c,
                     d: None,
                     rest: c == 0.0,
                     point: true,
-                });
-                u_prev = um;
-                j += 1;
-            }
-            s += path.arc_length(u_prev, u);
-            let d = path.eval(u, 3);
-            out.push(Sample {
-                s,
-                cap: limit(&d),
-                d: ArcLengthDerivs::new(&d),
-                rest: false,
-                point: false,
+                },
+                GridNode::Node(d) => Sample {
+                    s,
+                    cap: limit(&d),
+                    d: ArcLengthDerivs::new(&d),
+                    rest: false,
+                    point: false,
+                },
             });
-            u_prev = u;
-        }
-        s0 += len;
+        });
     }
     out
 }
