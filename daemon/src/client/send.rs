@@ -7,7 +7,8 @@
 //! to where the machine is or to the origin). `start` is sent (on a second
 //! connection) as soon as the server stops answering for [`STALL`] (its
 //! queue is full: the program is longer than the look-ahead) or after the
-//! whole program was accepted, whichever comes first; so a program that fits
+//! whole program was accepted, whichever comes first (a `start` refused
+//! because no block is in yet is sent again); so a program that fits
 //! runs exactly as `simulate` would. It then follows *its* program and exits
 //! non-zero unless that program reached `done`. Ctrl-C sends `hold`, then
 //! `abort`.
@@ -99,18 +100,18 @@ impl SendOptions {
 }
 
 /// Sends `start` on a connection of its own (authenticated like the stream).
-async fn start_aside(args: &SendOptions) -> Result<()> {
+/// Returns why the server refused it, if it did.
+async fn start_aside(args: &SendOptions) -> Result<Option<String>> {
     let mut c = connect(&args.endpoint())
         .await
         .context("connecting for start")?;
     if let Some(t) = &args.token {
         c.auth(t).await?;
     }
-    if let Reply::Err { problem, .. } = c.request("start").await? {
-        // Not fatal: the program's own end decides how `send` exits.
-        eprintln!("interpd send: {problem}");
-    }
-    Ok(())
+    Ok(match c.request("start").await? {
+        Reply::Err { problem, .. } => Some(problem),
+        _ => None,
+    })
 }
 
 /// How a `send` ended.
@@ -251,9 +252,11 @@ pub async fn stream<S: AsyncRead + AsyncWrite + Unpin>(
                     // `start` goes over a second connection: on this one it
                     // would wait behind the block the server is holding
                     // until the queue drains, which needs `start`.
+                    // A slow answer to the first block is no full queue:
+                    // `start` is refused then (no blocks yet) and tried
+                    // again at the next stall or after the last block.
                     if !started {
-                        start_aside(args).await?;
-                        started = true;
+                        started = start_aside(args).await?.is_none();
                     }
                 }
                 Ok(reply) => {
@@ -380,5 +383,140 @@ pub async fn stream<S: AsyncRead + AsyncWrite + Unpin>(
                 return Ok((Outcome::Interrupted, json(&st)));
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::{Arc, Mutex};
+    use tokio::io::{AsyncBufReadExt, AsyncWriteExt, BufReader};
+
+    /// What the stand-in server saw.
+    #[derive(Default)]
+    struct Seen {
+        blocks: u32,
+        started: bool,
+        ended: bool,
+        refused_starts: u32,
+    }
+
+    fn status(seen: &Seen) -> StatusReply {
+        let phase = match (seen.ended, seen.started) {
+            (true, true) => "done",
+            (true, false) => "ended",
+            _ => "open",
+        };
+        serde_json::from_value(serde_json::json!({
+            "state": if seen.started { "done" } else { "idle" },
+            "started": seen.started, "finished": seen.ended,
+            "program": 1, "program_phase": phase, "program_owner": null,
+            "machine_program": 1, "ticks": 0, "published": 0, "block_id": 0,
+            "position": [0.0, 0.0, 0.0], "feed": 0.0, "s": 0.0,
+            "feed_override": 1.0, "max_path_speed": 100.0, "queued_segments": 0,
+            "blocks_accepted": seen.blocks, "pieces_pushed": 0, "pieces_refused": 0,
+            "last_refusal": null, "line_errors": 0, "overruns": 0, "planner_late": 0,
+            "recorder_drops": 0, "publish_failures": 0,
+        }))
+        .unwrap()
+    }
+
+    /// A server that takes `first_block` to answer the first block and, as
+    /// `interpd serve` does, refuses `start` until a block of the program
+    /// was accepted.
+    async fn slow_first_block_server(first_block: Duration) -> (SocketAddr, Arc<Mutex<Seen>>) {
+        let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let addr = listener.local_addr().unwrap();
+        let seen = Arc::new(Mutex::new(Seen::default()));
+        let shared = seen.clone();
+        tokio::spawn(async move {
+            while let Ok((sock, _)) = listener.accept().await {
+                let seen = shared.clone();
+                tokio::spawn(async move {
+                    let (rd, mut wr) = tokio::io::split(sock);
+                    let mut lines = BufReader::new(rd).lines();
+                    let mut n = 0;
+                    while let Ok(Some(line)) = lines.next_line().await {
+                        n += 1;
+                        let reply = match line.trim() {
+                            "begin" => Reply::Begin {
+                                program: 1,
+                                at: [0.0; 6],
+                            },
+                            "status" => Reply::Status(Box::new(status(&seen.lock().unwrap()))),
+                            "end" => {
+                                seen.lock().unwrap().ended = true;
+                                Reply::End
+                            }
+                            "start" => {
+                                let mut s = seen.lock().unwrap();
+                                if s.blocks == 0 {
+                                    s.refused_starts += 1;
+                                    Reply::Err {
+                                        line: n,
+                                        problem: "start: program 1 has no blocks yet".into(),
+                                    }
+                                } else {
+                                    s.started = true;
+                                    Reply::Start
+                                }
+                            }
+                            _ => {
+                                if seen.lock().unwrap().blocks == 0 {
+                                    tokio::time::sleep(first_block).await;
+                                }
+                                let mut s = seen.lock().unwrap();
+                                s.blocks += 1;
+                                Reply::Block {
+                                    index: s.blocks,
+                                    first: s.blocks,
+                                    last: s.blocks,
+                                }
+                            }
+                        };
+                        if wr.write_all(format!("{reply}\n").as_bytes()).await.is_err() {
+                            break;
+                        }
+                    }
+                });
+            }
+        });
+        (addr, seen)
+    }
+
+    #[test]
+    fn a_slow_first_block_still_gets_the_program_started() {
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .unwrap();
+        rt.block_on(async {
+            // Slower than a stall: `start` is first sent, and refused, before
+            // the first block is in.
+            let (addr, seen) = slow_first_block_server(STALL * 4).await;
+            let args = SendOptions {
+                program: PathBuf::from("two.jsonl"),
+                addr,
+                socket: None,
+                token: None,
+                no_wait: false,
+                wait_turn: false,
+                json: true,
+                quiet: true,
+            };
+            let load = |_: [f64; 6], _: &StatusReply| -> Result<Vec<String>> {
+                Ok(vec!["{}".into(), "{}".into()])
+            };
+            let conn = connect(&args.endpoint()).await.unwrap();
+            let (outcome, _) =
+                tokio::time::timeout(Duration::from_secs(10), stream(conn, &load, &args))
+                    .await
+                    .expect("send waits for a program that nobody started")
+                    .unwrap();
+            assert_eq!(outcome, Outcome::Done);
+            let s = seen.lock().unwrap();
+            assert!(s.refused_starts >= 1, "the race was not run");
+            assert!(s.started && s.blocks == 2);
+        });
     }
 }

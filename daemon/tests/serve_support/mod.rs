@@ -244,8 +244,9 @@ pub fn wait_child(mut c: Child, what: &str) -> std::process::Output {
             let _ = c.kill();
             let out = c.wait_with_output().expect("output");
             panic!(
-                "{what} did not finish in {WAIT:?}; stdout: {}",
-                String::from_utf8_lossy(&out.stdout)
+                "{what} did not finish in {WAIT:?}; stdout: {}; stderr: {}",
+                String::from_utf8_lossy(&out.stdout),
+                String::from_utf8_lossy(&out.stderr)
             );
         }
         std::thread::sleep(Duration::from_millis(10));
