@@ -480,14 +480,15 @@ impl<const W: usize> Smoother<W> {
     }
 
     /// Whether block `s` continues a compressed run of tolerance `tol` that
-    /// `prev` is in.
-    fn continues(&self, prev: &Seg, s: &Seg, tol: f64) -> bool {
+    /// `prev` is in, the run going along `dir` (`None`: no direction yet,
+    /// see [`run_dir`]).
+    fn continues(&self, dir: Option<Vec3>, prev: &Seg, s: &Seg, tol: f64) -> bool {
         s.line()
             && self.tolerance(&s.block) == Some(tol)
             && s.block.feed == prev.block.feed
             && s.block.mrr == prev.block.mrr
             && s.len <= self.cfg.compress_max_move
-            && turn(&prev.dir, &s.dir) <= FIT_MAX_TURN
+            && (run_dir(s, tol).is_none() || dir.is_none_or(|d| turn(&d, &s.dir) <= FIT_MAX_TURN))
     }
 
     /// Blocks of the compressible run at the front, and whether its end is known.
@@ -496,11 +497,14 @@ impl<const W: usize> Smoother<W> {
         if !(first.len <= self.cfg.compress_max_move) {
             return (0, true);
         }
+        let mut dir = run_dir(&first, tol);
         let mut m = 1;
         while m < n {
-            if !self.continues(&self.seg(m - 1), &self.seg(m), tol) {
+            let s = self.seg(m);
+            if !self.continues(dir, &self.seg(m - 1), &s, tol) {
                 return (m, true);
             }
+            dir = run_dir(&s, tol).or(dir);
             m += 1;
         }
         (m, self.finished)
@@ -570,7 +574,7 @@ impl<const W: usize> Smoother<W> {
         // A run of one short move stays a line unless a fit joins it, which
         // a blend in front of it would allow: only runs of two or more fit.
         match self.segs.get(2) {
-            Some(after) => !self.continues(next, after, tol),
+            Some(after) => !self.continues(run_dir(next, tol), next, after, tol),
             None => true,
         }
     }
@@ -858,6 +862,20 @@ fn seg_dist(x: &Vec3, a: &Vec3, b: &Vec3) -> f64 {
         0.0
     };
     (x - (a + ab * t)).norm()
+}
+
+/// Share of the tolerance below which a move has no direction a run's turn
+/// is measured by: CAM output has moves of nanometres between two samples
+/// of one point (the same X Y, Z differing by round-off), which turn by
+/// 90° at both ends. Kept in the run, the fit passes within the tolerance
+/// of both ends (the check proves it) instead of two exact corners
+/// stopping the machine.
+const MICRO_MOVE_SHARE: f64 = 0.1;
+
+/// The direction a compressed run goes along at `s` (tolerance `tol`):
+/// none for a move shorter than [`MICRO_MOVE_SHARE`] of the tolerance.
+fn run_dir(s: &Seg, tol: f64) -> Option<Vec3> {
+    (s.len > MICRO_MOVE_SHARE * tol).then_some(s.dir)
 }
 
 /// Angle between two directions, rad (π for opposite; 0 for a zero vector).

@@ -105,6 +105,41 @@ fn dense_arc_is_compressed_within_the_tolerance() {
     assert_eq!(out.last().unwrap().path.end_point(), *pts.last().unwrap());
 }
 
+#[test]
+fn nanometre_jogs_in_a_dense_run_stay_in_its_fit() {
+    // CAM output samples one point twice now and then: the same X Y, Z off
+    // by round-off. Such a jog of nanometres turns by 90° at both ends; it
+    // must not cut the run into pieces with two exact corners each.
+    let cfg = InterpConfig::default();
+    let tol = 0.001;
+    let clean = arc_points(2000, 5.0, 1.5);
+    let mut pts = Vec::new();
+    for (i, p) in clean.iter().enumerate() {
+        pts.push(*p);
+        if i % 50 == 25 {
+            pts.push(p + Vec3::new(0.0, 0.0, 6e-6 * (1 + i % 7) as f64));
+        }
+    }
+    let within = Blending::Within {
+        tolerance: Some(tol),
+    };
+    let out = smooth_all(&polyline(&pts, 100.0, within), &cfg, Policy::Auto);
+    let out_clean = smooth_all(&polyline(&clean, 100.0, within), &cfg, Policy::Auto);
+    assert!(
+        out.iter().all(|b| matches!(b.path, Path::Nurbs(_))),
+        "a jog left a line (an exact corner)"
+    );
+    assert!(
+        out.len() <= out_clean.len() + 2,
+        "{} blocks against {} without the jogs",
+        out.len(),
+        out_clean.len()
+    );
+    let dev = max_dev(&out, &pts, 2000);
+    assert!(dev <= tol, "{dev}");
+    assert_eq!(out.last().unwrap().path.end_point(), *pts.last().unwrap());
+}
+
 /// Runs blocks through the stage and the interpolator to the end; returns
 /// the setpoints' X Y Z.
 fn run(blocks: &[Block], cfg: &InterpConfig, max_ticks: u64) -> Result<Vec<Vec3>, String> {

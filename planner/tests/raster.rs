@@ -181,6 +181,21 @@ fn ball_on_a_sphere_follows_the_enlarged_sphere() {
         }
     }
     assert!(count > 1000);
+    // Where neighbouring facets' sections meet, the point is given once:
+    // twice, with heights a round-off apart, it is a vertical move of
+    // nanometres that a controller must stop for at both ends.
+    for line in path.passes.iter().flat_map(|p| &p.polylines) {
+        for w in line.windows(2) {
+            let along = (w[1].x - w[0].x).hypot(w[1].y - w[0].y);
+            let up = (w[1].z - w[0].z).abs();
+            assert!(
+                along > 1e-9 || up > 1e-6,
+                "the point {:?} twice: {:?}",
+                w[0],
+                w[1]
+            );
+        }
+    }
 }
 
 #[test]

@@ -632,8 +632,18 @@ fn trace_runs(
         if r.s - last_t > MIN_RUN_WIDTH {
             flush(&mut current, &mut polylines);
         }
-        match current.last() {
-            Some(&[u, z]) if u == r.s && z == zs => {}
+        match current.last_mut() {
+            // Where two runs meet they may give one point twice, its heights
+            // within the chord tolerance: one point, at the higher (the
+            // envelope is their maximum). Twice, it would be a move of
+            // nanometres turning by 90° at both ends, which a controller
+            // must stop for. (Heights further apart are a vertical step.)
+            Some(last)
+                if (r.s - last[0]).abs() <= MIN_RUN_WIDTH
+                    && (zs - last[1]).abs() <= opt.chord_tolerance =>
+            {
+                last[1] = last[1].max(zs)
+            }
             _ => current.push([r.s, zs]),
         }
         run_points(geo, opt, &r, zs, zt, &mut current);
