@@ -1665,6 +1665,24 @@ mod tests {
         );
     }
 
+    /// A teapot (`teapot`'s rings and segments) tilted off every axis, and
+    /// its tree.
+    fn tilted_teapot_tree(
+        body_rings: usize,
+        body_segments: usize,
+        spout_rings: usize,
+        spout_segments: usize,
+    ) -> (TriMesh, ContourTree) {
+        let soup = rotated(
+            &teapot(body_rings, body_segments, spout_rings, spout_segments),
+            &z_to(&V3::new(0.3, -0.2, 0.9).normalize()),
+        );
+        let mesh = TriMesh::from_triangles(&soup, WeldOptions::default()).unwrap();
+        let caster = RayCaster::new(&mesh);
+        let tree = ContourTree::new(&mesh, &caster).unwrap();
+        (mesh, tree)
+    }
+
     /// The plane bound the walk takes from the axis (`axis_beyond`, no
     /// roots) puts a node behind a level only when every corner of its
     /// subtree is at or below it, and past a level only when every corner
@@ -1674,13 +1692,7 @@ mod tests {
     /// bound's, for normals of every direction.
     #[test]
     fn the_axis_bound_puts_a_node_beyond_a_level_only_with_all_its_corners() {
-        let soup = rotated(
-            &teapot(20, 32, 9, 16),
-            &z_to(&V3::new(0.3, -0.2, 0.9).normalize()),
-        );
-        let mesh = TriMesh::from_triangles(&soup, WeldOptions::default()).unwrap();
-        let caster = RayCaster::new(&mesh);
-        let tree = ContourTree::new(&mesh, &caster).unwrap();
+        let (mesh, tree) = tilted_teapot_tree(20, 32, 9, 16);
         let normals = GeodesicSphere::with_frequency(2);
         let (mut behind, mut ahead) = (0, 0);
         for (i, node) in tree.nodes.iter().enumerate() {
@@ -1731,13 +1743,7 @@ mod tests {
     /// bounds alone.
     #[test]
     fn each_node_bounds_its_triangles() {
-        let soup = rotated(
-            &teapot(10, 12, 5, 6),
-            &z_to(&V3::new(0.3, -0.2, 0.9).normalize()),
-        );
-        let mesh = TriMesh::from_triangles(&soup, WeldOptions::default()).unwrap();
-        let caster = RayCaster::new(&mesh);
-        let tree = ContourTree::new(&mesh, &caster).unwrap();
+        let (mesh, tree) = tilted_teapot_tree(10, 12, 5, 6);
         let (mut checked, mut coned) = (0, 0);
         for (i, node) in tree.nodes.iter().enumerate() {
             let (a, mid) = (node.axis(), node.mid());
