@@ -421,6 +421,11 @@ pub struct Window {
 }
 
 impl Data {
+    /// The rest points held, in order.
+    fn rests(&self) -> &[f64] {
+        &self.stops[..self.n_stops]
+    }
+
     #[inline]
     fn slot(&self, g: i64) -> usize {
         debug_assert!(g >= self.g_base && g < self.g_base + self.n_int as i64);
@@ -567,7 +572,7 @@ impl Data {
 
     /// Whether a rest point lies in `[a, b]`.
     fn stop_within(&self, a: f64, b: f64) -> bool {
-        let stops = &self.stops[..self.n_stops];
+        let stops = self.rests();
         stops
             .get(stops.partition_point(|&x| x < a))
             .is_some_and(|&x| x <= b)
@@ -602,7 +607,7 @@ impl Data {
         if self.n_int == 0 {
             self.g_base = g;
         }
-        let k = self.stops[..self.n_stops].partition_point(|&s| s < x);
+        let k = self.rests().partition_point(|&s| s < x);
         if k > 0 {
             self.stops.copy_within(k..self.n_stops, 0);
             self.n_stops -= k;
@@ -626,7 +631,7 @@ impl Data {
         end: f64,
     ) -> Result<(), PlanError> {
         let mut n = from;
-        let mut si = self.stops[..self.n_stops].partition_point(|&s| s <= x);
+        let mut si = self.rests().partition_point(|&s| s <= x);
         // A cut closer than this to the next one would leave a sliver piece
         // (round-off between a block end and a grid line): merge it.
         let sliver = SLIVER * self.h;
@@ -1034,7 +1039,7 @@ impl Window {
             d.g_base += 1;
             d.n_int -= 1;
         }
-        let k = d.stops[..d.n_stops].partition_point(|&s| s < machine);
+        let k = d.rests().partition_point(|&s| s < machine);
         if k > 0 {
             d.stops.copy_within(k..d.n_stops, 0);
             d.n_stops -= k;
@@ -1197,7 +1202,7 @@ impl Window {
             g_end: d.g_base + d.n_int as i64,
             g0,
             n,
-            stop_at_s: d.stops[..d.n_stops].contains(&s),
+            stop_at_s: d.rests().contains(&s),
         }
     }
 
@@ -1220,7 +1225,8 @@ impl Window {
                 d.ints[slot] = self.saved[k];
             }
         }
-        let keep = d.stops[..d.n_stops]
+        let keep = d
+            .rests()
             .partition_point(|&x| x < mark.s || (x == mark.s && mark.stop_at_s));
         d.n_stops = keep;
     }
@@ -1234,7 +1240,7 @@ impl Window {
             started: p.partition_point(|q| q.x0 <= machine),
             ended: p.partition_point(|q| q.x1 <= machine),
             g: index_of(machine, d.h),
-            rests_behind: d.stops[..d.n_stops].partition_point(|&s| s < machine),
+            rests_behind: d.rests().partition_point(|&s| s < machine),
             g_base: d.g_base,
             n_pieces: d.n_pieces,
         }
@@ -1242,7 +1248,7 @@ impl Window {
 
     /// The rest points held, in order, mm.
     pub fn rest_points(&self) -> &[f64] {
-        &self.data.stops[..self.data.n_stops]
+        self.data.rests()
     }
 
     /// Add a rest point at `s` (at or after every one held). False when full.
@@ -1403,7 +1409,7 @@ impl Window {
                 }
                 let f = f - drop;
                 let x2 = d.pieces[f].x1;
-                let rest = d.stops[..d.n_stops].contains(&x2);
+                let rest = d.rests().contains(&x2);
                 (f + 1, f, x2, rest)
             }
             Freeze::Rest(x) => {
@@ -1553,7 +1559,7 @@ impl Window {
     /// Insert a rest point at `x` (in order).
     fn insert_stop(&mut self, x: f64) -> bool {
         let d = &mut self.data;
-        let k = d.stops[..d.n_stops].partition_point(|&s| s < x);
+        let k = d.rests().partition_point(|&s| s < x);
         if k < d.n_stops && d.stops[k] == x {
             return true;
         }
