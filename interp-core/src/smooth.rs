@@ -9,7 +9,8 @@
 //! - **Runs of short moves** (each at most `compress_max_move`, turning by at
 //!   most [`FIT_MAX_TURN`] at each vertex) are compressed into cubic B-spline
 //!   pieces of at most [`MAX_CTRL`] control points, fitted by least squares
-//!   ([`crate::fit`]). Consecutive pieces of a run join with the same first
+//!   ([`crate::fit`]; one free control point per two data points first, so a
+//!   short run is smoothed, not interpolated). Consecutive pieces of a run join with the same first
 //!   and second derivative (the next piece's first three control points are
 //!   fixed by the previous piece's end), so the schedule sees one
 //!   curvature-continuous curve. Every piece is checked against the
@@ -78,6 +79,10 @@ const CHECK_REACH: usize = 2;
 
 /// Degree of the compressed pieces.
 const DEGREE: usize = 3;
+
+/// Data points per free control point a piece is fitted with first (a
+/// least-squares fit, not an interpolant): see [`fit_piece`].
+const LEAN_POINTS: usize = 2;
 
 /// Blocks a single decision emits at most (a line and its corner blend).
 const OUT: usize = 4;
@@ -670,18 +675,16 @@ impl<const W: usize> Smoother<W> {
             let cfg = &self.cfg;
             let mut attempt = |k: usize| {
                 let end = if k == m { end_dir } else { None };
-                fit_piece(&q[..=k], &t[..=k], *join, end, tol, &mut scratch)
-                    .or_else(|| {
-                        end.and_then(|_| {
-                            fit_piece(&q[..=k], &t[..=k], *join, None, tol, &mut scratch)
-                        })
+                // A piece slower than a stop somewhere (a sharp turn of
+                // micro-moves fitted with a tiny radius) is worse than
+                // stopping there: its slow point limits a whole law
+                // sub-range of the schedule. Shorter runs, ending before
+                // the turn, are tried instead.
+                fit_piece(&q[..=k], &t[..=k], *join, end, tol, cfg, &mut scratch).or_else(|| {
+                    end.and_then(|_| {
+                        fit_piece(&q[..=k], &t[..=k], *join, None, tol, cfg, &mut scratch)
                     })
-                    // A piece slower than a stop somewhere (a sharp turn
-                    // of micro-moves fitted with a tiny radius) is worse
-                    // than stopping there: its slow point limits a whole
-                    // law sub-range of the schedule. Shorter runs, ending
-                    // before the turn, are tried instead.
-                    .filter(|c| !slower_than_a_stop(c, cfg))
+                })
             };
             // The whole run first, then bisection for the longest that passes.
             let mut best = attempt(m).map(|c| (m, c));
@@ -713,23 +716,56 @@ impl<const W: usize> Smoother<W> {
     }
 }
 
-/// Fits one clamped cubic to `q` (parameters `t`, from 0) with the most
-/// control points the data supports (at most [`MAX_CTRL`]); `join` fixes the
+/// Fits one clamped cubic to `q` (parameters `t`, from 0); `join` fixes the
 /// start's first and second derivative, `end` the end's direction (with zero
-/// curvature). `None` unless the piece passes the check within `tol`.
+/// curvature). `None` unless the piece passes the check within `tol` and is
+/// nowhere slower than a stop ([`slower_than_a_stop`]).
+///
+/// First with one free control point per [`LEAN_POINTS`] data points (a
+/// least-squares fit), then with as many as the data supports (at most
+/// [`MAX_CTRL`]: an interpolant when the run is short). A short run's
+/// interpolant whose start curvature is fixed by a join swings from point to
+/// point: on a smooth slope it took a bend of µm radius (2 mm/s) and left
+/// the next piece a corner of up to 17°; the least-squares fit follows the
+/// slope (`the_short_rest_of_a_long_run_joins_it_smoothly`).
+#[allow(clippy::too_many_arguments)]
 fn fit_piece(
     q: &[Vec3],
     t: &[f64],
     join: Option<(Vec3, Vec3)>,
     end: Option<Vec3>,
     tol: f64,
+    cfg: &InterpConfig,
+    s: &mut Fit,
+) -> Option<Nurbs> {
+    let k = q.len() - 1;
+    let fs = if join.is_some() { 3 } else { 1 };
+    let fe = if end.is_some() { 3 } else { 1 };
+    let full = (k - 1 + fs + fe).min(MAX_CTRL);
+    let lean = (fs + fe + (k - 1).div_ceil(LEAN_POINTS)).max(DEGREE + 1);
+    let fast = |c: &Nurbs| !slower_than_a_stop(c, cfg);
+    if lean < full
+        && let Some(c) = fit_count(q, t, join, end, tol, lean, s).filter(fast)
+    {
+        return Some(c);
+    }
+    fit_count(q, t, join, end, tol, full, s).filter(fast)
+}
+
+/// [`fit_piece`] with `count` control points.
+fn fit_count(
+    q: &[Vec3],
+    t: &[f64],
+    join: Option<(Vec3, Vec3)>,
+    end: Option<Vec3>,
+    tol: f64,
+    count: usize,
     s: &mut Fit,
 ) -> Option<Nurbs> {
     let k = q.len() - 1;
     let p = DEGREE;
     let fs = if join.is_some() { 3 } else { 1 };
     let fe = if end.is_some() { 3 } else { 1 };
-    let count = (k - 1 + fs + fe).min(MAX_CTRL);
     if count < p + 1 || count < fs + fe {
         return None;
     }

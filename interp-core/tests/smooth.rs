@@ -374,3 +374,84 @@ fn a_corner_blend_slower_than_a_stop_is_an_exact_corner_and_costs_no_more_than_t
         .sum();
     assert!(corner <= alone + 2, "{corner} ticks, {alone} stopping");
 }
+
+/// A run one window long and a little more (as `plan raster` gives on a
+/// smooth slope before a crease): the first piece ends where the window
+/// did, and the rest, a few tens of points, is fitted joined to it. Fitted
+/// with as many control points as points, the joined piece (its start's
+/// curvature fixed) swung through a bend of a few µm radius, 2 mm/s, and
+/// the piece after it met it at a corner of up to 17°, a stop. Fitted by
+/// least squares first, the whole run is one curvature-continuous curve
+/// as fast as the circle it samples.
+#[test]
+fn the_short_rest_of_a_long_run_joins_it_smoothly() {
+    use interp_core::feed::machine_limit;
+    use interp_core::geom::Derivs;
+    let cfg = InterpConfig::default();
+    let tol = 0.001;
+    let step = 0.0065;
+    let n = 280;
+    for r in [1.0, 2.9, 10.0] {
+        let on_circle = |a: f64| Vec3::new(r * a.sin(), 0.0, r * a.cos());
+        let mut pts: Vec<Vec3> = (0..=n).map(|i| on_circle(step * i as f64 / r)).collect();
+        // A crease of 84°, then a line.
+        let a = step * n as f64 / r + 84f64.to_radians();
+        pts.push(pts[n] + Vec3::new(a.cos(), 0.0, -a.sin()) * 3.0);
+        let blocks = polyline(
+            &pts,
+            100.0,
+            Blending::Within {
+                tolerance: Some(tol),
+            },
+        );
+        let out = smooth_all(&blocks, &cfg, Policy::Auto);
+        let fitted = out
+            .iter()
+            .take_while(|b| matches!(b.path, Path::Nurbs(_)))
+            .count();
+        assert!(fitted >= 2, "r {r}: {fitted} fitted pieces");
+        for w in out[..fitted].windows(2) {
+            let t0 = w[0].path.eval(w[0].path.u_end(), 1).d1.normalize();
+            let t1 = w[1].path.eval(w[1].path.u_start(), 1).d1.normalize();
+            let turn = t0.dot(&t1).clamp(-1.0, 1.0).acos().to_degrees();
+            assert!(
+                turn < 0.01,
+                "r {r}: pieces {} and {} meet at {turn}°",
+                w[0].id,
+                w[1].id
+            );
+        }
+        // The machine laws on the circle itself (unit speed: C'' = κ·n).
+        let exact = (0..=50)
+            .map(|i| {
+                let a = step * n as f64 / r * i as f64 / 50.0;
+                let t = Vec3::new(a.cos(), 0.0, -a.sin());
+                let d = Derivs {
+                    p: on_circle(a),
+                    d1: t,
+                    d2: -on_circle(a) / (r * r),
+                    d3: -t / (r * r),
+                };
+                machine_limit(&d, &cfg, 1.0)
+            })
+            .fold(f64::INFINITY, f64::min);
+        for b in &out[..fitted] {
+            let (ua, ub) = (b.path.u_start(), b.path.u_end());
+            let slowest = (0..=400)
+                .map(|i| {
+                    machine_limit(
+                        &b.path.eval(ua + (ub - ua) * i as f64 / 400.0, 3),
+                        &cfg,
+                        1.0,
+                    )
+                })
+                .fold(f64::INFINITY, f64::min);
+            assert!(
+                slowest >= 0.8 * exact,
+                "r {r}: piece {} is limited to {slowest} mm/s, the circle to {exact}",
+                b.id
+            );
+        }
+        assert!(max_dev(&out, &pts, 2000) <= tol);
+    }
+}
