@@ -304,6 +304,18 @@ impl Driver {
                 }
             };
         }
+        // A crawl, the look-ahead's last resort after a failed solve, is
+        // planned again once the machine gets to it.
+        if self.planner.take_crawl_retry(st.plan_position) {
+            self.sync(st);
+            return match self.planner.replan(self.ovr, &mut self.plan) {
+                Ok(()) => Some(self.emit()),
+                Err(e) => {
+                    self.last_error = Some(e);
+                    None
+                }
+            };
+        }
         // The end and the guard wait for the rest of a long block.
         if pending {
             return None;

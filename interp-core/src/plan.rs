@@ -418,6 +418,13 @@ pub struct Window {
     pub trace: Option<fn(lp::Iteration)>,
     /// The intervals of the last [`Self::mark`].
     saved: [Interval; MARK_INTERVALS],
+    /// Where the pieces of the last crawl end (`-inf`: none left): until
+    /// the machine passes it, every re-solve starts right after the
+    /// machine (see [`Self::freeze`]).
+    crawl_end: f64,
+    /// Where the machine was when the crawl was last planned again
+    /// ([`Self::take_crawl_retry`]).
+    crawl_tried: f64,
 }
 
 impl Data {
@@ -966,6 +973,8 @@ impl Window {
             totals: PlanTotals::default(),
             trace: None,
             saved: [open; MARK_INTERVALS],
+            crawl_end: f64::NEG_INFINITY,
+            crawl_tried: f64::NEG_INFINITY,
         }
     }
 
@@ -980,6 +989,7 @@ impl Window {
         d.prev = (0.0, 0.0);
         d.tail = s;
         d.origin = s;
+        self.crawl_end = f64::NEG_INFINITY;
     }
 
     /// Grid spacing, mm.
@@ -1270,6 +1280,20 @@ impl Window {
         self.data.tail = s;
     }
 
+    /// Whether the pieces of a crawl lie ahead of `machine` and were not
+    /// planned again from near here yet (then they are due, and this
+    /// records it): a crawl is the last resort after a failed solve, and
+    /// when the look-ahead is full of it no new block comes to replace it.
+    /// Tried again once the machine has moved half a grid interval, so a
+    /// solve that keeps failing costs one attempt per half interval.
+    pub fn take_crawl_retry(&mut self, machine: f64) -> bool {
+        let due = self.crawl_end > machine && machine >= self.crawl_tried + 0.5 * self.data.h;
+        if due {
+            self.crawl_tried = machine;
+        }
+        due
+    }
+
     /// Where a re-solve of everything ahead of the machine starts (a new
     /// feed override, a resumed hold): the first piece strictly after
     /// `machine`, or `machine` itself when the machine rests there.
@@ -1301,10 +1325,19 @@ impl Window {
     /// rest where the machine still rests is planned again from that point;
     /// with no piece left, the new plan starts from rest where the current
     /// one ends (the machine will have stopped there).
+    ///
+    /// After a crawl (the last resort of [`Self::solve`]), the crawl's pieces
+    /// ahead of the machine are planned again, from the first piece after
+    /// it ([`Self::freeze_after`]): they rest at every knot, so a plan from
+    /// any of them starts at rest, and one failed solve does not hold the
+    /// machine to a crawl over the whole look-ahead.
     pub fn freeze(&self, machine: f64, machine_at_rest: bool) -> Freeze {
         let d = &self.data;
         if d.n_pieces == 0 {
             return Freeze::Rest(d.origin);
+        }
+        if self.crawl_end > machine {
+            return self.freeze_after(machine, machine_at_rest);
         }
         let (a, j) = (d.cfg.planned_accel(), d.cfg.max_path_jerk);
         let mut walked = 0.0;
@@ -1409,7 +1442,9 @@ impl Window {
                 }
                 let f = f - drop;
                 let x2 = d.pieces[f].x1;
-                let rest = d.rests().contains(&x2);
+                // (A crawl's knots rest without being rest points.)
+                let rest =
+                    d.rests().contains(&x2) || (f + 1 < d.n_pieces && d.pieces[f + 1].rest_start);
                 (f + 1, f, x2, rest)
             }
             Freeze::Rest(x) => {
@@ -1494,6 +1529,9 @@ impl Window {
                         range: (x0, end),
                         ..st
                     };
+                    if from_x <= self.crawl_end || matches!(freeze, Freeze::Rest(_)) {
+                        self.crawl_end = f64::NEG_INFINITY;
+                    }
                     let t = &mut self.totals;
                     t.solves += 1;
                     t.passes += u64::from(st.passes);
@@ -1533,6 +1571,7 @@ impl Window {
                         ..SolveStats::default()
                     };
                     self.totals.crawled += 1;
+                    self.crawl_end = self.data.pieces[self.data.n_pieces - 1].x1;
                     // The pieces before this plan's start stay as they are.
                     let first_kept = self.data.pieces[0].x0;
                     self.data.drop_before(first_kept.min(keep_from));

@@ -289,6 +289,13 @@ impl BlockPlanner {
         self.machine_at_rest = at_rest;
     }
 
+    /// Whether a crawl ahead of the machine is due to be planned again
+    /// (`machine`: where it may be; [`Window::take_crawl_retry`]), to be
+    /// planned with [`Self::replan`].
+    pub fn take_crawl_retry(&mut self, machine: f64) -> bool {
+        self.window.take_crawl_retry(machine)
+    }
+
     /// Move the queue end (after an abort: where the machine stopped, the
     /// last setpoint's X Y Z and `s`). Forgets everything planned.
     pub fn resync(&mut self, tail: Vec3, tail_s: f64) {

@@ -733,3 +733,58 @@ fn a_refused_block_leaves_the_window_as_it_was() {
         assert_eq!((snapshot(&w), w.rest_points().to_vec()), before);
     }
 }
+
+/// A crawl (the last resort when a linear program fails: rest at every
+/// knot) is planned again from the machine as soon as it is due, not kept
+/// over everything it covers: on a long move the look-ahead is full of it
+/// and no new block comes to replace it (a 158 mm rapid of a raster
+/// program took 21 s instead of 0.8 s).
+#[test]
+fn a_crawl_is_planned_again_once_the_machine_gets_to_it() {
+    use interp_core::plan::{Freeze, Window};
+    let cfg = InterpConfig::default();
+    let h = 0.25;
+    let mut w = Window::new(cfg, h, 0.0);
+    assert!(w.extend_to(160));
+    w.set_tail(40.0);
+    w.solve(Freeze::Rest(0.0), 20.0, 1.0, None, 0.0, true)
+        .unwrap();
+    let old_end = w.piece(w.n_pieces() - 1).x1();
+    assert!((old_end - 20.0).abs() < 1e-9);
+    // Right after the plan's end, where it comes to rest, a stretch so slow
+    // that no plan can continue it without resting there: the program fails
+    // and there is no earlier end to fall back on.
+    w.lower_range(20.0, 20.25, 0, 0.05);
+    let last = w.n_pieces() - 1;
+    w.solve(Freeze::At(last), 40.0, 1.0, None, 0.0, true)
+        .unwrap();
+    assert_eq!(w.totals.crawled, 1);
+    let crawl = |w: &Window| {
+        (0..w.n_pieces())
+            .filter(|&i| w.piece(i).x0 >= 20.25 && w.piece(i).x1() <= 40.0)
+            .all(|i| w.rest_start(i))
+    };
+    assert!(crawl(&w), "the crawl rests at every knot");
+    // Still moving, the machine is planned again from right after it.
+    let first_after = (0..w.n_pieces()).find(|&i| w.piece(i).x0 > 19.0).unwrap();
+    assert_eq!(w.freeze(19.0, false), Freeze::At(first_after));
+    // At rest where the old plan ended (where the crawl begins): from there.
+    let machine = old_end;
+    assert_eq!(w.freeze(machine, true), Freeze::Rest(machine));
+    assert!(w.take_crawl_retry(machine), "the crawl is due");
+    assert!(!w.take_crawl_retry(machine), "once per place");
+    let freeze = w.freeze(machine, true);
+    w.solve(freeze, 40.0, 1.0, None, machine, true).unwrap();
+    assert_eq!(w.totals.crawled, 1, "planned, not crawled again");
+    assert!(!crawl(&w), "the crawl is gone");
+    // Past the slow stretch the plan runs at speed again.
+    let fastest = (0..w.n_pieces())
+        .map(|i| w.piece(i))
+        .filter(|p| p.x0 >= 21.0)
+        .map(|p| p.d.max(p.e0).max(p.e1))
+        .fold(0.0, f64::max)
+        .sqrt();
+    assert!(fastest > 50.0, "{fastest} mm/s");
+    // The crawl is gone: nothing more due.
+    assert!(!w.take_crawl_retry(machine + 1.0));
+}
