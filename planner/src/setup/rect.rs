@@ -68,6 +68,27 @@ fn unit(psi: f64) -> (f64, f64) {
     (c, s)
 }
 
+/// A turn `ψ` with the unit vectors of `ψ` and `ψ − π/2`, computed once
+/// and shared by the evaluation at `ψ` and the bounds of the intervals
+/// that end there (the same values, so the same answers, as computing them
+/// where used).
+#[derive(Debug, Clone, Copy)]
+struct Turn {
+    psi: f64,
+    u: (f64, f64),
+    perp: (f64, f64),
+}
+
+impl Turn {
+    fn new(psi: f64) -> Self {
+        Self {
+            psi,
+            u: unit(psi),
+            perp: unit(psi - FRAC_PI_2),
+        }
+    }
+}
+
 impl Polar {
     fn new(x: f64, y: f64) -> Self {
         Self {
@@ -128,10 +149,13 @@ pub struct RectScratch {
 /// An interval of `ψ` with its lower bound, ordered for a min-heap.
 #[derive(Debug, Clone, Copy)]
 struct Interval {
-    a: f64,
-    b: f64,
+    a: Turn,
+    b: Turn,
     lower: Key,
     may_fit: bool,
+    /// Its midpoint was evaluated when it was made (an initial interval):
+    /// evaluating it again changes nothing.
+    mid_done: bool,
 }
 
 impl PartialEq for Interval {
@@ -153,13 +177,19 @@ impl Ord for Interval {
             .0
             .total_cmp(&self.lower.0)
             .then(other.lower.1.total_cmp(&self.lower.1))
-            .then(other.a.total_cmp(&self.a))
+            .then(other.a.psi.total_cmp(&self.a.psi))
     }
 }
 
 /// The four needed ranges at one `ψ`: α⁺, |α⁻|, β⁺, |β⁻| (radians).
+#[cfg(test)]
 fn ranges_at(s: &Geometry, psi: f64) -> [f64; 4] {
-    let (u, perp) = (unit(psi), unit(psi - FRAC_PI_2));
+    ranges_at_turn(s, &Turn::new(psi))
+}
+
+/// [`ranges_at`] for a turn whose unit vectors are known.
+fn ranges_at_turn(s: &Geometry, t: &Turn) -> [f64; 4] {
+    let (u, perp) = (t.u, t.perp);
     let (mut ap, mut am) = (0.0f64, 0.0f64);
     for g in &s.near {
         let t = g.at(perp);
@@ -185,9 +215,9 @@ fn ranges_at(s: &Geometry, psi: f64) -> [f64; 4] {
 }
 
 /// Lower bounds over `ψ ∈ [a, b]`: the key, and (φᴸ, φˢ, θᴸ, θˢ) sorted.
-fn bounds_over(s: &Geometry, a: f64, b: f64) -> (Key, [f64; 4]) {
-    let (pa, pb) = (unit(a - FRAC_PI_2), unit(b - FRAC_PI_2));
-    let (ua, ub) = (unit(a), unit(b));
+fn bounds_over(s: &Geometry, a: &Turn, b: &Turn) -> (Key, [f64; 4]) {
+    let (pa, pb) = (a.perp, b.perp);
+    let (ua, ub) = (a.u, b.u);
     let (mut ap, mut am) = (0.0f64, 0.0f64);
     for g in &s.near {
         let (lo, hi) = g.range(pa, pb);
@@ -238,8 +268,9 @@ pub fn rect_search(
     scratch: &mut RectScratch,
 ) -> Solved {
     let (e1, e2) = basis(p);
-    let place = |psi: f64, r: [f64; 4]| {
-        let r1 = e1 * psi.cos() + e2 * psi.sin();
+    // `psi: None` leaves the axes zero (enough for the key and the fit).
+    let place = |psi: Option<f64>, r: [f64; 4]| {
+        let r1 = psi.map_or(V3::zeros(), |psi| e1 * psi.cos() + e2 * psi.sin());
         let [ap, am, bp, bm] = r;
         let required = AxisRanges {
             phi_l: ap.max(am),
@@ -310,17 +341,25 @@ pub fn rect_search(
     let mut best: Option<Placement> = None;
     let mut fit: Option<Placement> = None;
     let geom = &scratch.geom;
-    let evaluate = |psi: f64, best: &mut Option<Placement>, fit: &mut Option<Placement>| {
-        let pl = place(psi, ranges_at(geom, psi));
-        if best.is_none_or(|b| pl.key() < b.key()) {
+    let evaluate = |t: &Turn, best: &mut Option<Placement>, fit: &mut Option<Placement>| {
+        // The axes only for a placement kept (most are not).
+        let r = ranges_at_turn(geom, t);
+        let mut pl = place(None, r);
+        let better = best.is_none_or(|b| pl.key() < b.key());
+        let better_fit =
+            pl.fits(MachineType::AB, machine, tol) && fit.is_none_or(|b| pl.key() < b.key());
+        if better || better_fit {
+            pl = place(Some(t.psi), r);
+        }
+        if better {
             *best = Some(pl);
         }
-        if pl.fits(MachineType::AB, machine, tol) && fit.is_none_or(|b| pl.key() < b.key()) {
+        if better_fit {
             *fit = Some(pl);
         }
     };
     for k in 0..scratch.special.len() {
-        evaluate(scratch.special[k], &mut best, &mut fit);
+        evaluate(&Turn::new(scratch.special[k]), &mut best, &mut fit);
     }
     // Initial intervals between the special angles, none wider than
     // MAX_INITIAL_WIDTH.
@@ -329,6 +368,14 @@ pub fn rect_search(
     scratch.ends.clear();
     scratch.ends.extend_from_slice(&scratch.special);
     scratch.ends.push(PI);
+    // The turn at `psi`, the last one's again when it is the same.
+    let mut last = Turn::new(f64::NAN);
+    let mut turn = |psi: f64| {
+        if psi.to_bits() != last.psi.to_bits() {
+            last = Turn::new(psi);
+        }
+        last
+    };
     for w in scratch.ends.windows(2) {
         let pieces = ((w[1] - w[0]) / MAX_INITIAL_WIDTH).ceil().max(1.0) as usize;
         for k in 0..pieces {
@@ -337,13 +384,15 @@ pub fn rect_search(
             if b <= a {
                 continue;
             }
-            evaluate(0.5 * (a + b), &mut best, &mut fit);
-            let (lower, r) = bounds_over(geom, a, b);
+            let (a, b) = (turn(a), turn(b));
+            evaluate(&Turn::new(0.5 * (a.psi + b.psi)), &mut best, &mut fit);
+            let (lower, r) = bounds_over(geom, &a, &b);
             heap.push(Interval {
                 a,
                 b,
                 lower,
                 may_fit: fits(&r),
+                mid_done: true,
             });
         }
     }
@@ -358,7 +407,7 @@ pub fn rect_search(
             iv.may_fit && fit.is_none_or(|f| can_beat(iv.lower, f.key(), RECT_REL_TOL));
         if (!useful_mar && !useful_fit)
             || examined > MAX_INTERVALS
-            || iv.b - iv.a < turn_resolution.max(1e-12)
+            || iv.b.psi - iv.a.psi < turn_resolution.max(1e-12)
         {
             best_lower = key_min(best_lower, iv.lower);
             if iv.may_fit {
@@ -366,15 +415,18 @@ pub fn rect_search(
             }
             continue;
         }
-        let m = 0.5 * (iv.a + iv.b);
-        evaluate(m, &mut best, &mut fit);
+        let m = Turn::new(0.5 * (iv.a.psi + iv.b.psi));
+        if !iv.mid_done {
+            evaluate(&m, &mut best, &mut fit);
+        }
         for (a, b) in [(iv.a, m), (m, iv.b)] {
-            let (lower, r) = bounds_over(geom, a, b);
+            let (lower, r) = bounds_over(geom, &a, &b);
             heap.push(Interval {
                 a,
                 b,
                 lower,
                 may_fit: fits(&r),
+                mid_done: false,
             });
         }
     }
