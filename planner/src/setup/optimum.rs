@@ -33,9 +33,7 @@ use super::Phase;
 use super::fan::{FanScratch, fan_search};
 use super::machine::{AxisRanges, MachineType};
 use super::rect::{RectScratch, rect_search};
-use super::search::{
-    Key, Placement, PvcClasses, Scratch, Solved, angle, can_beat, md_cells, nearer,
-};
+use super::search::{Key, Placement, PvcClasses, Scratch, Solved, angle, can_beat, md_cells};
 use super::sphere::{CellChunks, GeodesicSphere};
 use super::visibility::VisibilityMap;
 
@@ -77,10 +75,19 @@ impl Boundary {
     fn new(map: &VisibilityMap, patch: usize, sphere: &GeodesicSphere) -> Self {
         let row = map.pvc(patch);
         let open = |c: usize| row[c / 64] >> (c % 64) & 1 == 1;
-        let cells: Vec<u32> = (0..sphere.len())
-            .filter(|&c| open(c) && sphere.touching(c).iter().any(|&n| !open(n as usize)))
-            .map(|c| c as u32)
-            .collect();
+        // The open cells by their bits (a cone is a fraction of the
+        // sphere), in cell order.
+        let mut cells: Vec<u32> = Vec::new();
+        for (w, &bits) in row.iter().enumerate() {
+            let mut bits = bits;
+            while bits != 0 {
+                let c = w * 64 + bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                if sphere.touching(c).iter().any(|&n| !open(n as usize)) {
+                    cells.push(c as u32);
+                }
+            }
+        }
         let mut chunks = CellChunks::default();
         chunks.rebuild(&cells, sphere.cells());
         Self(chunks)
@@ -88,8 +95,7 @@ impl Boundary {
 
     /// The boundary cell first in the order of [`nearer`] from `p`.
     fn nearest(&self, p: &V3, dirs: &[V3], bounds: &mut Vec<f64>) -> u32 {
-        self.0
-            .first_by(p, dirs, bounds, |a, b| nearer(p, dirs, a, b))
+        self.0.nearest(p, dirs, bounds)
     }
 }
 
