@@ -49,6 +49,9 @@ const HULL_MIN_DOT: f64 = 1e-6;
 /// Most intervals examined per tool axis; beyond, the bound of those left is
 /// returned as the certificate (never reached on the tests' parts).
 const MAX_INTERVALS: usize = 20_000;
+/// Relative margin of [`rect_search_above`]'s stop over the bounds'
+/// round-off (a few units in the last place).
+const ABOVE_REL_MARGIN: f64 = 1e-9;
 /// Initial intervals are at most this wide (radians).
 const MAX_INITIAL_WIDTH: f64 = PI / 32.0;
 
@@ -267,6 +270,36 @@ pub fn rect_search(
     turn_resolution: f64,
     scratch: &mut RectScratch,
 ) -> Solved {
+    rect_search_above(p, md, machine, tol, turn_resolution, None, scratch)
+}
+
+/// Areas above which a caller only needs to know that the lower bounds lie
+/// above them: `best_lower.0 > best` and `fit_lower` `None` or above `fit`
+/// (a tool axis ruled out for good by its bound in the search over axes).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Above {
+    pub best: f64,
+    pub fit: f64,
+}
+
+/// [`rect_search`], which with `above` stops as soon as the bounds of what
+/// is left (every interval still to split, the dropped ones, the best
+/// placements) lie above those areas by a margin. The lower bounds it then
+/// returns are the least of those: still certified, above the areas (so is
+/// the full search's answer, every bound of a part of an interval being at
+/// least the interval's, but for round-off, far below the margin), but
+/// not the full search's values; the placements are the best so far.
+/// Without `above`, or when it does not stop, the answer is
+/// [`rect_search`]'s, bit for bit.
+pub(super) fn rect_search_above(
+    p: &V3,
+    md: &[V3],
+    machine: &AxisRanges,
+    tol: f64,
+    turn_resolution: f64,
+    above: Option<Above>,
+    scratch: &mut RectScratch,
+) -> Solved {
     let (e1, e2) = basis(p);
     // `psi: None` leaves the axes zero (enough for the key and the fit).
     let place = |psi: Option<f64>, r: [f64; 4]| {
@@ -399,8 +432,40 @@ pub fn rect_search(
     let mut best_lower = best.expect("ψ = 0 was evaluated").key();
     let mut fit_lower: Option<Key> = fit.map(|f| f.key());
     let mut examined = 0;
+    // The next `examined` at which the fit's side is looked at again (it
+    // scans the heap; doubled after each look that does not stop).
+    let mut next_fit_look = 0;
+    // Above `x` by the margin that covers the bounds' round-off.
+    let clear_of = |v: f64, x: f64| v > x + ABOVE_REL_MARGIN * x.abs() + 1e-12;
     while let Some(iv) = heap.pop() {
         examined += 1;
+        if let Some(above) = above {
+            let b = best.expect("evaluated").key();
+            let least = key_min(key_min(best_lower, b), iv.lower);
+            if clear_of(least.0, above.best) && examined >= next_fit_look {
+                let mut fit_least = fit_lower;
+                for x in fit.map(|f| f.key()).into_iter().chain(
+                    std::iter::once(&iv)
+                        .chain(heap.iter())
+                        .filter(|x| x.may_fit)
+                        .map(|x| x.lower),
+                ) {
+                    fit_least = Some(fit_least.map_or(x, |f| key_min(f, x)));
+                }
+                // Nothing left may fit: any fitting key is still above
+                // `least` (reported so, not as "none fits").
+                let fit_least = fit_least.unwrap_or(least);
+                if clear_of(fit_least.0, above.fit) {
+                    return Solved {
+                        best: best.expect("evaluated"),
+                        fit,
+                        best_lower: least,
+                        fit_lower: Some(fit_least),
+                    };
+                }
+                next_fit_look = 2 * examined;
+            }
+        }
         let b = best.expect("evaluated").key();
         let useful_mar = can_beat(iv.lower, b, RECT_REL_TOL);
         let useful_fit =
@@ -588,6 +653,75 @@ mod tests {
         // Not a property of the code, but a reason for it: record that the
         // hull edges alone are not always optimal on these sets.
         eprintln!("hull-edge candidates beaten in {beaten_paper} of 120 cases");
+    }
+
+    /// The search that stops once its bounds are above given areas: it
+    /// says "above" exactly when the full search's bounds are, its bounds
+    /// are still lower bounds (at most the full search's), and when it
+    /// does not stop its answer is the full search's bit for bit.
+    #[test]
+    fn a_search_stopped_above_areas_agrees_with_the_full_search() {
+        let mut s = 0x5DEE_CE66_D1CE_4E5Bu64;
+        let mut next = || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut scratch = RectScratch::default();
+        let (mut stopped, mut both_above) = (0, 0);
+        for case in 0..150 {
+            let n = 2 + case % 9;
+            let far = if case % 4 == 0 { 130.0 } else { 70.0 };
+            let md: Vec<V3> = (0..n)
+                .map(|_| dir(3.0 + far * next() * next(), 360.0 * next()))
+                .collect();
+            let machine = if case % 3 == 0 {
+                ranges([20.0, 10.0, 10.0, 5.0])
+            } else {
+                ranges([50.0, 30.0, 40.0, 20.0])
+            };
+            let res = PI / 64.0 / 16.0 * (case % 2) as f64;
+            let full = rect_search(&V3::z(), &md, &machine, 1e-9, res, &mut scratch);
+            let fit_ref = full.fit_lower.unwrap_or(full.best_lower).0;
+            // Areas well below, just below, between the bound and the key
+            // (the B&B's tolerance), and above the full search's bounds.
+            for f in [-0.5, -1e-3, -1e-6, -2e-8, 5e-8, 1e-6, 1e-3] {
+                for g in [-0.5, -2e-8, 5e-8, 1e-3] {
+                    let above = Above {
+                        best: full.best_lower.0 * (1.0 + f),
+                        fit: fit_ref * (1.0 + g),
+                    };
+                    let out = |x: &Solved| {
+                        x.best_lower.0 > above.best && x.fit_lower.is_none_or(|l| l.0 > above.fit)
+                    };
+                    let early = rect_search_above(
+                        &V3::z(),
+                        &md,
+                        &machine,
+                        1e-9,
+                        res,
+                        Some(above),
+                        &mut scratch,
+                    );
+                    assert_eq!(out(&early), out(&full), "case {case} {f} {g}");
+                    assert!(early.best_lower <= full.best_lower, "case {case}");
+                    if let Some(l) = full.fit_lower {
+                        assert!(early.fit_lower.expect("a bound") <= l, "case {case}");
+                    }
+                    if early != full {
+                        assert!(out(&early), "case {case}: changed without stopping");
+                        stopped += 1;
+                    }
+                    both_above += usize::from(out(&full));
+                }
+            }
+        }
+        // The stop is taken (and not only where nothing was left to do).
+        assert!(
+            stopped > 100 && both_above > stopped / 2,
+            "{stopped} {both_above}"
+        );
     }
 
     #[test]
