@@ -32,10 +32,8 @@ use rayon::prelude::*;
 use super::Phase;
 use super::fan::{FanScratch, fan_search};
 use super::machine::{AxisRanges, MachineType};
-use super::rect::{RectScratch, rect_search};
-use super::search::{
-    Key, Placement, PvcClasses, Scratch, Solved, angle, can_beat, md_cells, nearer,
-};
+use super::rect::{Above, RectScratch, rect_search_above};
+use super::search::{Key, Placement, PvcClasses, Scratch, Solved, angle, can_beat, md_cells};
 use super::sphere::{CellChunks, GeodesicSphere};
 use super::visibility::VisibilityMap;
 
@@ -77,10 +75,19 @@ impl Boundary {
     fn new(map: &VisibilityMap, patch: usize, sphere: &GeodesicSphere) -> Self {
         let row = map.pvc(patch);
         let open = |c: usize| row[c / 64] >> (c % 64) & 1 == 1;
-        let cells: Vec<u32> = (0..sphere.len())
-            .filter(|&c| open(c) && sphere.touching(c).iter().any(|&n| !open(n as usize)))
-            .map(|c| c as u32)
-            .collect();
+        // The open cells by their bits (a cone is a fraction of the
+        // sphere), in cell order.
+        let mut cells: Vec<u32> = Vec::new();
+        for (w, &bits) in row.iter().enumerate() {
+            let mut bits = bits;
+            while bits != 0 {
+                let c = w * 64 + bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                if sphere.touching(c).iter().any(|&n| !open(n as usize)) {
+                    cells.push(c as u32);
+                }
+            }
+        }
         let mut chunks = CellChunks::default();
         chunks.rebuild(&cells, sphere.cells());
         Self(chunks)
@@ -88,8 +95,7 @@ impl Boundary {
 
     /// The boundary cell first in the order of [`nearer`] from `p`.
     fn nearest(&self, p: &V3, dirs: &[V3], bounds: &mut Vec<f64>) -> u32 {
-        self.0
-            .first_by(p, dirs, bounds, |a, b| nearer(p, dirs, a, b))
+        self.0.nearest(p, dirs, bounds)
     }
 }
 
@@ -150,15 +156,19 @@ pub(super) struct Outcome {
 
 impl Problem<'_> {
     /// The fan or rectangle search over `w.md`.
-    fn solve(&self, p: &V3, w: &mut Work) -> Solved {
+    /// With `above` (a bound, not an evaluation), the rectangle search may
+    /// stop once its bounds are certainly above those areas
+    /// ([`rect_search_above`]): the caller then only asks whether they are.
+    fn solve(&self, p: &V3, w: &mut Work, above: Option<Above>) -> Solved {
         match self.kind {
             MachineType::CA => fan_search(p, &w.md, self.ranges, self.tol, &mut w.fan),
-            MachineType::AB => rect_search(
+            MachineType::AB => rect_search_above(
                 p,
                 &w.md,
                 self.ranges,
                 self.tol,
                 self.sphere.spacing() / TURN_DIVISOR,
+                above,
                 &mut w.rect,
             ),
         }
@@ -172,7 +182,7 @@ impl Problem<'_> {
         w.md.clear();
         w.md.extend(w.walk.md.iter().map(|&c| dirs[c as usize]));
         let p = &dirs[i];
-        let solved = self.solve(p, w);
+        let solved = self.solve(p, w, None);
         let mut binding_classes = Vec::new();
         let placements = if binding {
             [Some(solved.best), solved.fit]
@@ -200,6 +210,10 @@ impl Problem<'_> {
     /// rules the cell out for good (`out`) or every source is in. With all
     /// of them the bound is that of their union; stopping early only ever
     /// leaves a cell ruled out that the whole union rules out too.
+    /// `above`, when given, are the areas above which `out` holds (see
+    /// [`Problem::solve`]); a cell so ruled out keeps a lower bound that may
+    /// be below the full search's, but above those areas all the same.
+    #[allow(clippy::too_many_arguments)]
     fn bound(
         &self,
         i: usize,
@@ -207,6 +221,7 @@ impl Problem<'_> {
         exact: &[Option<Evaluation>],
         boundaries: &Boundaries,
         out: &dyn Fn(&Bounds) -> bool,
+        above: Option<Above>,
         w: &mut Work,
     ) -> Bounds {
         let dirs = self.sphere.cells();
@@ -242,7 +257,7 @@ impl Problem<'_> {
             w.sorted.dedup();
             w.md.clear();
             w.md.extend(w.sorted.iter().map(|&c| dirs[c as usize]));
-            let solved = self.solve(p, w);
+            let solved = self.solve(p, w, above);
             result = (solved.best_lower, solved.fit_lower);
             if out(&result) {
                 break;
@@ -511,10 +526,22 @@ pub(super) fn search(
                     };
                     mar_out && fit_out
                 };
+                // The same thresholds as areas, for the rectangle search to
+                // stop at once it is certainly above them.
+                let above = match (t.0, t.1) {
+                    (Some(k), Some(f)) => Some(Above {
+                        best: k.0 + tolerance(k, prob.equivalent),
+                        fit: f.0 + tolerance(f, prob.equivalent),
+                    }),
+                    _ => None,
+                };
                 let f = |n: usize, w: &mut Work| {
                     let i = rebound[n];
                     let (near, far) = sources_of(i, &sources);
-                    (prob.bound(i, &near, &exact, &boundaries, &out, w), far)
+                    (
+                        prob.bound(i, &near, &exact, &boundaries, &out, above, w),
+                        far,
+                    )
                 };
                 let idx: Vec<usize> = (0..rebound.len()).collect();
                 for (n, (l, far)) in par_map(&idx, &f, Phase::Search, progress)

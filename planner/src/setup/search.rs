@@ -61,6 +61,112 @@ fn transpose64(m: &mut [u64; 64]) {
     }
 }
 
+/// Rows and columns of the classes' ordering grid.
+const ORDER_ROWS: f64 = 64.0;
+
+/// The cell of the ordering grid (row, serpentine column) of a sum of cell
+/// directions, and the same as reals before truncation.
+fn grid_cell(sum: &V3) -> ((u32, i64), [f64; 2]) {
+    let theta = sum.z.atan2(sum.xy().norm()) + PI / 2.0; // 0..π
+    let phi = sum.y.atan2(sum.x) + PI; // 0..2π
+    let (row_f, col_f) = (theta / PI * ORDER_ROWS, phi / TAU * 2.0 * ORDER_ROWS);
+    let row = (row_f as i64).min(ORDER_ROWS as i64 - 1);
+    let col = col_f as i64;
+    (
+        (row as u32, if row % 2 == 0 { col } else { -col }),
+        [row_f, col_f],
+    )
+}
+
+/// The sum of the directions of the cells of `row`, one by one in cell
+/// order: the mean direction the classes are ordered by.
+fn row_sum(row: &[u64], cells: &[V3]) -> V3 {
+    let mut sum = V3::zeros();
+    for (w, bits) in row.iter().enumerate() {
+        let mut bits = *bits;
+        while bits != 0 {
+            sum += cells[w * 64 + bits.trailing_zeros() as usize];
+            bits &= bits - 1;
+        }
+    }
+    sum
+}
+
+/// Sums of the directions of each whole byte of cells (8 cells), to add a
+/// full byte of a row at once.
+struct WordSums {
+    bytes: Vec<V3>,
+}
+
+impl WordSums {
+    fn new(cells: &[V3]) -> Self {
+        let bytes = (0..cells.len().div_ceil(8))
+            .map(|b| cells[b * 8..(b * 8 + 8).min(cells.len())].iter().sum())
+            .collect();
+        Self { bytes }
+    }
+}
+
+/// The ordering grid cell of `row`: that of [`row_sum`], found from a sum
+/// taken a byte of cells at a time where the row is full (most of a cone).
+/// Both sums are of the same at most `n` unit vectors in another order, so
+/// each differs from the exact sum by at most `γ_{n−1}·n` per coordinate;
+/// when the quick sum's direction lies farther than twice that (turned
+/// into an angle, plus a margin for the round-off of the angles) from every
+/// edge of the grid, both fall in the same grid cell. Otherwise the cell
+/// is that of [`row_sum`] itself.
+fn order_key(row: &[u64], cells: &[V3], sums: &WordSums) -> (u32, i64) {
+    let (sum, n) = quick_sum(row, cells, sums);
+    let (key, [row_f, col_f]) = grid_cell(&sum);
+    let n = n as f64;
+    // γ_{n−1}·n per coordinate for each sum (unit vectors: coordinates at
+    // most 1), both sums: a Euclidean distance of at most `gap`.
+    let u = f64::EPSILON / 2.0;
+    let gamma = n * u / (1.0 - n * u);
+    let gap = 2.0 * 3f64.sqrt() * gamma * n * (1.0 + 1e-6);
+    // The direction turns by at most `gap / (|sum| − gap)` (latitude), the
+    // longitude by at most `gap / (|xy| − gap)`; the angles' own round-off
+    // is far below the margin.
+    const MARGIN: f64 = 1e-9;
+    let (norm, flat) = (sum.norm(), sum.xy().norm());
+    let safe = |f: f64, turn: f64| {
+        let frac = f - f.floor();
+        turn.is_finite() && turn >= 0.0 && frac.min(1.0 - frac) > turn + MARGIN
+    };
+    let turn_row = gap / (norm - gap) * ORDER_ROWS / PI;
+    let turn_col = gap / (flat - gap) * 2.0 * ORDER_ROWS / TAU;
+    if norm > gap && flat > gap && safe(row_f, turn_row) && safe(col_f, turn_col) {
+        key
+    } else {
+        grid_cell(&row_sum(row, cells)).0
+    }
+}
+
+/// The sum of [`row_sum`] taken a whole byte of cells at a time where the
+/// row is full, and the number of cells summed.
+fn quick_sum(row: &[u64], cells: &[V3], sums: &WordSums) -> (V3, u64) {
+    let (mut sum, mut n) = (V3::zeros(), 0u64);
+    for (w, &bits) in row.iter().enumerate() {
+        if bits == 0 {
+            continue;
+        }
+        n += u64::from(bits.count_ones());
+        for byte in 0..8 {
+            let b = bits >> (8 * byte) & 0xFF;
+            if b == 0xFF {
+                sum += sums.bytes[w * 8 + byte];
+            } else {
+                let mut b = b;
+                while b != 0 {
+                    sum += cells[w * 64 + byte * 8 + b.trailing_zeros() as usize];
+                    b &= b - 1;
+                }
+            }
+        }
+    }
+    (sum, n)
+}
+
 impl PvcClasses {
     /// Groups the patches of `map` (on a sphere with cell directions
     /// `cells`) by identical cones.
@@ -97,25 +203,10 @@ impl PvcClasses {
         }
         let classes = reps.len();
         // Spatial order of the classes.
+        let sums = WordSums::new(cells);
         let keys: Vec<(u32, i64)> = reps
             .par_iter()
-            .map(|&j| {
-                let mut sum = V3::zeros();
-                for (w, bits) in map.pvc(j).iter().enumerate() {
-                    let mut bits = *bits;
-                    while bits != 0 {
-                        sum += cells[w * 64 + bits.trailing_zeros() as usize];
-                        bits &= bits - 1;
-                    }
-                }
-                /// Rows and columns of the ordering grid.
-                const ORDER_ROWS: f64 = 64.0;
-                let theta = sum.z.atan2(sum.xy().norm()) + PI / 2.0; // 0..π
-                let phi = sum.y.atan2(sum.x) + PI; // 0..2π
-                let row = ((theta / PI * ORDER_ROWS) as i64).min(ORDER_ROWS as i64 - 1);
-                let col = (phi / TAU * 2.0 * ORDER_ROWS) as i64;
-                (row as u32, if row % 2 == 0 { col } else { -col })
-            })
+            .map(|&j| order_key(map.pvc(j), cells, &sums))
             .collect();
         let mut order: Vec<u32> = (0..classes as u32).collect();
         order.sort_by_key(|&k| (keys[k as usize], k));
@@ -467,6 +558,66 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The classes' ordering grid cell from the sum taken a byte at a time
+    /// is that of the sum taken cell by cell, also for rows whose mean
+    /// direction lies on an edge of the grid (there the two sums' round-off
+    /// differ, and the quick sum alone puts some rows in the next cell).
+    #[test]
+    fn order_key_is_that_of_the_sum_cell_by_cell() {
+        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        // Half the directions random, the other half their mirror images
+        // (y and z negated, then also x for some rows' halves): symmetric
+        // rows sum to a direction on the edges `y = 0` and `z = 0`.
+        const HALF: usize = 512;
+        let mut cells: Vec<V3> = (0..HALF)
+            .map(|_| {
+                let z = 2.0 * next() - 1.0;
+                let a = TAU * next();
+                let r = (1.0 - z * z).sqrt();
+                V3::new(r * a.cos(), r * a.sin(), z)
+            })
+            .collect();
+        let mirrored: Vec<V3> = cells.iter().map(|c| V3::new(c.x, -c.y, -c.z)).collect();
+        cells.extend(mirrored);
+        let sums = WordSums::new(&cells);
+        let words = 2 * HALF / 64;
+        let (mut quick_wrong, mut edges) = (0, 0);
+        for case in 0..4000 {
+            let mut row = vec![0u64; words];
+            let density = [0.3, 0.7, 0.95, 1.0][case % 4];
+            for c in 0..HALF {
+                // Whole bytes on or off often, so that both paths run.
+                let on = if case % 3 == 0 {
+                    next() < density
+                } else {
+                    (c / 8 + case) % 3 != 0 || next() < 0.2
+                };
+                if on {
+                    row[c / 64] |= 1 << (c % 64);
+                    if case % 5 != 4 {
+                        // The mirror image too: the sum lies on the edges.
+                        let m = c + HALF;
+                        row[m / 64] |= 1 << (m % 64);
+                    }
+                }
+            }
+            let exact = grid_cell(&row_sum(&row, &cells)).0;
+            assert_eq!(order_key(&row, &cells, &sums), exact, "case {case}");
+            let (quick, _) = quick_sum(&row, &cells, &sums);
+            quick_wrong += usize::from(grid_cell(&quick).0 != exact);
+            edges += usize::from(case % 5 != 4);
+        }
+        assert!(edges > 3000);
+        // The guard is needed: without it some rows change cells.
+        assert!(quick_wrong > 0, "no row tested the guard");
     }
 
     /// The MD walk (one word of classes at a time, over the class-major

@@ -396,15 +396,9 @@ impl CellChunks {
         self.caps.iter().zip(self.cells.chunks(self.size()))
     }
 
-    /// The cell of the set first in the order `before(a, b)` (larger `p·d`
-    /// first, ties by `before`). `bounds` is scratch.
-    pub(crate) fn first_by(
-        &self,
-        p: &Dir,
-        dirs: &[Dir],
-        bounds: &mut Vec<f64>,
-        before: impl Fn(u32, u32) -> bool,
-    ) -> u32 {
+    /// The cell of the set first in the order of `search::nearer` from
+    /// `p`: larger `p·d` first, then the lower index. `bounds` is scratch.
+    pub(crate) fn nearest(&self, p: &Dir, dirs: &[Dir], bounds: &mut Vec<f64>) -> u32 {
         // Upper bound of p·d over each chunk's cap.
         bounds.clear();
         let mut first = 0;
@@ -421,20 +415,22 @@ impl CellChunks {
             }
         }
         let size = self.size();
+        // The best cell so far and its `p·d`, kept rather than computed
+        // again at every comparison (the same value).
         let mut best = self.cells[first * size];
-        let scan = |k: usize, best: &mut u32| {
+        let mut top = dirs[best as usize].dot(p);
+        let scan = |k: usize, best: &mut u32, top: &mut f64| {
             for &c in &self.cells[k * size..((k + 1) * size).min(self.cells.len())] {
-                if before(c, *best) {
-                    *best = c;
+                let d = dirs[c as usize].dot(p);
+                if d > *top || (d == *top && c < *best) {
+                    (*best, *top) = (c, d);
                 }
             }
         };
-        scan(first, &mut best);
-        let mut top = dirs[best as usize].dot(p);
+        scan(first, &mut best, &mut top);
         for k in 0..self.caps.len() {
             if k != first && bounds[k] >= top {
-                scan(k, &mut best);
-                top = dirs[best as usize].dot(p);
+                scan(k, &mut best, &mut top);
             }
         }
         best
@@ -671,6 +667,60 @@ mod tests {
                         "f {f}: cell {c} is a local nearest to {p}"
                     );
                 }
+            }
+        }
+    }
+
+    /// The chunked search finds the cell a scan of the whole set finds, in
+    /// the order of `search::nearer` (ties to the lower index), for sets of
+    /// many shapes and directions both on and off the cells.
+    #[test]
+    fn chunks_find_the_nearest_cell_of_the_set() {
+        let sphere = GeodesicSphere::with_frequency(12);
+        let dirs = sphere.cells();
+        let mut state = 0x2545_F491_4F6C_DD1Du64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let mut chunks = CellChunks::default();
+        let mut bounds = Vec::new();
+        for case in 0..200 {
+            // A cap, a band or a scatter of cells.
+            let centre = dirs[next() as usize % dirs.len()];
+            let cells: Vec<u32> = (0..dirs.len() as u32)
+                .filter(|&c| match case % 3 {
+                    0 => dirs[c as usize].dot(&centre) > 0.3,
+                    1 => dirs[c as usize].dot(&centre).abs() < 0.2,
+                    _ => next() % 7 == 0,
+                })
+                .collect();
+            if cells.is_empty() {
+                continue;
+            }
+            chunks.rebuild(&cells, dirs);
+            for k in 0..8 {
+                let p = if k % 2 == 0 {
+                    dirs[next() as usize % dirs.len()]
+                } else {
+                    let v = Dir::new(
+                        (next() >> 11) as f64 - (1u64 << 52) as f64,
+                        (next() >> 11) as f64 - (1u64 << 52) as f64,
+                        (next() >> 11) as f64 - (1u64 << 52) as f64,
+                    );
+                    v.normalize()
+                };
+                let scan = cells
+                    .iter()
+                    .copied()
+                    .reduce(|a, b| {
+                        let (da, db) = (dirs[a as usize].dot(&p), dirs[b as usize].dot(&p));
+                        if db > da || (db == da && b < a) { b } else { a }
+                    })
+                    .expect("not empty");
+                assert_eq!(chunks.nearest(&p, dirs, &mut bounds), scan, "case {case}");
             }
         }
     }
