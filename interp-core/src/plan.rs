@@ -30,7 +30,7 @@
 
 use crate::config::InterpConfig;
 use crate::lp::{self, LpError, LpOptions, LpWork, Problem, Row};
-use crate::spline::Piece;
+use crate::spline::{Form, Piece};
 use crate::stop::Stop;
 
 /// Grid intervals (and rest points) the queue may span from the machine to
@@ -234,6 +234,9 @@ struct WPiece {
     /// keeps the rows just past it as loose as they were (see
     /// [`kept_caps`]).
     solved_cap: Option<f64>,
+    /// Its interval's tangential jerk is bounded by a five-axis block's
+    /// joints (`Interval::joint_jerk`): no ramp form next to a rest.
+    joint_limited: bool,
 }
 
 impl WPiece {
@@ -468,6 +471,23 @@ impl Data {
         [h / (hq + h), hq / (hq + h)]
     }
 
+    /// How piece `i`'s `S` runs ([`Form`]): a ramp next to one rest point,
+    /// so that the jerk is used from the rest on (on a three-axis interval:
+    /// a five-axis block's joints keep the quadratic and the acceleration
+    /// step at rest, [`rest_accel`]); the quadratic elsewhere, and on a
+    /// piece that rests at both ends.
+    fn form(&self, i: usize) -> Form {
+        let p = &self.pieces[i];
+        let rest_end = i + 1 >= self.n_pieces || self.pieces[i + 1].rest_start;
+        if p.rest_start == rest_end || p.joint_limited {
+            Form::Quadratic
+        } else if p.rest_start {
+            Form::FromRest
+        } else {
+            Form::ToRest
+        }
+    }
+
     /// Piece `i` of the current solution with its knot values.
     fn piece(&self, i: usize) -> Piece {
         let w = &self.pieces[i];
@@ -485,6 +505,7 @@ impl Data {
             e0,
             d: w.d,
             e1,
+            form: self.form(i),
         }
     }
 
@@ -666,15 +687,18 @@ impl Data {
                 } else {
                     0.0
                 };
+                let g = index_of(0.5 * (x + x1), self.h);
+                let held = g >= self.g_base && g < self.g_base + self.n_int as i64;
                 self.pieces[n] = WPiece {
                     x0: x,
                     x1,
-                    g: index_of(0.5 * (x + x1), self.h),
+                    g,
                     rest_start: rest,
                     d,
                     machine: f64::INFINITY,
                     feed: f64::INFINITY,
                     solved_cap: None,
+                    joint_limited: held && self.interval(g).joint_jerk.is_finite(),
                 };
                 n += 1;
                 rest = false;
@@ -919,6 +943,7 @@ impl Data {
                     machine: f64::INFINITY,
                     feed: f64::INFINITY,
                     solved_cap: None,
+                    joint_limited: p.joint_limited,
                 };
                 x1 = x0;
             }
@@ -1751,12 +1776,20 @@ fn assemble_and_solve(
         let it = *d.interval(p.g);
         let l2 = sc.cap2[i];
         let rest_end = i + 1 >= n || d.pieces[i + 1].rest_start;
+        let form = d.form(i);
+        let vmax = libm::sqrt(l2).max(1e-9);
+        let jb = it.jerk * h * h / vmax;
         // The middle coefficient's bound: next to a rest point, the
-        // acceleration step allowed there.
-        let d_hi = if p.rest_start || rest_end {
-            l2.min(rest_accel(a_rest, &it, &cfg) * h)
-        } else {
-            l2
+        // acceleration step allowed there; on a ramp (`S' = 0` at the rest)
+        // `3d ≤ cap`, so that `v ≤ w²·√cap` on it, its jerk at the rest
+        // `(2/3)·d·v/h²·…` (the row below at w = 0) and its acceleration
+        // inside, at most `4d/(3h)`.
+        let d_hi = match form {
+            Form::Quadratic if p.rest_start || rest_end => {
+                l2.min(rest_accel(a_rest, &it, &cfg) * h)
+            }
+            Form::Quadratic => l2,
+            _ => (l2 / 3.0).min(0.75 * it.accel * h).min(1.5 * jb),
         };
         if i >= first {
             let j = i - first;
@@ -1792,17 +1825,35 @@ fn assemble_and_solve(
         // it is linearised about its own bound, as the others are about
         // theirs; without that, trading it for the next piece's coefficient
         // looks free and the plan creeps out of every rest point.
-        let w_mid = weigh(d_hi);
+        let (w_ends, w_mid) = if form == Form::Quadratic {
+            (weight, weigh(d_hi))
+        } else {
+            // A ramp's time 3h·∫dw/√(3d + (far − 3d)·w²), linearised about
+            // the pure ramp at its bound, `3d = far = a`: −∂T/∂d = 3h/a^{3/2},
+            // −∂T/∂far = h/(2a^{3/2}) (twice each, as ∫S/V³ is of the time).
+            let a = (3.0 * d_hi).max(floor);
+            let g = h / (a * libm::sqrt(a));
+            (g, 6.0 * g)
+        };
         for m in 0..3 {
             let q = i as isize + m as isize - 1;
             if q >= first as isize && (q as usize) < n {
-                sc.c[q as usize - first] += (e0[m] + e1[m]) * weight + mid[m] * w_mid;
+                sc.c[q as usize - first] += (e0[m] + e1[m]) * w_ends + mid[m] * w_mid;
             }
         }
-        // Tangential jerk |α|·v ≤ J, α = (e0 − 2d + e1)/h², v ≤ √l2.
-        let vmax = libm::sqrt(l2).max(1e-9);
-        let jb = it.jerk * h * h / vmax;
-        sink.push(d, i, curv, -jb, jb)?;
+        // Tangential jerk |α|·v ≤ J, α = (e0 − 2d + e1)/h², v ≤ √l2. On a
+        // ramp |S''|·v/2 ≤ |(2/3)d + (far − 3d)·w²|·√l2/h², linear in w²:
+        // at w = 0 within `d_hi`, at w = 1 this row.
+        let far = if form == Form::ToRest { e0 } else { e1 };
+        let jerk_form = match form {
+            Form::Quadratic => curv,
+            _ => [
+                far[0] - 7.0 / 3.0 * mid[0],
+                far[1] - 7.0 / 3.0 * mid[1],
+                far[2] - 7.0 / 3.0 * mid[2],
+            ],
+        };
+        sink.push(d, i, jerk_form, -jb, jb)?;
         if !rest_end {
             // The end knot within both pieces' limits, and the acceleration there.
             let l2n = sc.cap2[i + 1];
@@ -1817,17 +1868,38 @@ fn assemble_and_solve(
         for smp in d.piece_samples(&p, rest_end) {
             let u = ((smp.s - p.x0) / h).clamp(0.0, 1.0);
             let (b0, b1, b2) = ((1.0 - u) * (1.0 - u), 2.0 * u * (1.0 - u), u * u);
+            // On a ramp, w = u'^{1/3} from the rest (u' = u or 1 − u, with
+            // the sign of d/dx), and the row is the jerk over w²·√l2 (the
+            // speed there at most): finite at the rest, where S'' is not.
+            let (w, sgn) = match form {
+                Form::ToRest => (libm::cbrt(1.0 - u), -1.0),
+                _ => (libm::cbrt(u), 1.0),
+            };
+            let (w2, w3) = (w * w, w * w * w);
             for ax in 0..3 {
                 if !binds(smp, ax, l2) {
                     continue;
                 }
                 let (t, css, csss) = (smp.t[ax], smp.css[ax], smp.csss[ax]);
                 let mut a = [0.0; 3];
-                for m in 0..3 {
-                    let sv = e0[m] * b0 + mid[m] * b1 + e1[m] * b2;
-                    let sd = 2.0 / h * ((mid[m] - e0[m]) * (1.0 - u) + (e1[m] - mid[m]) * u);
-                    let sdd = 2.0 / (h * h) * curv[m];
-                    a[m] = csss * sv + 1.5 * css * sd + 0.5 * t * sdd;
+                if form == Form::Quadratic {
+                    for m in 0..3 {
+                        let sv = e0[m] * b0 + mid[m] * b1 + e1[m] * b2;
+                        let sd = 2.0 / h * ((mid[m] - e0[m]) * (1.0 - u) + (e1[m] - mid[m]) * u);
+                        let sdd = 2.0 / (h * h) * curv[m];
+                        a[m] = csss * sv + 1.5 * css * sd + 0.5 * t * sdd;
+                    }
+                } else {
+                    // w²·S = 3(w⁶ − w⁸)·d + w⁸·far, w²·S' = ±((4w³ − 6w⁵)·d + 2w⁵·far)/h,
+                    // w²·S'' = ((4/3 − 6w²)·d + 2w²·far)/h².
+                    let w6 = w3 * w3;
+                    let c_mid = csss * 3.0 * w6 * (1.0 - w2)
+                        + sgn * 1.5 * css * (4.0 * w3 - 6.0 * w3 * w2) / h
+                        + 0.5 * t * (4.0 / 3.0 - 6.0 * w2) / (h * h);
+                    let c_far = csss * w6 * w2 + sgn * 3.0 * css * w3 * w2 / h + t * w2 / (h * h);
+                    for m in 0..3 {
+                        a[m] = c_mid * mid[m] + c_far * far[m];
+                    }
                 }
                 if aggregate {
                     // |Σ a_m·d_m| ≤ Σ |a_m|·d_m for d ≥ 0: one row bounds

@@ -472,7 +472,7 @@ impl BlockPlanner {
         // little longer to take effect) rather than keep the old plan.
         let p = self.window.piece(f);
         let v0 = libm::sqrt(p.e0.max(p.d).max(p.e1).max(0.0));
-        let a0 = p.accel(0.0).max(p.accel(p.h)).max(0.0);
+        let a0 = p.accel_max().max(0.0);
         let (a, j) = (self.cfg.planned_accel(), self.cfg.planned_jerk());
         let mut r = Ok(());
         for (k, gentle) in LIFT_SOFTENING.iter().enumerate() {

@@ -16,6 +16,32 @@
 //! acceleration `a = α·x + β/2` is continuous (the spline is C¹ at its
 //! knots, C⁰ at rest points), and the jerk `ȧ = α·v` is bounded piecewise:
 //! the schedule's jerk limits are limits on `α` ([`crate::plan`]).
+//!
+//! A piece that leaves a rest point (or reaches one) but does not rest at
+//! both ends has the form [`Form::FromRest`] ([`Form::ToRest`]) instead:
+//! `S = 3d·u^{4/3} + (e1 − 3d)·u²`, `u` the distance from the rest over
+//! `h`. It has the quadratic's end value and end slope (so the spline stays
+//! C¹ with the same knot equations), but `S' = 0` at the rest and a finite
+//! jerk there, `(2/9)·(3d)^{3/2}/h²`: with `e1 = 3d` it is the jerk-limited
+//! start `x = j·t³/6` exactly, where a quadratic's jerk `α·v` vanishes at
+//! rest and leaves the jerk limit unused all the way up (a short move's
+//! ramps took 1.4× the jerk-limited time). In `w = u^{1/3}` the motion
+//! obeys `ẇ² = (3d + (e1 − 3d)·w²)/(9h²)`, a quadratic in `w`, so the same
+//! closed form moves along it exactly.
+
+/// How `S` runs between a piece's knot values.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Form {
+    /// The quadratic with Bernstein coefficients `(e0, d, e1)`.
+    #[default]
+    Quadratic,
+    /// Leaves a rest point at its start (`e0 = 0`):
+    /// `S = 3d·u^{4/3} + (e1 − 3d)·u²`.
+    FromRest,
+    /// Reaches a rest point at its end (`e1 = 0`): the mirror image,
+    /// `S = 3d·u'^{4/3} + (e0 − 3d)·u'²` with `u' = 1 − u`.
+    ToRest,
+}
 
 /// One piece of the planned speed profile.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
@@ -30,6 +56,8 @@ pub struct Piece {
     pub d: f64,
     /// `S` at the end, (mm/s)².
     pub e1: f64,
+    /// How `S` runs between the ends.
+    pub form: Form,
 }
 
 impl Piece {
@@ -38,22 +66,37 @@ impl Piece {
     pub fn x1(&self) -> f64 {
         self.x0 + self.h
     }
-    /// `α = S''/2`, 1/s².
+    /// `α = S''/2` of the quadratic form, 1/s².
     #[inline]
     pub fn alpha(&self) -> f64 {
         (self.e0 - 2.0 * self.d + self.e1) / (self.h * self.h)
     }
-    /// `β = S'(x0)`, mm/s².
+    /// `β = S'(x0)` of the quadratic form, mm/s².
     #[inline]
     pub fn beta(&self) -> f64 {
         2.0 * (self.d - self.e0) / self.h
     }
+    /// For a ramp form: `w = u'^{1/3}`, `u'` the distance from the rest over
+    /// `h`, and `S` at the far end.
+    #[inline]
+    fn ramp_w(&self, x: f64) -> (f64, f64) {
+        let u = (x / self.h).clamp(0.0, 1.0);
+        match self.form {
+            Form::ToRest => (libm::cbrt(1.0 - u), self.e0),
+            _ => (libm::cbrt(u), self.e1),
+        }
+    }
     /// `S` at local coordinate `x` (mm from the piece start).
     #[inline]
     pub fn s2(&self, x: f64) -> f64 {
-        let u = x / self.h;
-        let w = 1.0 - u;
-        self.e0 * w * w + 2.0 * self.d * u * w + self.e1 * u * u
+        if self.form == Form::Quadratic {
+            let u = x / self.h;
+            let w = 1.0 - u;
+            return self.e0 * w * w + 2.0 * self.d * u * w + self.e1 * u * u;
+        }
+        let (w, far) = self.ramp_w(x);
+        let w2 = w * w;
+        w2 * w2 * (3.0 * self.d + (far - 3.0 * self.d) * w2)
     }
     /// Planned speed at local coordinate `x`, mm/s.
     #[inline]
@@ -63,7 +106,69 @@ impl Piece {
     /// Planned tangential acceleration `S'/2` at local coordinate `x`, mm/s².
     #[inline]
     pub fn accel(&self, x: f64) -> f64 {
-        self.alpha() * x + 0.5 * self.beta()
+        if self.form == Form::Quadratic {
+            return self.alpha() * x + 0.5 * self.beta();
+        }
+        // dS/du' = 4d·w + 2(far − 3d)·w³; u' runs against x on ToRest.
+        let (w, far) = self.ramp_w(x);
+        let ds = (4.0 * self.d * w + 2.0 * (far - 3.0 * self.d) * w * w * w) / (2.0 * self.h);
+        if self.form == Form::ToRest { -ds } else { ds }
+    }
+    /// An upper bound of the acceleration anywhere on the piece, mm/s².
+    pub fn accel_max(&self) -> f64 {
+        let ends = self.accel(0.0).max(self.accel(self.h));
+        match self.form {
+            // Concave in w when e1 < 3d: the peak 4d·w/3 /h lies inside.
+            Form::FromRest => ends.max(4.0 * self.d / (3.0 * self.h)),
+            // Its acceleration is monotone or concave in w the other way:
+            // extremes at the ends (see `accel`).
+            _ => ends,
+        }
+    }
+    /// The motion of a ramp form as a quadratic piece of length 1 in `z`
+    /// (`z = w` on FromRest, `1 − w` on ToRest, both running from the start
+    /// to the end): `ż² = Q(z)` with `Q = (3d + (far − 3d)·w²)/(9h²)`.
+    fn ramp_aux(&self) -> Piece {
+        let k = 1.0 / (9.0 * self.h * self.h);
+        let at_rest = 3.0 * self.d * k;
+        match self.form {
+            Form::ToRest => Piece {
+                x0: 0.0,
+                h: 1.0,
+                e0: self.e0 * k,
+                d: at_rest,
+                e1: at_rest,
+                form: Form::Quadratic,
+            },
+            _ => Piece {
+                x0: 0.0,
+                h: 1.0,
+                e0: at_rest,
+                d: at_rest,
+                e1: self.e1 * k,
+                form: Form::Quadratic,
+            },
+        }
+    }
+    /// `z` and `ż` of the motion on the plan at local `x` (ramp forms).
+    fn ramp_state(&self, aux: &Piece, x: f64) -> (f64, f64) {
+        let (w, _) = self.ramp_w(x);
+        let z = if self.form == Form::ToRest {
+            1.0 - w
+        } else {
+            w
+        };
+        (z, aux.speed(z))
+    }
+    /// Local `x` and speed from `z`, `ż` (ramp forms): `x = h·w³`, `ẋ = 3h·w²·ẇ`.
+    fn ramp_place(&self, z: f64, zd: f64) -> (f64, f64) {
+        let z = z.clamp(0.0, 1.0);
+        if self.form == Form::ToRest {
+            let w = 1.0 - z;
+            (self.h * (1.0 - w * w * w), 3.0 * self.h * w * w * zd)
+        } else {
+            (self.h * z * z * z, 3.0 * self.h * z * z * zd)
+        }
     }
 }
 
@@ -148,6 +253,17 @@ fn rest_time(piece: &Piece, x: f64, v: f64, t: f64) -> Option<f64> {
 /// to rest within `t` stays at rest.
 #[inline]
 pub fn advance(piece: &Piece, x: f64, v: f64, t: f64) -> (f64, f64) {
+    if piece.form == Form::Quadratic {
+        return advance_quadratic(piece, x, v, t);
+    }
+    let aux = piece.ramp_aux();
+    let (z, zd) = piece.ramp_state(&aux, x);
+    let (z, zd) = advance_quadratic(&aux, z, zd, t);
+    piece.ramp_place(z, zd)
+}
+
+#[inline]
+fn advance_quadratic(piece: &Piece, x: f64, v: f64, t: f64) -> (f64, f64) {
     if let Some(tr) = turn_time(piece, x, v, t) {
         return (state_after(piece, x, v, tr).0, 0.0);
     }
@@ -165,6 +281,18 @@ pub fn advance(piece: &Piece, x: f64, v: f64, t: f64) -> (f64, f64) {
 /// piece's end, if it does within `t_max`: `Some(t)`, else `None`. A piece
 /// that ends at rest is reached when the speed reaches zero.
 pub fn time_to_end(piece: &Piece, x: f64, v: f64, t_max: f64) -> Option<f64> {
+    if piece.form == Form::Quadratic {
+        return time_to_end_quadratic(piece, x, v, t_max);
+    }
+    if x >= piece.h {
+        return Some(0.0);
+    }
+    let aux = piece.ramp_aux();
+    let (z, zd) = piece.ramp_state(&aux, x);
+    time_to_end_quadratic(&aux, z, zd, t_max)
+}
+
+fn time_to_end_quadratic(piece: &Piece, x: f64, v: f64, t_max: f64) -> Option<f64> {
     let h = piece.h;
     if x >= h {
         return Some(0.0);
@@ -245,6 +373,7 @@ mod tests {
                 e0: 100.0,
                 d: 400.0,
                 e1: 900.0,
+                form: Form::Quadratic,
             },
             Piece {
                 x0: 3.0,
@@ -252,6 +381,7 @@ mod tests {
                 e0: 9000.0,
                 d: 9800.0,
                 e1: 9100.0,
+                form: Form::Quadratic,
             },
             Piece {
                 x0: 1.0,
@@ -259,6 +389,7 @@ mod tests {
                 e0: 2500.0,
                 d: 2400.0,
                 e1: 2600.0,
+                form: Form::Quadratic,
             },
             Piece {
                 x0: 0.0,
@@ -266,6 +397,7 @@ mod tests {
                 e0: 0.0,
                 d: 20.0,
                 e1: 400.0,
+                form: Form::Quadratic,
             },
             Piece {
                 x0: 0.0,
@@ -273,6 +405,7 @@ mod tests {
                 e0: 50.0,
                 d: 50.0,
                 e1: 50.0,
+                form: Form::Quadratic,
             },
         ];
         for p in &pieces {
@@ -303,6 +436,7 @@ mod tests {
             e0: 0.0,
             d: 30.0,
             e1: 500.0,
+            form: Form::Quadratic,
         };
         let (x, v) = advance(&p, 0.0, 0.0, 1e-3);
         assert!(x > 0.0 && v > 0.0);
@@ -324,12 +458,126 @@ mod tests {
             e0: 400.0,
             d: 30.0,
             e1: 0.0,
+            form: Form::Quadratic,
         };
         let t = time_to_end(&q, 0.0, 20.0, 10.0).unwrap();
         assert!(t.is_finite() && t > 0.0);
         let (xe, ve) = advance(&q, 0.0, 20.0, t);
         assert!((xe - q.h).abs() < 1e-12 && ve < 1e-3, "{xe} {ve}");
         assert!(time_to_end(&q, 0.0, 20.0, 1e-3).is_none());
+    }
+
+    /// The ramp forms: `S` from rest as `3d·u^{4/3} + (e1 − 3d)·u²`.
+    fn ramps() -> [Piece; 6] {
+        let r = |form, e0, d, e1| Piece {
+            x0: 2.0,
+            h: 0.0625,
+            e0,
+            d,
+            e1,
+            form,
+        };
+        [
+            // The pure jerk-limited start (e1 = 3d), one with a longer
+            // constant-acceleration tail (e1 < 3d) and one that bends up.
+            r(Form::FromRest, 0.0, 50.0, 150.0),
+            r(Form::FromRest, 0.0, 50.0, 90.0),
+            r(Form::FromRest, 0.0, 20.0, 150.0),
+            r(Form::ToRest, 150.0, 50.0, 0.0),
+            r(Form::ToRest, 90.0, 50.0, 0.0),
+            r(Form::ToRest, 150.0, 20.0, 0.0),
+        ]
+    }
+
+    #[test]
+    fn ramp_forms_keep_the_quadratic_s_end_value_and_slope() {
+        for p in ramps() {
+            let q = Piece {
+                form: Form::Quadratic,
+                ..p
+            };
+            for x in [0.0, p.h] {
+                assert!(
+                    (p.s2(x) - q.s2(x)).abs() < 1e-12 * (1.0 + q.s2(x)),
+                    "{p:?} {x}"
+                );
+            }
+            // The slope at the far end is the quadratic's; at the rest it is 0.
+            let (far, rest) = if p.form == Form::FromRest {
+                (p.h, 0.0)
+            } else {
+                (0.0, p.h)
+            };
+            assert!((p.accel(far) - q.accel(far)).abs() < 1e-9, "{p:?}");
+            assert_eq!(p.accel(rest), 0.0, "{p:?}");
+            // S stays within the larger of d and the far value (the hull).
+            let top = p.d.max(p.e0).max(p.e1);
+            for k in 0..=1000 {
+                let x = p.h * k as f64 / 1000.0;
+                assert!(
+                    p.s2(x) >= 0.0 && p.s2(x) <= top * (1.0 + 1e-12),
+                    "{p:?} {x}"
+                );
+                assert!(p.accel(x) <= p.accel_max() + 1e-9, "{p:?} {x}");
+            }
+        }
+    }
+
+    #[test]
+    fn ramp_motion_matches_integration_and_leaves_the_rest_with_finite_jerk() {
+        for p in ramps() {
+            // Inside: the closed form against RK4 on s̈ = S'/2.
+            let x = 0.3 * p.h;
+            let v = p.speed(x);
+            for &t in &[1e-4, 1e-3] {
+                let (xe, ve) = advance(&p, x, v, t);
+                let (xr, vr) = rk4(&p, x, v, t, 20_000);
+                assert!((xe - xr).abs() < 1e-11, "{p:?} t={t}: {xe} vs {xr}");
+                assert!(
+                    (ve - vr).abs() < 1e-8 * (1.0 + vr),
+                    "{p:?} t={t}: {ve} vs {vr}"
+                );
+                assert!((ve * ve - p.s2(xe)).abs() < 1e-9 * (1.0 + ve * ve), "{p:?}");
+            }
+            // The time across, from the start, is ∫ dx/√S = 3h·∫ dw/√(3d + (far − 3d)·w²).
+            let v0 = p.speed(0.0);
+            let t = time_to_end(&p, 0.0, v0, 10.0).expect("finite");
+            let far = p.e0.max(p.e1);
+            let n = 100_000;
+            let mut want = 0.0;
+            for k in 0..n {
+                let w = (k as f64 + 0.5) / n as f64;
+                want += 3.0 * p.h / n as f64 / libm::sqrt(3.0 * p.d + (far - 3.0 * p.d) * w * w);
+            }
+            assert!((t - want).abs() < 1e-8 * want, "{p:?}: {t} vs {want}");
+            let (xe, _) = advance(&p, 0.0, v0, t);
+            assert!((xe - p.h).abs() < 1e-12, "{p:?}: {xe}");
+            assert!(time_to_end(&p, 0.0, v0, 0.5 * t).is_none());
+            // The jerk, by third differences of the motion from the start,
+            // within the bound the planner's rows keep, (2/9)·(3d)^{3/2}/h²
+            // at the rest and |S''|·v/2 ≤ |(2/3)d + (far − 3d)·w²|·√max(3d, far)/h².
+            let dt = t / 400.0;
+            let xs: [f64; 401] = core::array::from_fn(|k| advance(&p, 0.0, v0, dt * k as f64).0);
+            let bound = |w: f64| {
+                libm::fabs(2.0 / 3.0 * p.d + (far - 3.0 * p.d) * w * w)
+                    * libm::sqrt((3.0 * p.d).max(far))
+                    / (p.h * p.h)
+            };
+            let top = bound(0.0).max(bound(1.0));
+            for k in 0..397 {
+                let j = (xs[k + 3] - 3.0 * xs[k + 2] + 3.0 * xs[k + 1] - xs[k]) / (dt * dt * dt);
+                assert!(
+                    libm::fabs(j) <= top * 1.001 + 1e-6,
+                    "{p:?} k={k}: {j} > {top}"
+                );
+            }
+            if p.form == Form::FromRest && p.e1 == 3.0 * p.d {
+                // The pure ramp: jerk (2/9)·(3d)^{3/2}/h² throughout.
+                let want = 2.0 / 9.0 * libm::pow(3.0 * p.d, 1.5) / (p.h * p.h);
+                let j = (xs[4] - 3.0 * xs[3] + 3.0 * xs[2] - xs[1]) / (dt * dt * dt);
+                assert!((j - want).abs() < 1e-3 * want, "{j} vs {want}");
+            }
+        }
     }
 
     #[test]
@@ -344,6 +592,7 @@ mod tests {
             e0: 65.7638,
             d: 51.7423,
             e1: 18.7134,
+            form: Form::Quadratic,
         };
         let v0 = libm::sqrt(p.e0);
         let t = time_to_end(&p, 0.0, v0, 0.05).expect("the end within the tick");

@@ -123,6 +123,30 @@ fn bound_of_a_line_is_the_seven_phase_rest_to_rest_time() {
 }
 
 #[test]
+fn short_moves_from_rest_to_rest_use_the_jerk_from_the_rest_on() {
+    // Moves too short to reach the feed are all ramps: their time is set by
+    // how the schedule leaves and reaches rest. With quadratic pieces there
+    // (jerk α·v, nothing at the rest) a 0.02, 0.14, 1 and 5 mm move took
+    // 1.51, 1.46, 1.36 and 1.21× their jerk-limited time; with the ramp
+    // form next to a rest point (`spline::Form`), which starts at the jerk
+    // limit, 1.24, 1.24, 1.13 and 1.08× (times in whole ticks).
+    let cfg = InterpConfig::default();
+    let (a, j) = (cfg.max_path_accel, cfg.max_path_jerk);
+    for (l, most) in [(0.02, 1.3), (0.14, 1.3), (1.0, 1.2), (5.0, 1.12)] {
+        let blocks = [Block::new(1, line([0.0; 3], [l, 0.0, 0.0]), 100.0)];
+        let t = path_times(&blocks, &cfg).unwrap();
+        let want = rest_to_rest(l, 100.0, a, j);
+        eprintln!(
+            "line {l} mm: ours {} s, seven-phase {want} s, ratio {:.3}",
+            t.ours,
+            t.ours / want
+        );
+        assert_bound_between(&t);
+        assert!(t.ours <= most * want, "{l} mm: {} vs {want}", t.ours);
+    }
+}
+
+#[test]
 fn bound_of_a_gentle_arc_is_the_seven_phase_time_on_the_fine_grid() {
     // A line is one cell of the bound's grid; an arc is sampled every 5 µm
     // like a curve. Radius 1 m: only the feed binds, as on a line.
