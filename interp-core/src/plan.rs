@@ -237,6 +237,10 @@ struct WPiece {
     /// Its interval's tangential jerk is bounded by a five-axis block's
     /// joints (`Interval::joint_jerk`): no ramp form next to a rest.
     joint_limited: bool,
+    /// Next to a rest point, the last solve gave it the ramp form: it is no
+    /// longer than the jerk-limited distance to its cap (see
+    /// [`RAMP_REACH`]).
+    ramp: bool,
 }
 
 impl WPiece {
@@ -472,14 +476,15 @@ impl Data {
     }
 
     /// How piece `i`'s `S` runs ([`Form`]): a ramp next to one rest point,
-    /// so that the jerk is used from the rest on (on a three-axis interval:
-    /// a five-axis block's joints keep the quadratic and the acceleration
-    /// step at rest, [`rest_accel`]); the quadratic elsewhere, and on a
-    /// piece that rests at both ends.
+    /// so that the jerk is used from the rest on, where the solve chose it
+    /// ([`WPiece::ramp`]; on a three-axis interval: a five-axis block's
+    /// joints keep the quadratic and the acceleration step at rest,
+    /// [`rest_accel`]); the quadratic elsewhere, and on a piece that rests
+    /// at both ends.
     fn form(&self, i: usize) -> Form {
         let p = &self.pieces[i];
         let rest_end = i + 1 >= self.n_pieces || self.pieces[i + 1].rest_start;
-        if p.rest_start == rest_end || p.joint_limited {
+        if p.rest_start == rest_end || p.joint_limited || !p.ramp {
             Form::Quadratic
         } else if p.rest_start {
             Form::FromRest
@@ -682,10 +687,10 @@ impl Data {
                 if n >= WINDOW {
                     return Err(PlanError::Full);
                 }
-                let d = if n < self.n_pieces && self.pieces[n].x0 == x {
-                    self.pieces[n].d
+                let (d, ramp) = if n < self.n_pieces && self.pieces[n].x0 == x {
+                    (self.pieces[n].d, self.pieces[n].ramp)
                 } else {
-                    0.0
+                    (0.0, false)
                 };
                 let g = index_of(0.5 * (x + x1), self.h);
                 let held = g >= self.g_base && g < self.g_base + self.n_int as i64;
@@ -699,6 +704,7 @@ impl Data {
                     feed: f64::INFINITY,
                     solved_cap: None,
                     joint_limited: held && self.interval(g).joint_jerk.is_finite(),
+                    ramp,
                 };
                 n += 1;
                 rest = false;
@@ -944,6 +950,7 @@ impl Data {
                     feed: f64::INFINITY,
                     solved_cap: None,
                     joint_limited: p.joint_limited,
+                    ramp: j == 0 && p.ramp,
                 };
                 x1 = x0;
             }
@@ -1753,6 +1760,20 @@ fn assemble_and_solve(
         }
         sc.first_cap2[..nv].copy_from_slice(&sc.cap2[first..n]);
     }
+    if pass != Pass::Refine {
+        // A ramp leaves (or reaches) rest with S' = 0, so it must not be
+        // much longer than the jerk-limited distance to its speed: a long
+        // one creeps (v ∝ distance near the rest when 3d ≪ far). Such a
+        // piece keeps the quadratic and its acceleration step at rest. The
+        // refinement keeps the first pass's forms (its rows continue that
+        // plan).
+        let j = cfg.max_path_jerk;
+        for i in first..n {
+            let c = sc.cap2[i].max(0.0);
+            let reach = RAMP_REACH * libm::pow(c, 0.75) / libm::sqrt(j);
+            d.pieces[i].ramp = d.pieces[i].h() <= reach;
+        }
+    }
     let mut needed = 0usize;
     for i in lo_i..n {
         let p = d.pieces[i];
@@ -2099,9 +2120,15 @@ const SUB_SNAP: f64 = 1e-6;
 /// ([`Window::lower_junction`]).
 const JUNCTION_TICKS: f64 = 2.0;
 
+/// A piece next to a rest point takes the ramp form when it is no longer
+/// than this multiple of `v^{3/2}/√J`, `v` its speed cap (the jerk-limited
+/// distance from rest to `v` is about that; a pure ramp reaching `v` spans
+/// 0.47 of it).
+const RAMP_REACH: f64 = 1.0;
+
 /// Where the pieces next to a rest point are cut, as fractions of the grid
 /// step (or of the piece, when shorter) from the rest.
-const GRADE: [f64; 3] = [1.0 / 64.0, 1.0 / 16.0, 0.25];
+const GRADE: [f64; 2] = [1.0 / 16.0, 0.25];
 
 /// A piece is cut where the speed limits of its sub-ranges differ by more
 /// than this factor.

@@ -129,7 +129,7 @@ fn short_moves_from_rest_to_rest_use_the_jerk_from_the_rest_on() {
     // (jerk α·v, nothing at the rest) a 0.02, 0.14, 1 and 5 mm move took
     // 1.51, 1.46, 1.36 and 1.21× their jerk-limited time; with the ramp
     // form next to a rest point (`spline::Form`), which starts at the jerk
-    // limit, 1.24, 1.24, 1.13 and 1.08× (times in whole ticks).
+    // limit, 1.24, 1.21, 1.10 and 1.07× (times in whole ticks).
     let cfg = InterpConfig::default();
     let (a, j) = (cfg.max_path_accel, cfg.max_path_jerk);
     for (l, most) in [(0.02, 1.3), (0.14, 1.3), (1.0, 1.2), (5.0, 1.12)] {

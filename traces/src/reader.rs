@@ -8,7 +8,6 @@
 use std::fmt;
 use std::path::Path;
 
-use mcap::read::{MessageStream, Options};
 use serde::de::DeserializeOwned;
 
 use crate::messages::{BlockMsg, Channel, ConfigMsg, EventMsg, LoopTimingMsg, SetpointMsg};
@@ -209,28 +208,72 @@ enum Stop {
     Decode(ReadError),
 }
 
+/// The longest record (or decompressed chunk) a trace may hold: this many
+/// times the file's size, and at least [`RECORD_LIMIT_FLOOR`] bytes.
+const RECORD_LIMIT_RATIO: usize = 16;
+const RECORD_LIMIT_FLOOR: usize = 64 << 20;
+
 fn for_each_message(
     bytes: &[u8],
     mut f: impl FnMut(RawMessage) -> Result<(), ReadError>,
 ) -> Result<(), Stop> {
-    // Chunk CRCs are checked, so a flipped byte is an error, not bad data.
-    let stream = MessageStream::new_with_options(bytes, Options::ValidateChunkCrcs.into())
-        .map_err(|e| Stop::Damage(e.to_string()))?;
-    for m in stream {
-        let m = m.map_err(|e| Stop::Damage(e.to_string()))?;
-        let raw = RawMessage {
-            topic: m.channel.topic.clone(),
-            schema: m
-                .channel
-                .schema
-                .as_ref()
-                .map(|s| s.name.clone())
-                .unwrap_or_default(),
-            sequence: m.sequence,
-            log_time: m.log_time,
-            data: m.data.into_owned(),
-        };
-        f(raw).map_err(Stop::Decode)?;
+    use mcap::records::Record;
+    use mcap::sans_io::{LinearReadEvent, LinearReader, LinearReaderOptions};
+    use std::collections::HashMap;
+    // The reader walks the file itself, every length bounded by the file's
+    // size, and each chunk's CRC checked before any of its records is used:
+    // a flipped byte is an error, not bad data. (`MessageStream` trusts the
+    // lengths inside a decompressed chunk, and a flip in a compressed chunk
+    // made it reserve up to 2⁶⁴ bytes and abort the process.)
+    // (A record or a decompressed chunk may be larger than the file: our
+    // chunks hold 256 KiB of JSON, or one larger message, at 3–20×.)
+    let limit = bytes
+        .len()
+        .saturating_mul(RECORD_LIMIT_RATIO)
+        .max(RECORD_LIMIT_FLOOR);
+    let options = LinearReaderOptions::default()
+        .with_prevalidate_chunk_crcs(true)
+        .with_validate_chunk_crcs(true)
+        .with_record_length_limit(limit);
+    let mut reader = LinearReader::new_with_options(options);
+    let (mut schemas, mut channels) = (HashMap::new(), HashMap::new());
+    let mut fed = 0usize;
+    let damage = |e: mcap::McapError| Stop::Damage(e.to_string());
+    while let Some(event) = reader.next_event() {
+        match event.map_err(damage)? {
+            LinearReadEvent::ReadRequest(need) => {
+                let n = need.min(bytes.len() - fed);
+                reader.insert(n).copy_from_slice(&bytes[fed..fed + n]);
+                reader.notify_read(n);
+                fed += n;
+            }
+            LinearReadEvent::Record { data, opcode } => match mcap::parse_record(opcode, data) {
+                Err(e) => return Err(damage(e)),
+                Ok(Record::Schema { header, .. }) => {
+                    schemas.insert(header.id, header.name);
+                }
+                Ok(Record::Channel(c)) => {
+                    channels.insert(c.id, (c.topic, c.schema_id));
+                }
+                Ok(Record::Message { header, data }) => {
+                    let Some((topic, schema_id)) = channels.get(&header.channel_id) else {
+                        return Err(Stop::Damage(format!(
+                            "a message on channel {} before that channel",
+                            header.channel_id
+                        )));
+                    };
+                    let raw = RawMessage {
+                        topic: topic.clone(),
+                        schema: schemas.get(schema_id).cloned().unwrap_or_default(),
+                        sequence: header.sequence,
+                        log_time: header.log_time,
+                        data: data.into_owned(),
+                    };
+                    f(raw).map_err(Stop::Decode)?;
+                }
+                Ok(_) => {}
+            },
+        }
     }
     Ok(())
 }
