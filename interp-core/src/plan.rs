@@ -234,12 +234,11 @@ struct WPiece {
     /// keeps the rows just past it as loose as they were (see
     /// [`kept_caps`]).
     solved_cap: Option<f64>,
-    /// Its interval's tangential jerk is bounded by a five-axis block's
-    /// joints (`Interval::joint_jerk`): no ramp form next to a rest.
-    joint_limited: bool,
     /// Next to a rest point, the last solve gave it the ramp form: it is no
     /// longer than the jerk-limited distance to its cap (see
-    /// [`RAMP_REACH`]).
+    /// [`RAMP_REACH`]), on a three-axis interval (a five-axis block's
+    /// joints keep the quadratic and the acceleration step at rest,
+    /// [`rest_accel`]).
     ramp: bool,
 }
 
@@ -477,14 +476,12 @@ impl Data {
 
     /// How piece `i`'s `S` runs ([`Form`]): a ramp next to one rest point,
     /// so that the jerk is used from the rest on, where the solve chose it
-    /// ([`WPiece::ramp`]; on a three-axis interval: a five-axis block's
-    /// joints keep the quadratic and the acceleration step at rest,
-    /// [`rest_accel`]); the quadratic elsewhere, and on a piece that rests
-    /// at both ends.
+    /// ([`WPiece::ramp`]); the quadratic elsewhere, and on a piece that
+    /// rests at both ends.
     fn form(&self, i: usize) -> Form {
         let p = &self.pieces[i];
         let rest_end = i + 1 >= self.n_pieces || self.pieces[i + 1].rest_start;
-        if p.rest_start == rest_end || p.joint_limited || !p.ramp {
+        if p.rest_start == rest_end || !p.ramp {
             Form::Quadratic
         } else if p.rest_start {
             Form::FromRest
@@ -692,18 +689,15 @@ impl Data {
                 } else {
                     (0.0, false)
                 };
-                let g = index_of(0.5 * (x + x1), self.h);
-                let held = g >= self.g_base && g < self.g_base + self.n_int as i64;
                 self.pieces[n] = WPiece {
                     x0: x,
                     x1,
-                    g,
+                    g: index_of(0.5 * (x + x1), self.h),
                     rest_start: rest,
                     d,
                     machine: f64::INFINITY,
                     feed: f64::INFINITY,
                     solved_cap: None,
-                    joint_limited: held && self.interval(g).joint_jerk.is_finite(),
                     ramp,
                 };
                 n += 1;
@@ -949,7 +943,6 @@ impl Data {
                     machine: f64::INFINITY,
                     feed: f64::INFINITY,
                     solved_cap: None,
-                    joint_limited: p.joint_limited,
                     ramp: j == 0 && p.ramp,
                 };
                 x1 = x0;
@@ -1764,14 +1757,17 @@ fn assemble_and_solve(
         // A ramp leaves (or reaches) rest with S' = 0, so it must not be
         // much longer than the jerk-limited distance to its speed: a long
         // one creeps (v ∝ distance near the rest when 3d ≪ far). Such a
-        // piece keeps the quadratic and its acceleration step at rest. The
+        // piece keeps the quadratic and its acceleration step at rest, as
+        // does one whose jerk a five-axis block's joints bound. The
         // refinement keeps the first pass's forms (its rows continue that
         // plan).
         let j = cfg.max_path_jerk;
         for i in first..n {
             let c = sc.cap2[i].max(0.0);
             let reach = RAMP_REACH * libm::pow(c, 0.75) / libm::sqrt(j);
-            d.pieces[i].ramp = d.pieces[i].h() <= reach;
+            let p = d.pieces[i];
+            let joint_limited = d.interval(p.g).joint_jerk.is_finite();
+            d.pieces[i].ramp = p.h() <= reach && !joint_limited;
         }
     }
     let mut needed = 0usize;
@@ -1803,8 +1799,8 @@ fn assemble_and_solve(
         // The middle coefficient's bound: next to a rest point, the
         // acceleration step allowed there; on a ramp (`S' = 0` at the rest)
         // `3d ≤ cap`, so that `v ≤ w²·√cap` on it, its jerk at the rest
-        // `(2/3)·d·v/h²·…` (the row below at w = 0) and its acceleration
-        // inside, at most `4d/(3h)`.
+        // `(2/3)·d·√cap/h² ≤ J` (the jerk row below at w = 0), and its
+        // acceleration inside, at most `4d/(3h) ≤ A`.
         let d_hi = match form {
             Form::Quadratic if p.rest_start || rest_end => {
                 l2.min(rest_accel(a_rest, &it, &cfg) * h)
@@ -1893,8 +1889,9 @@ fn assemble_and_solve(
             // the sign of d/dx), and the row is the jerk over w²·√l2 (the
             // speed there at most): finite at the rest, where S'' is not.
             let (w, sgn) = match form {
+                Form::Quadratic => (0.0, 0.0),
                 Form::ToRest => (libm::cbrt(1.0 - u), -1.0),
-                _ => (libm::cbrt(u), 1.0),
+                Form::FromRest => (libm::cbrt(u), 1.0),
             };
             let (w2, w3) = (w * w, w * w * w);
             for ax in 0..3 {

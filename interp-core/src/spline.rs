@@ -284,9 +284,7 @@ pub fn time_to_end(piece: &Piece, x: f64, v: f64, t_max: f64) -> Option<f64> {
     if piece.form == Form::Quadratic {
         return time_to_end_quadratic(piece, x, v, t_max);
     }
-    if x >= piece.h {
-        return Some(0.0);
-    }
+    // (At or past the end, z = 1: the aux piece's end.)
     let aux = piece.ramp_aux();
     let (z, zd) = piece.ramp_state(&aux, x);
     time_to_end_quadratic(&aux, z, zd, t_max)

@@ -220,13 +220,14 @@ fn for_each_message(
     use mcap::records::Record;
     use mcap::sans_io::{LinearReadEvent, LinearReader, LinearReaderOptions};
     use std::collections::HashMap;
-    // The reader walks the file itself, every length bounded by the file's
-    // size, and each chunk's CRC checked before any of its records is used:
-    // a flipped byte is an error, not bad data. (`MessageStream` trusts the
-    // lengths inside a decompressed chunk, and a flip in a compressed chunk
-    // made it reserve up to 2⁶⁴ bytes and abort the process.)
-    // (A record or a decompressed chunk may be larger than the file: our
-    // chunks hold 256 KiB of JSON, or one larger message, at 3–20×.)
+    // The reader walks the file itself, every length bounded, and each
+    // chunk's CRC checked before any of its records is used: a flipped byte
+    // is an error, not bad data. (`MessageStream` trusts the lengths inside
+    // a decompressed chunk, and a flip in a compressed chunk made it reserve
+    // up to 2⁶⁴ bytes and abort the process.) The bound is a multiple of
+    // the file's size, since a record or a decompressed chunk may be larger
+    // than the file: our chunks hold 256 KiB of JSON, or one larger
+    // message, compressed 3–20×.
     let limit = bytes
         .len()
         .saturating_mul(RECORD_LIMIT_RATIO)
