@@ -14,15 +14,17 @@ pub const RT_STACK_BYTES: usize = 32 << 20;
 /// (2 MiB, the default, overflowed in unoptimised builds).
 pub const CONTROL_STACK_BYTES: usize = 16 << 20;
 
-/// A thread that owns an `Interpolator<1024>` (about 1.6 MB) or runs a
+/// A thread that owns an `Interpolator<1024>` (about 3.9 MB) or runs a
 /// bench's planned programs: the tests' path-time runs, the examples, the
 /// benches.
 pub const INTERPOLATOR_STACK_BYTES: usize = 64 << 20;
 
 /// Every test thread's stack: `RUST_MIN_STACK` in `.cargo/config.toml`
 /// (which cannot name this constant; a test holds the two equal), enough to
-/// build an `Interpolator` with the default look-ahead.
-pub const TEST_STACK_BYTES: usize = 16 << 20;
+/// build an `Interpolator` with the default look-ahead in an unoptimised
+/// build (16 MiB overflowed in a five-axis test once one linear program
+/// held 1,024 pieces).
+pub const TEST_STACK_BYTES: usize = 32 << 20;
 
 #[cfg(test)]
 mod tests {
