@@ -190,7 +190,7 @@ impl Timing {
 
 criterion_group!(benches, bench);
 fn main() {
-    common::on_big_stack(|| {
+    interp_run::stack::on_interpolator_stack(|| {
         benches();
         Criterion::default().configure_from_args().final_summary();
     });

@@ -50,7 +50,7 @@ criterion_group! {
     targets = ticks
 }
 fn main() {
-    common::on_big_stack(|| {
+    interp_run::stack::on_interpolator_stack(|| {
         benches();
         Criterion::default().configure_from_args().final_summary();
     });

@@ -39,7 +39,7 @@ mod common;
 
 use core::time::Duration;
 
-use common::{on_big_stack, rational_cubic, run_to_end, start_of, time_ticks};
+use common::{rational_cubic, run_to_end, start_of, time_ticks};
 use criterion::{Criterion, criterion_group};
 use interp_core::fiveaxis::Orientation;
 use interp_core::kinematics::{Machine, MachineSpec, RotaryRange, ToolPose};
@@ -208,7 +208,7 @@ criterion_group! {
     targets = ticks
 }
 fn main() {
-    on_big_stack(|| {
+    interp_run::stack::on_interpolator_stack(|| {
         benches();
         Criterion::default().configure_from_args().final_summary();
     });

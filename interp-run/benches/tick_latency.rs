@@ -91,7 +91,7 @@ fn measure(
 }
 
 fn main() {
-    common::on_big_stack(run);
+    interp_run::stack::on_interpolator_stack(run);
 }
 
 fn run() {

@@ -19,6 +19,19 @@ pub const CONTROL_STACK_BYTES: usize = 16 << 20;
 /// benches.
 pub const INTERPOLATOR_STACK_BYTES: usize = 64 << 20;
 
+/// Runs `f` on a thread of [`INTERPOLATOR_STACK_BYTES`] and returns what it
+/// returns (a bench's or an example's whole run: a panic in `f` is passed
+/// on).
+pub fn on_interpolator_stack<T: Send + 'static>(f: impl FnOnce() -> T + Send + 'static) -> T {
+    let thread = std::thread::Builder::new()
+        .stack_size(INTERPOLATOR_STACK_BYTES)
+        .spawn(f)
+        .expect("a thread with the interpolator's stack");
+    thread
+        .join()
+        .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+}
+
 /// Every test thread's stack: `RUST_MIN_STACK` in `.cargo/config.toml`
 /// (which cannot name this constant; a test holds the two equal), enough to
 /// build an `Interpolator` with the default look-ahead in an unoptimised

@@ -41,24 +41,19 @@ fn setpoints() -> Vec<Setpoint> {
         "bench",
         "nurbs_mrr",
     );
-    // On a thread with the stack a run needs (the bench's main thread has
-    // the system's 8 MiB, too little for an unoptimised build).
-    let out = std::thread::Builder::new()
-        .stack_size(interp_run::stack::RT_STACK_BYTES)
-        .spawn(move || {
-            let mut out = Vec::new();
-            sim::run(&config, &program, 3600.0, |i| {
-                if let SimItem::Tick { setpoint, .. } = i {
-                    out.push(*setpoint);
-                }
-                Ok::<(), ()>(())
-            })
-            .expect("simulates");
-            out
+    // The bench's main thread has the system's 8 MiB, too little to build a
+    // run in an unoptimised build.
+    let out = interp_run::stack::on_interpolator_stack(move || {
+        let mut out = Vec::new();
+        sim::run(&config, &program, 3600.0, |i| {
+            if let SimItem::Tick { setpoint, .. } = i {
+                out.push(*setpoint);
+            }
+            Ok::<(), ()>(())
         })
-        .expect("thread")
-        .join()
         .expect("simulates");
+        out
+    });
     // Sixteen copies (seq and time continued) so that per-trace costs (schemas,
     // compressor set-up, summary) are amortised as over a real run.
     let n = out.len() as u64;

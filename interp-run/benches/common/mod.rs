@@ -69,17 +69,6 @@ pub fn reload(ip: &mut Replay, cfg: InterpConfig, blocks: &[Block]) {
     ip.rewind();
 }
 
-/// Runs `f` on a thread with room for the interpolator (it is built on the
-/// stack before it is boxed: about 2 MiB, more in an unoptimised build).
-pub fn on_big_stack(f: impl FnOnce() + Send + 'static) {
-    std::thread::Builder::new()
-        .stack_size(interp_run::stack::INTERPOLATOR_STACK_BYTES)
-        .spawn(f)
-        .expect("bench thread")
-        .join()
-        .expect("bench thread panicked");
-}
-
 /// Runs `ip` to the end and returns how many ticks that took.
 pub fn run_to_end(ip: &mut Replay) -> u64 {
     let mut n = 0;
