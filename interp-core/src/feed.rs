@@ -355,10 +355,18 @@ pub const STATIONARY_JUMP_SHARE: f64 = 0.25 * JUMP_SEEN;
 /// `θ²/2`, the middle one at most 3/4.
 pub const JUMP_SEEN: f64 = 0.75;
 
+/// [`JUMP_SHARE`] at a knot inside a curve (continuity C1 or less): the
+/// knot is priced before the curve's laws are sampled, so every sample
+/// within the ticks that see its step keeps the step's reserve
+/// (`plan::Window::reserve_around_jump`) and the step may take most of an
+/// axis's jerk. Between blocks the samples before the junction were
+/// sampled without it; there the step keeps [`JUMP_SHARE`].
+pub const KNOT_JUMP_SHARE: f64 = 0.85;
+
 /// The share of each axis's jerk a junction passed at `v` takes with its
-/// curvature's step (at most [`JUMP_SHARE`]): the jerk rows at the
-/// junction's samples keep to the rest.
-pub fn jump_reserve(left: &Derivs, right: &Derivs, v: f64, cfg: &InterpConfig) -> f64 {
+/// curvature's step (at most `share`, the one its speed was set with): the
+/// jerk rows at and near the junction keep to the rest.
+pub fn jump_reserve(left: &Derivs, right: &Derivs, v: f64, share: f64, cfg: &InterpConfig) -> f64 {
     let (Some(l), Some(r)) = (ArcLengthDerivs::new(left), ArcLengthDerivs::new(right)) else {
         return 0.0;
     };
@@ -367,7 +375,7 @@ pub fn jump_reserve(left: &Derivs, right: &Derivs, v: f64, cfg: &InterpConfig) -
     (0..3)
         .map(|i| JUMP_SEEN * v * v * libm::fabs(dk[i]) / (cfg.period * keep * cfg.axis_max_jerk[i]))
         .fold(0.0, f64::max)
-        .min(JUMP_SHARE)
+        .min(share)
 }
 
 /// A junction whose jump would limit the speed only above this many times the

@@ -76,8 +76,28 @@ pub struct AxisSample {
     /// side (a fillet's curvature does not hold back the line before it).
     pub side: i8,
     /// The share of each axis's jerk a junction's curvature step takes here
-    /// (`feed::jump_reserve`; 0 off a junction): the rows keep to the rest.
+    /// (`feed::jump_reserve`; 0 away from a junction): the rows keep to the
+    /// rest. Samples within [`Window::reserve_around_jump`]'s reach of a
+    /// junction keep it too.
     pub reserve: f64,
+    /// One of a junction's own two samples (its sides' derivatives).
+    pub junction: bool,
+}
+
+/// Where a junction's curvature step shows in the setpoints' third
+/// differences ([`Window::reserve_around_jump`]): the samples over
+/// `[x0, x1]` keep `reserve` of each axis's jerk for it.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct JumpZone {
+    /// Where it starts, mm.
+    pub x0: f64,
+    /// Where it ends, mm.
+    pub x1: f64,
+    /// The share of each axis's jerk the step takes (0: no zone).
+    pub reserve: f64,
+    /// The squared speed the junction is passed at most, mm²/s²: the
+    /// step's share falls as the square of the speed below it.
+    pub v2: f64,
 }
 
 /// Sub-ranges per grid interval the speed limits are kept for: a slow point
@@ -148,6 +168,9 @@ pub struct Interval {
     pub spans: [Span; SPANS],
     /// Spans held.
     pub n_spans: u8,
+    /// The junctions' steps seen here (their zones' union, the largest
+    /// reserve), for samples offered after the junction.
+    pub jump: JumpZone,
 }
 
 impl Interval {
@@ -168,6 +191,7 @@ impl Interval {
                 feed: f64::INFINITY,
             }; SPANS],
             n_spans: 0,
+            jump: JumpZone::default(),
         }
     }
     /// Lower the machine (`which = 0`) or feed (`1`) limit of sub-ranges
@@ -558,7 +582,7 @@ impl Data {
         // the derivatives are another block's (a blend's `C‴` held the line
         // after it near zero speed).
         let junction = move |smp: &AxisSample, before: bool| {
-            smp.reserve > 0.0 || if before { smp.side < 0 } else { smp.side > 0 }
+            smp.junction || if before { smp.side < 0 } else { smp.side > 0 }
         };
         // The nearest such sample on that side of the piece.
         let wall = move |before: bool| {
@@ -1210,6 +1234,52 @@ impl Window {
         }
         let w = slack + JUNCTION_TICKS * v * cfg.period;
         self.lower_exact(s - w, s + w, 0, v);
+    }
+
+    /// A junction's curvature step at `s`, passed at `v` at most, takes
+    /// `reserve` of each axis's jerk ([`crate::feed::jump_reserve`]). A third
+    /// difference of the setpoints spans three ticks: one that sees the step
+    /// sees the jerk up to three ticks' travel from it, so every sample
+    /// there, offered before or after this, keeps the reserve.
+    pub fn reserve_around_jump(&mut self, s: f64, v: f64, reserve: f64) {
+        let cfg = &self.data.cfg;
+        let ts = cfg.period;
+        // (Three ticks at `v`, and what the acceleration adds over them.)
+        let reach = JUMP_SEEN_TICKS * ts * (v + 0.5 * JUMP_SEEN_TICKS * cfg.max_path_accel * ts);
+        let (x0, x1) = (s - reach, s + reach);
+        let h = self.data.h;
+        for g in sample_interval(x0, h)..=sample_interval(x1, h) {
+            let Some(it) = self.interval_mut(g) else {
+                continue;
+            };
+            let z = &mut it.jump;
+            if z.reserve > 0.0 {
+                // (The union of two is bounded by the larger reserve, falling
+                // from the lower speed.)
+                (z.x0, z.x1) = (z.x0.min(x0), z.x1.max(x1));
+                z.v2 = z.v2.min(v * v);
+            } else {
+                (z.x0, z.x1, z.v2) = (x0, x1, v * v);
+            }
+            z.reserve = z.reserve.max(reserve);
+            for smp in &mut it.samples[..it.n_samples as usize] {
+                if smp.s >= x0 && smp.s <= x1 {
+                    smp.reserve = smp.reserve.max(reserve);
+                }
+            }
+        }
+    }
+
+    /// The zone of the junctions a sample at `s` keeps a reserve for
+    /// ([`Self::reserve_around_jump`]), if any.
+    pub fn jump_zone_at(&self, s: f64) -> Option<JumpZone> {
+        let d = &self.data;
+        let g = sample_interval(s, d.h);
+        if g < d.g_base || g >= d.g_base + d.n_int as i64 {
+            return None;
+        }
+        let z = d.interval(g).jump;
+        (z.reserve > 0.0 && s >= z.x0 && s <= z.x1).then_some(z)
     }
 
     /// The data of interval `g`, if held.
@@ -2119,6 +2189,10 @@ const SUB_SNAP: f64 = 1e-6;
 /// Ticks of travel each way a junction's speed limit holds over
 /// ([`Window::lower_junction`]).
 const JUNCTION_TICKS: f64 = 2.0;
+
+/// Ticks one third difference of the setpoints spans
+/// ([`Window::reserve_around_jump`]).
+const JUMP_SEEN_TICKS: f64 = 3.0;
 
 /// A piece next to a rest point takes the ramp form when it is no longer
 /// than this multiple of `v^{3/2}/√J`, `v` its speed cap (the jerk-limited

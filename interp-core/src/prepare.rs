@@ -15,7 +15,7 @@
 
 use crate::config::{ConfigError, InterpConfig};
 use crate::feed::{
-    ArcLengthDerivs, MACHINE_LAW_PARTS, STATIONARY_JUMP_SHARE, feed_limit, junction_speed,
+    ArcLengthDerivs, KNOT_JUMP_SHARE, MACHINE_LAW_PARTS, STATIONARY_JUMP_SHARE, feed_limit,
     junction_speed_with, machine_limit, machine_limit_parts, stationary_offset,
 };
 use crate::fiveaxis::{
@@ -645,7 +645,17 @@ impl BlockPlanner {
                 out.stop_at_join = true;
             } else {
                 let h = self.h;
-                junction_samples(&mut self.window, self.tail_s, &left, &entry, v, h, &cfg);
+                let share = jump_share(singular[0]);
+                junction_samples(
+                    &mut self.window,
+                    self.tail_s,
+                    &left,
+                    &entry,
+                    v,
+                    share,
+                    h,
+                    &cfg,
+                );
             }
         }
         out.n_segments = n_pieces;
@@ -657,7 +667,8 @@ impl BlockPlanner {
                 // A tangent break inside the block.
                 let left = pieces[k - 1].eval(windows[k - 1].1, 3);
                 let right = piece.eval(windows[k].0, 3);
-                let v = junction_speed_with(&left, &right, &cfg, jump_share(singular[k]));
+                let share = jump_share(singular[k]);
+                let v = junction_speed_with(&left, &right, &cfg, share);
                 // The laws are not sampled within the windows' offsets of a
                 // stationary point: the junction's limit covers them.
                 let prev = &pieces[k - 1];
@@ -667,7 +678,7 @@ impl BlockPlanner {
                 let stop = self.apply_junction(v, s, slack);
                 if !stop {
                     let h = self.h;
-                    junction_samples(&mut self.window, s, &left, &right, v, h, &cfg);
+                    junction_samples(&mut self.window, s, &left, &right, v, share, h, &cfg);
                 }
                 if let Some(prev) = out.segments[k - 1].as_mut() {
                     prev.stop_at_end = stop;
@@ -881,6 +892,7 @@ fn sample_laws(
         lower(w, seg.s0, seg.s1(), 0, cfg.max_path_speed);
         return;
     }
+    knot_junctions(seg, w, h, cfg);
     if let Path::Line(_) = path {
         // Constant tangent: the axes' jerk limits bound the tangential jerk.
         let t = path.eval(path.u_start(), 1).d1;
@@ -1046,9 +1058,19 @@ fn sample_laws(
         u_prev = u;
         x_prev = x;
     }
-    // Knots where the curvature may jump (continuity C1 or less): price them
-    // as junctions. Tangent breaks were cut into separate segments already.
-    if let Path::Nurbs(n) = path {
+}
+
+/// The knots of a NURBS segment where the curvature may jump (continuity C1
+/// or less), priced as junctions: each limits the speed and leaves its
+/// samples and its reserve ([`junction_samples`]). Before the laws are
+/// sampled, so that the samples near a knot, which keep its reserve, are
+/// kept where that makes their jerk bind. Tangent breaks were cut into
+/// separate segments already.
+fn knot_junctions(seg: &Segment, w: &mut Window, h: f64, cfg: &InterpConfig) {
+    let Path::Nurbs(n) = &seg.path else {
+        return;
+    };
+    {
         let p = n.degree();
         let knots = n.knots();
         let (ua, ub) = (n.u_start(), n.u_end());
@@ -1065,14 +1087,14 @@ fn sample_laws(
             if u > ua && u < ub && mult + 1 >= p {
                 let left = n.eval(u - (u - prev) * 1e-9, 3);
                 let right = n.eval(u, 3);
-                let v = junction_speed(&left, &right, cfg);
-                at_s += path.arc_length(at_u, u);
+                let v = junction_speed_with(&left, &right, cfg, KNOT_JUMP_SHARE);
+                at_s += seg.path.arc_length(at_u, u);
                 at_u = u;
                 // (Arc length carried from knot to knot, to ~1e-12 mm a
                 // knot: a thousandth of a sub-range's slack each way.)
                 let slack = 1e-3 * h / crate::plan::SUB as f64;
                 w.lower_junction(at_s, slack, v);
-                junction_samples(w, at_s, &left, &right, v, h, cfg);
+                junction_samples(w, at_s, &left, &right, v, KNOT_JUMP_SHARE, h, cfg);
             }
             if u > ua {
                 prev = u;
@@ -1097,20 +1119,23 @@ fn jump_share(stationary: bool) -> f64 {
 /// two sides' derivatives, each with the share of the axes' jerk the
 /// curvature's step takes there ([`crate::feed::jump_reserve`]), so the jerk
 /// rows at the junction keep to the rest.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn junction_samples(
     w: &mut Window,
     s: f64,
     left: &Derivs,
     right: &Derivs,
     v: f64,
+    share: f64,
     h: f64,
     cfg: &InterpConfig,
 ) {
     let v = v.min(cfg.max_path_speed);
-    let reserve = crate::feed::jump_reserve(left, right, v, cfg);
+    let reserve = crate::feed::jump_reserve(left, right, v, share, cfg);
     if !(reserve > 0.0) {
         return;
     }
+    w.reserve_around_jump(s, v, reserve);
     for d in [left, right] {
         offer_axis_sample(w, s, d, 0, reserve, v, h, cfg);
     }
@@ -1139,7 +1164,10 @@ fn offer_axis_sample(
         css: [a.c_ss.x, a.c_ss.y, a.c_ss.z],
         csss: [a.c_sss.x, a.c_sss.y, a.c_sss.z],
         side,
-        reserve,
+        // (A junction's own samples come with its reserve; others near one
+        // keep it too.)
+        reserve: reserve.max(w.jump_zone_at(s).map_or(0.0, |z| z.reserve)),
+        junction: reserve > 0.0,
     };
     if (0..3).any(|ax| axis_jerk_may_bind(&smp, ax, v * v, cfg)) {
         keep_axis_sample(w, smp, h, v * v, cfg);
@@ -1200,9 +1228,18 @@ pub(crate) fn keep_axis_sample(
             jerk = room;
             it.jerk = it.jerk.min(room * (1.0 - cfg.planning_margin));
         }
+        // A junction's curvature step takes a share of the jerk that falls
+        // with the square of the speed below the junction's own
+        // (`feed::jump_reserve`): at the speed sought it may leave more, and
+        // some speed is always safe.
+        let v2 = w.jump_zone_at(smp.s).map_or(l2, |z| z.v2);
         let load = |v: f64| {
+            let at_v = AxisSample {
+                reserve: smp.reserve * (v * v / v2).min(1.0),
+                ..smp
+            };
             (0..3)
-                .map(|ax| axis_jerk_load_at(&smp, ax, v * v, cfg, jerk))
+                .map(|ax| axis_jerk_load_at(&at_v, ax, v * v, cfg, jerk))
                 .fold(0.0, f64::max)
         };
         // The load grows with the speed: bisect for the highest safe one.

@@ -383,6 +383,34 @@ fn reversed_curve_traces_the_same_points_backwards() {
     assert!((max1 - max2).abs() < 1e-9 * max1 + 1e-9);
 }
 
+/// A star of quadratic spans with single knots (continuity C1: the
+/// curvature steps at every knot, as on G5.2 and quadratic G6.2 curves)
+/// at production feed. Each knot's step takes most of an axis's jerk, and
+/// the third differences of the ticks around it see the step and the
+/// schedule's own jerk together: every sample within their reach must keep
+/// the step's share (with the share at 85 % and only the knot's own
+/// samples keeping it, one tick here reached 1.067× an axis's jerk limit).
+#[test]
+fn curvature_steps_at_knots_hold_every_axis_limit_at_production_feed() {
+    let n = 10;
+    let pts: Vec<[f64; 3]> = (0..n)
+        .map(|i| {
+            let a = core::f64::consts::TAU * i as f64 / (n - 1) as f64;
+            let r = if i % 2 == 0 { 50.0 } else { 15.0 };
+            [r * a.cos(), r * a.sin(), 0.0]
+        })
+        .collect();
+    let mut knots = vec![0.0; 3];
+    knots.extend((1..n - 2).map(|k| k as f64));
+    knots.extend([(n - 2) as f64; 3]);
+    let curve = Nurbs::new(2, &pts, &vec![1.0; n], &knots).unwrap();
+    let cfg = InterpConfig::default();
+    let blocks = [Block::new(1, Path::Nurbs(curve), 100.0)];
+    let (sps, stats) = run(cfg, &blocks);
+    check_properties(&cfg, &blocks, &sps);
+    assert_eq!(stats.stale_plans, 0);
+}
+
 #[test]
 fn butterfly_respects_every_limit_for_each_update() {
     let segs = common::butterfly_segments(20);

@@ -698,6 +698,7 @@ fn a_refused_block_leaves_the_window_as_it_was() {
         csss: [0.0, 0.0, 30.0],
         side: 0,
         reserve: 0.0,
+        junction: false,
     };
     // A queue ending at 1.1 mm, inside interval 4, with a rest point.
     assert!(w.extend_to(4));

@@ -31,9 +31,12 @@
 //! `--no-deviation` skips the two deviation columns (printed NaN): on NURBS
 //! curves at production feed the reference search takes minutes per program.
 //!
-//! The last two columns are the lower bound of any jerk-limited schedule
+//! Then come the lower bound of any jerk-limited schedule
 //! (`path_time::jerk_aware_bound`: the optimum with the jerk-limited ramps at
-//! rests and slow points and the curvature steps' caps) and our time over it.
+//! rests and slow points and the curvature steps' caps) and our time over it,
+//! and the setpoints' check: the largest path or axis jerk as a share of its
+//! limit, and how many checks of every limit on every tick failed (0 when
+//! all held).
 //! `--bound-parts` adds two columns: the bound without the curvature
 //! steps' caps, and with the ramps at rests and slow points alone (no
 //! jerk-down before top speeds either), to see what each part costs.
@@ -101,7 +104,7 @@ fn main() {
     };
     let cfg = InterpConfig::default();
     println!(
-        "program | part | blocks in | out | length mm | ours s | trapezoid s | optimum s | ours/opt | trap/opt | setpoint dev um | chord dev um | bound s | ours/bound{}",
+        "program | part | blocks in | out | length mm | ours s | trapezoid s | optimum s | ours/opt | trap/opt | setpoint dev um | chord dev um | bound s | ours/bound | jerk use | failed checks{}",
         if parts {
             " | bound w/o steps s | bound rests s"
         } else {
@@ -126,6 +129,14 @@ fn main() {
             match program_run(set, &cfg, policy, deviation) {
                 Ok(r) => {
                     let t = r.times;
+                    let v = r.violations;
+                    if v.total() > 0 {
+                        eprintln!(
+                            "{name} {part}: {} (first at seq {:?})",
+                            v.breakdown(),
+                            v.first_seq
+                        );
+                    }
                     let extra = if parts {
                         let out = smoothed(set, &cfg, policy).0;
                         let without = |tops| {
@@ -137,7 +148,7 @@ fn main() {
                         String::new()
                     };
                     println!(
-                        "{name} | {part} | {} | {} | {:.1} | {:.3} | {:.3} | {:.3} | {:.4} | {:.4} | {:.3} | {:.3} | {:.3} | {:.4}{extra}",
+                        "{name} | {part} | {} | {} | {:.1} | {:.3} | {:.3} | {:.3} | {:.4} | {:.4} | {:.3} | {:.3} | {:.3} | {:.4} | {:.3} | {}{extra}",
                         r.blocks_in,
                         r.blocks_out,
                         length,
@@ -150,6 +161,8 @@ fn main() {
                         r.max_chord_deviation * 1e3,
                         t.bound,
                         t.ours / t.bound,
+                        r.jerk_use,
+                        r.violations.total(),
                     )
                 }
                 Err(e) => {

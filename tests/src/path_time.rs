@@ -26,6 +26,7 @@ use interp_core::path::{Blending, Block, Path};
 use interp_core::smooth::{Policy, SmoothError, SmoothStats, Smoother};
 use interp_core::{InterpConfig, RunState, Vec3};
 use interp_run::Run;
+use interp_run::check::{Checker, Limits, Measured, Violations};
 
 use crate::polyline::Polyline;
 
@@ -104,15 +105,39 @@ pub fn accel_only_optimum(blocks: &[Block], cfg: &InterpConfig) -> f64 {
 /// Path time (s) of `blocks` through the interpolator with `cfg`: ticks from
 /// the first setpoint until the program is done.
 pub fn interpolated_time(blocks: &[Block], cfg: &InterpConfig) -> Result<f64, String> {
-    Ok(interpolated_run(blocks, cfg, false)?.0)
+    Ok(interpolated_run(blocks, cfg, false)?.time)
 }
 
-/// [`interpolated_time`] and, with `keep`, every setpoint's X Y Z.
+/// What a run through the interpolator gave: its path time, with `keep`
+/// every setpoint's X Y Z, and every setpoint checked against every limit
+/// of its configuration (finite differences, as a drive sees them).
+#[derive(Debug, Clone)]
+pub struct InterpolatedRun {
+    /// Ticks from the first setpoint until done, s.
+    pub time: f64,
+    /// The start and every setpoint's X Y Z (empty without `keep`).
+    pub points: Vec<Vec3>,
+    /// The checks that failed (speed against the program's fastest feed).
+    pub violations: Violations,
+    /// The largest jerks and accelerations measured.
+    pub measured: Measured,
+}
+
+impl InterpolatedRun {
+    /// The largest path or axis jerk measured, as a share of its limit.
+    pub fn jerk_use(&self, cfg: &InterpConfig) -> f64 {
+        (0..3)
+            .map(|i| self.measured.axis_jerk_mm_s3[i] / cfg.axis_max_jerk[i])
+            .fold(self.measured.path_jerk_mm_s3 / cfg.max_path_jerk, f64::max)
+    }
+}
+
+/// [`interpolated_time`] with the setpoints checked and, with `keep`, kept.
 pub fn interpolated_run(
     blocks: &[Block],
     cfg: &InterpConfig,
     keep: bool,
-) -> Result<(f64, Vec<Vec3>), String> {
+) -> Result<InterpolatedRun, String> {
     interpolated_run_within(blocks, cfg, keep, MAX_TICKS)
 }
 
@@ -123,7 +148,7 @@ pub fn interpolated_run_within(
     cfg: &InterpConfig,
     keep: bool,
     max_ticks: u64,
-) -> Result<(f64, Vec<Vec3>), String> {
+) -> Result<InterpolatedRun, String> {
     // An Interpolator<1024> is about 3.9 MB: build it on a thread with room for it.
     let (blocks, cfg) = (blocks.to_vec(), *cfg);
     std::thread::Builder::new()
@@ -191,6 +216,10 @@ pub struct ProgramRun {
     pub max_point_deviation: f64,
     /// Largest distance of a chord between consecutive setpoints, mm.
     pub max_chord_deviation: f64,
+    /// The setpoints' checks that failed (none when every limit held).
+    pub violations: Violations,
+    /// The largest path or axis jerk of the setpoints, as a share of its limit.
+    pub jerk_use: f64,
 }
 
 /// Runs `blocks` as a driver does (stage, then interpolator) and, with
@@ -204,15 +233,15 @@ pub fn program_run(
     deviation: bool,
 ) -> Result<ProgramRun, String> {
     let (out, stats) = smoothed(blocks, cfg, policy);
-    let (ours, pts) = interpolated_run(&out, cfg, deviation)?;
+    let run = interpolated_run(&out, cfg, deviation)?;
     let (max_point_deviation, max_chord_deviation) = if deviation {
-        programmed_path(blocks).deviation(&pts)
+        programmed_path(blocks).deviation(&run.points)
     } else {
         (f64::NAN, f64::NAN)
     };
     Ok(ProgramRun {
         times: PathTimes {
-            ours,
+            ours: run.time,
             trapezoid: interpolated_time(&out, &without_jerk(cfg))?,
             optimum: accel_only_optimum(&out, cfg),
             bound: jerk_aware_bound(&out, cfg),
@@ -222,6 +251,8 @@ pub fn program_run(
         stats,
         max_point_deviation,
         max_chord_deviation,
+        violations: run.violations,
+        jerk_use: run.jerk_use(cfg),
     })
 }
 
@@ -279,19 +310,22 @@ fn run_to_done(
     cfg: &InterpConfig,
     keep: bool,
     max_ticks: u64,
-) -> Result<(f64, Vec<Vec3>), String> {
+) -> Result<InterpolatedRun, String> {
     let p = blocks[0].path.start_point();
     let mut run: Run<1024> = Run::new(*cfg, [p.x, p.y, p.z, 0.0, 0.0, 0.0])
         .map_err(|e| format!("{e:?}"))?
         .with_tick_limit(max_ticks);
-    let mut pts = Vec::new();
+    let mut points = Vec::new();
     if keep {
-        pts.push(p);
+        points.push(p);
     }
+    let fastest = blocks.iter().map(|b| b.feed).fold(0.0, f64::max);
+    let mut check = Checker::new(cfg.period, Limits::new(cfg, fastest), [p.x, p.y, p.z]);
     let end = run
         .run_program::<Infallible>(blocks, |sp, _| {
+            check.check(sp);
             if keep {
-                pts.push(Vec3::new(sp.axes[0], sp.axes[1], sp.axes[2]));
+                points.push(Vec3::new(sp.axes[0], sp.axes[1], sp.axes[2]));
             }
             Ok(())
         })
@@ -302,7 +336,13 @@ fn run_to_done(
     if end != RunState::Done {
         return Err(format!("the run ended {end:?}"));
     }
-    Ok((run.ticks() as f64 * cfg.period, pts))
+    let end = blocks[blocks.len() - 1].path.end_point();
+    Ok(InterpolatedRun {
+        time: run.ticks() as f64 * cfg.period,
+        points,
+        violations: check.finish(Some([end.x, end.y, end.z])),
+        measured: check.measured,
+    })
 }
 
 /// Our time, the trapezoidal (jerk-free) schedule's time and the optimum, s.

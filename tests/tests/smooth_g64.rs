@@ -50,7 +50,8 @@ fn run(text: &str, pts: &[Vec3], cfg: &InterpConfig) -> Outcome {
     let rapid = CoreOptions::default().rapid_speed;
     let blocks: Vec<_> = blocks.into_iter().filter(|b| b.feed != rapid).collect();
     let (out, _) = smoothed(&blocks, cfg, Policy::Auto);
-    let (time, setpoints) = interpolated_run(&out, cfg, true).expect("finishes");
+    let run = interpolated_run(&out, cfg, true).expect("finishes");
+    let (time, setpoints) = (run.time, run.points);
     // The programmed polyline, from the numbers the text was written from.
     let (point_dev, chord_dev) = Polyline::new(pts).deviation(&setpoints);
     Outcome {
