@@ -837,6 +837,7 @@ impl<const Q: usize> Executor<Q> {
     fn advance(&mut self, mut delta: f64) -> f64 {
         let mut from = self.point;
         let commanded = delta;
+        let s_start = self.s;
         let update = self.cfg.param_update;
         let mut crossed = false;
         loop {
@@ -855,8 +856,11 @@ impl<const Q: usize> Executor<Q> {
             // most πΔ/2 on any curve the chord law lets through).
             let reachable = arc_left <= CHORD_ARC_REACH * delta + END_SNAP_TOL;
             // A stop within reach (by the chord, or by the arc the schedule
-            // counts, with the resolution of the coordinates) is landed on exactly.
-            let lands = seg.stop_at_end && arc_left <= delta + END_SNAP_TOL;
+            // counts from where the tick started, with the resolution of the
+            // coordinates) is landed on exactly. (Past a segment's end the
+            // corrected update keeps the whole Δ: the arc left of this
+            // segment alone would land a stop the schedule reaches ticks later.)
+            let lands = seg.stop_at_end && seg.s1() - s_start <= commanded + END_SNAP_TOL;
             // Sitting on a rest point the plan has left: go on past it.
             let leaving = seg.stop_at_end
                 && arc_left <= END_SNAP_TOL

@@ -126,18 +126,19 @@ fn check_text(
     let max_ticks = (bound / cfg.period).ceil() as u64 + 2;
     let run = interpolated_run_within(&out, &cfg, true, max_ticks)
         .unwrap_or_else(|e| panic!("{what}: {e} (bound {bound} s)"));
-    // Every limit on every tick, by finite differences of the setpoints:
-    // reported, not yet asserted. Arrivals at the rest points of micro-moves
-    // still step the acceleration (seed 5's `G64 P` program of 600 moves:
-    // 14 ticks over, the path jerk up to 5.7× its limit; BENCHMARKS.md,
-    // "Curvature steps at knots").
+    // Every limit on every tick, by finite differences of the setpoints.
+    // The path jerk holds (a stop just past a short segment was landed on
+    // ticks early: up to 21× the limit). A few single ticks still pass an
+    // axis's jerk (up to 1.12×) or, on one program, the feed: reported, not
+    // yet asserted (BENCHMARKS.md, "Curvature steps at knots").
     let v = run.violations;
+    let jerk = run.measured.path_jerk_mm_s3 / cfg.max_path_jerk;
+    assert_eq!(v.over_jerk, 0, "{what}: the path jerk {jerk:.3}× its limit");
     if v.total() > 0 {
         eprintln!(
-            "{what}: {} (first at seq {:?}); path jerk {:.3}× its limit, axis jerk {:?} mm/s³",
+            "{what}: {} (first at seq {:?}); axis jerk {:?} mm/s³",
             v.breakdown(),
             v.first_seq,
-            run.measured.path_jerk_mm_s3 / cfg.max_path_jerk,
             run.measured.axis_jerk_mm_s3
         );
     }

@@ -51,6 +51,20 @@ fn run(text: &str, pts: &[Vec3], cfg: &InterpConfig) -> Outcome {
     let blocks: Vec<_> = blocks.into_iter().filter(|b| b.feed != rapid).collect();
     let (out, _) = smoothed(&blocks, cfg, Policy::Auto);
     let run = interpolated_run(&out, cfg, true).expect("finishes");
+    // The path jerk on every tick, by finite differences of the setpoints
+    // (single ticks still pass an axis's jerk: reported, not yet asserted;
+    // see `random_programs.rs`).
+    let v = run.violations;
+    assert_eq!(
+        v.over_jerk,
+        0,
+        "{} (first at seq {:?})",
+        v.breakdown(),
+        v.first_seq
+    );
+    if v.total() > 0 {
+        eprintln!("{} (first at seq {:?})", v.breakdown(), v.first_seq);
+    }
     let (time, setpoints) = (run.time, run.points);
     // The programmed polyline, from the numbers the text was written from.
     let (point_dev, chord_dev) = Polyline::new(pts).deviation(&setpoints);
