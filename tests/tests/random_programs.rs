@@ -129,7 +129,7 @@ fn check_text(
     // Every limit on every tick, by finite differences of the setpoints.
     // The path jerk holds (a stop just past a short segment was landed on
     // ticks early: up to 21× the limit). A few single ticks still pass an
-    // axis's jerk (up to 1.12×) or, on one program, the feed: reported, not
+    // axis's jerk (up to 1.14×) or, on one program, the feed: reported, not
     // yet asserted (BENCHMARKS.md, "Curvature steps at knots").
     let v = run.violations;
     let jerk = run.measured.path_jerk_mm_s3 / cfg.max_path_jerk;
