@@ -1058,6 +1058,45 @@ fn sample_laws(
         u_prev = u;
         x_prev = x;
     }
+    if let Path::Nurbs(n) = path {
+        // A knot span narrower than twice the law spacing (a fit's tight turn
+        // of a few µm between two grid samples) may hold a peak of `C‴` that
+        // no grid sample sees: its worst point, and a per-axis sample there.
+        let knots = n.knots();
+        let (mut at_u, mut at_s) = (u_lo, seg.s0);
+        let mut i = n.degree() + 1;
+        let mut prev = u_lo;
+        while i < knots.len() {
+            let u = knots[i].min(u_hi);
+            if u > prev {
+                let len = path.arc_length(prev, u);
+                // (Between two knots: a segment's ends have their own samples,
+                // and a stationary end its laws taken a tick inside.)
+                if len < 2.0 * hs && prev > u_lo && u < u_hi {
+                    for which in 0..2 {
+                        let at = |uu: f64| law(&path.eval(uu.clamp(prev, u), 3), which);
+                        let (u_min, v_min) = golden_section_argmin(at, prev, u, GOLDEN_ITERS, 0.0);
+                        if !v_min.is_finite() {
+                            continue;
+                        }
+                        let u_min = u_min.clamp(prev, u);
+                        let s_min = at_s + path.arc_length(at_u, u_min);
+                        lower(w, s_min, s_min, which, v_min);
+                        if which == 0 {
+                            sample(w, s_min, &path.eval(u_min, 3));
+                        }
+                    }
+                }
+                at_s += path.arc_length(at_u, u);
+                at_u = u;
+                prev = u;
+            }
+            if u >= u_hi {
+                break;
+            }
+            i += 1;
+        }
+    }
 }
 
 /// The knots of a NURBS segment where the curvature may jump (continuity C1

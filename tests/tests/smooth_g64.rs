@@ -51,20 +51,15 @@ fn run(text: &str, pts: &[Vec3], cfg: &InterpConfig) -> Outcome {
     let blocks: Vec<_> = blocks.into_iter().filter(|b| b.feed != rapid).collect();
     let (out, _) = smoothed(&blocks, cfg, Policy::Auto);
     let run = interpolated_run(&out, cfg, true).expect("finishes");
-    // The path jerk on every tick, by finite differences of the setpoints
-    // (single ticks still pass an axis's jerk: reported, not yet asserted;
-    // see `random_programs.rs`).
+    // Every limit on every tick, by finite differences of the setpoints.
     let v = run.violations;
     assert_eq!(
-        v.over_jerk,
+        v.total(),
         0,
         "{} (first at seq {:?})",
         v.breakdown(),
         v.first_seq
     );
-    if v.total() > 0 {
-        eprintln!("{} (first at seq {:?})", v.breakdown(), v.first_seq);
-    }
     let (time, setpoints) = (run.time, run.points);
     // The programmed polyline, from the numbers the text was written from.
     let (point_dev, chord_dev) = Polyline::new(pts).deviation(&setpoints);
@@ -191,8 +186,56 @@ fn translated_rotated_and_reversed_programs_hold_the_same_bound() {
     }
 }
 
+/// A dense program's points: `n` moves of 1 µm to 1 mm (log-uniform), random
+/// small turns and now and then a sharp corner, from `seed`.
+fn dense_program(seed: u64, n: usize) -> Vec<Vec3> {
+    let mut rng = seed | 1;
+    let mut next = move || {
+        rng ^= rng << 13;
+        rng ^= rng >> 7;
+        rng ^= rng << 17;
+        (rng >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut pts = vec![Vec3::zeros()];
+    let mut dir = Vec3::new(1.0, 0.0, 0.0);
+    for _ in 0..n {
+        let len = 10f64.powf(-3.0 + 3.0 * next());
+        let turn = if next() < 0.02 {
+            2.5 * next()
+        } else {
+            0.05 * (next() - 0.5)
+        };
+        let lift = 0.05 * (next() - 0.5);
+        let (s, c) = turn.sin_cos();
+        dir = Vec3::new(c * dir.x - s * dir.y, s * dir.x + c * dir.y, dir.z + lift).normalize();
+        let p = *pts.last().unwrap() + dir * len;
+        pts.push(p);
+    }
+    pts
+}
+
+/// Found by checking every tick of [`dense_program`]s: the `G64 P` stage's
+/// fit of seed 17 has a knot span of 8 µm with `C‴` of 510/mm² in Z, between
+/// two grid samples of the laws (31 µm apart). Its limit (7.3 mm/s) was
+/// not seen and the machine passed at 12.8 mm/s: Z jerk 2.24× its limit on
+/// a tick. Knot spans narrower than the law spacing are now sampled at
+/// their worst point.
+#[test]
+fn narrow_knot_spans_of_a_fit_hold_every_axis_limit() {
+    let cfg = InterpConfig::default();
+    let pts = dense_program(17, 600);
+    // (`run` checks every limit on every tick.)
+    let o = run(&program_text(&pts, 10f64.powf(-2.3), 6000.0), &pts, &cfg);
+    check(&o, &pts, 10f64.powf(-2.3), &cfg, "seed 17");
+}
+
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 6, ..ProptestConfig::default() })]
+    // Fixed seed: CI must be reproducible; change the seed to explore.
+    #![proptest_config(ProptestConfig {
+        cases: 6,
+        rng_seed: proptest::test_runner::RngSeed::Fixed(0x64_5e_ed),
+        ..ProptestConfig::default()
+    })]
 
     /// Random dense programs: moves of 1 µm to 1 mm (log-uniform), random
     /// small turns and now and then a sharp corner, random tolerance.
@@ -204,24 +247,7 @@ proptest! {
     ) {
         let cfg = InterpConfig::default();
         let tol = 10f64.powf(tol_exp);
-        let mut rng = seed | 1;
-        let mut next = move || {
-            rng ^= rng << 13;
-            rng ^= rng >> 7;
-            rng ^= rng << 17;
-            (rng >> 11) as f64 / (1u64 << 53) as f64
-        };
-        let mut pts = vec![Vec3::zeros()];
-        let mut dir = Vec3::new(1.0, 0.0, 0.0);
-        for _ in 0..n {
-            let len = 10f64.powf(-3.0 + 3.0 * next());
-            let turn = if next() < 0.02 { 2.5 * next() } else { 0.05 * (next() - 0.5) };
-            let lift = 0.05 * (next() - 0.5);
-            let (s, c) = turn.sin_cos();
-            dir = Vec3::new(c * dir.x - s * dir.y, s * dir.x + c * dir.y, dir.z + lift).normalize();
-            let p = *pts.last().unwrap() + dir * len;
-            pts.push(p);
-        }
+        let pts = dense_program(seed, n);
         let o = run(&program_text(&pts, tol, 6000.0), &pts, &cfg);
         check(&o, &pts, tol, &cfg, "random");
     }
