@@ -912,6 +912,26 @@ fn sample_laws(
         sample_on(w, seg.s0, &path.eval(u_lo, 3), 1);
         sample_on(w, seg.s1(), &path.eval(u_hi, 3), -1);
     }
+    // Around a curvature peak of radius below the sample spacing, the
+    // curvature terms of the axis jerk (`3·C″·v·a`) change over the radius,
+    // and a ramp's speed and acceleration over a few µm: per-axis samples
+    // half a radius and a radius each way of the peak at `s_pk` (searched
+    // from `ua` at arc length `xa`). An 8 µm turn at the end of a fitted
+    // piece, sampled at its peak only, reached 1.12× an axis's jerk as the
+    // run stopped there.
+    let around_peak = |w: &mut Window, xa: f64, ua: f64, s_pk: f64, d_pk: &Derivs| {
+        let r = 1.0 / d_pk.curvature();
+        let v_pk = law(d_pk, 0).min(law(d_pk, 1));
+        if r < 0.5 * hs && r > 2.0 * v_pk * cfg.period {
+            for f in [-1.0, -0.5, 0.5, 1.0] {
+                let st = s_pk + f * r;
+                if st >= xa && st <= seg.s1() {
+                    let ut = path.param_at_arc_length(ua, st - xa).clamp(u_lo, u_hi);
+                    sample(w, st, &path.eval(ut, 3));
+                }
+            }
+        }
+    };
     if curve && seg.length < 2.0 * hs {
         // A curve shorter than the law spacing (a corner blend of a few µm)
         // may hold no grid sample at all: its laws at its ends and at its
@@ -923,11 +943,9 @@ fn sample_laws(
             lower(w, seg.s0, seg.s1(), which, v);
             if which == 0 && v_min.is_finite() {
                 let u_min = u_min.clamp(u_lo, u_hi);
-                sample(
-                    w,
-                    seg.s0 + path.arc_length(u_lo, u_min),
-                    &path.eval(u_min, 3),
-                );
+                let (s_min, d_min) = (seg.s0 + path.arc_length(u_lo, u_min), path.eval(u_min, 3));
+                sample(w, s_min, &d_min);
+                around_peak(w, seg.s0, u_lo, s_min, &d_min);
             }
         }
     }
@@ -947,17 +965,145 @@ fn sample_laws(
     let (mut u_prev, mut x_prev) = (path.u_start(), seg.s0);
     // Per law, the last sample: (k, value).
     let mut last: [Option<(i64, f64)>; 2] = [None; 2];
-    // Per term (the machine law's, see `machine_limit_parts`, then the feed
-    // law), the last two samples (k, u, value): a term's sampled local
-    // minimum is refined between its neighbours. The terms, not their
-    // minimum: the minimum of terms that dip a few µm apart dips twice,
-    // and a term that dips between samples where another one is lower need
-    // not show as a minimum of the law.
+    // The term `term` (the machine law's, see `machine_limit_parts`, then
+    // the feed law) at `d`.
+    let term_of = |d: &Derivs, term: usize| {
+        if term < MACHINE_LAW_PARTS {
+            machine_limit_parts(d, cfg, 1.0)[term]
+        } else {
+            law(d, 1)
+        }
+    };
+    // A term's minimum between `ua` (at arc length `xa`) and `ub`, where its
+    // samples show one: the law there, at the sub-range it lies in (both, on
+    // a boundary), not over the whole bracket (which sample brackets it may
+    // turn on round-off, where it lies does not), and a per-axis sample
+    // where a peak of the curvature or of an axis's `C‴` lies. `below`: only
+    // a minimum below it counts (a bracket at a block's end, whose own value
+    // its junction prices); `fallback`, the bracket's sampled minimum if the
+    // search fails.
+    let refine_in = |w: &mut Window,
+                     term: usize,
+                     xa: f64,
+                     ua: f64,
+                     ub: f64,
+                     below: f64,
+                     fallback: (f64, f64)| {
+        let which = usize::from(term >= MACHINE_LAW_PARTS);
+        let at = |uu: f64| term_of(&path.eval(uu.clamp(u_lo, u_hi), 3), term);
+        let (u_min, v_min) = golden_section_argmin(at, ua, ub, GOLDEN_ITERS, 0.0);
+        if v_min.is_nan() {
+            lower(w, xa, fallback.0, which, fallback.1);
+        } else if v_min < below {
+            // From the bracket's start, not the block's: linear, not
+            // quadratic, in the block.
+            let u_min = u_min.clamp(u_lo, u_hi);
+            let s_min = xa + path.arc_length(ua, u_min);
+            let d_min = path.eval(u_min, 3);
+            lower(w, s_min, s_min, which, law(&d_min, which).min(v_min));
+            if which == 0 && (term == 0 || term >= 4) {
+                sample(w, s_min, &d_min);
+            }
+            if term == 0 {
+                around_peak(w, xa, ua, s_min, &d_min);
+            }
+        }
+    };
+    // Below this share of a boundary sample's value a minimum between it and
+    // the next sample is a dip of its own, not the boundary's value.
+    const DIP: f64 = 1.0 - 1e-6;
+    // Per term, the last two samples (arc length, u, value): a term's
+    // sampled local minimum is refined between its neighbours. The terms,
+    // not their minimum: the minimum of terms that dip a few µm apart dips
+    // twice, and a term that dips between samples where another one is
+    // lower need not show as a minimum of the law. The block's ends count
+    // as samples: a fitted piece of 0.17 mm held a 6 µm turn (`C‴` 29,000
+    // mm⁻²) between its start and its first grid sample, where no sample
+    // saw it, and a random `G64 P` program passed it at 3.4× an axis's
+    // jerk.
     const TERMS: usize = MACHINE_LAW_PARTS + 1;
-    let mut t1: [Option<(i64, f64, f64)>; TERMS] = [None; TERMS];
-    let mut t2: [Option<(i64, f64, f64)>; TERMS] = [None; TERMS];
+    let d_start = path.eval(u_lo, 3);
+    // Per term: (arc length, u, value) of a sample.
+    type Terms = [Option<(f64, f64, f64)>; TERMS];
+    let (mut t1, mut t2): (Terms, Terms) = ([None; TERMS], [None; TERMS]);
+    if refine && k0 <= k1 {
+        for (term, t) in t1.iter_mut().enumerate() {
+            *t = Some((seg.s0, u_lo, term_of(&d_start, term)));
+        }
+    }
     // Both laws at the last sample.
-    let mut prev_both = [f64::INFINITY; 2];
+    let mut prev_both = [law(&d_start, 0), law(&d_start, 1)];
+    // The length over which the path's curvature terms change: its radius
+    // of curvature or `1/√|C‴|`, the lower. Per-axis samples between two law
+    // samples are half that far apart at most (every half spacing at least,
+    // up to 8 a spacing): the axis jerk `C‴·v³ + 3·C″·v·a + t·j` changes over
+    // it, and at a ramp's speeds a fitted 15 µm turn sampled every 16 µm
+    // passed 1.01× an axis's jerk between its samples.
+    let feature = |d: &Derivs| {
+        ArcLengthDerivs::new(d).map_or(f64::INFINITY, |a| {
+            (1.0 / a.c_ss.norm()).min(1.0 / libm::sqrt(a.c_sss.norm()))
+        })
+    };
+    let between = |l: f64, gap: f64| -> usize {
+        if l < gap {
+            (libm::ceil(2.0 * gap / l) as usize).clamp(2, 8)
+        } else {
+            2
+        }
+    };
+    let mut prev_feature = feature(&d_start);
+    // One sample's terms into the refinement: t2, t1, this (at `x`, `u`).
+    let step = |w: &mut Window,
+                (t1, t2, prev_both): (&mut Terms, &mut Terms, &mut [f64; 2]),
+                (x, u): (f64, f64),
+                parts: &[f64; MACHINE_LAW_PARTS],
+                both: [f64; 2]| {
+        for term in 0..TERMS {
+            let (which, v) = if term < MACHINE_LAW_PARTS {
+                (0, parts[term])
+            } else {
+                (1, both[1])
+            };
+            // A local minimum at t1 is refined between t2 and this sample,
+            // if the term comes near the law there (a term far above the
+            // others cannot dip below them between two samples).
+            match (refine, t2[term], t1[term]) {
+                (true, Some((xa, ua, va)), Some((_, _, vb)))
+                    if vb < va
+                        && vb <= v
+                        && vb.is_finite()
+                        && vb <= TERM_NEAR * prev_both[which] =>
+                {
+                    refine_in(w, term, xa, ua, u, f64::INFINITY, (x, vb));
+                }
+                // The block's start, lower than its first sample: a dip
+                // between them is searched for.
+                (true, None, Some((xa, ua, va)))
+                    if va < v && va.is_finite() && va <= TERM_NEAR * prev_both[which] =>
+                {
+                    refine_in(w, term, xa, ua, u, DIP * va, (x, va));
+                }
+                _ => {}
+            }
+            t2[term] = t1[term];
+            t1[term] = Some((x, u, v));
+        }
+        *prev_both = both;
+    };
+    // A per-axis sample between law samples, at `u` (arc length `x`); where
+    // they are denser than every half spacing (a tight turn), also a
+    // sample of the terms, so that a dip between them is refined.
+    let sub_sample =
+        |w: &mut Window, state: (&mut Terms, &mut Terms, &mut [f64; 2]), x: f64, u: f64| {
+            let d = path.eval(u, 3);
+            sample(w, x, &d);
+            let parts = machine_limit_parts(&d, cfg, 1.0);
+            let both = [
+                parts.iter().fold(cfg.max_path_speed, |a, &b| a.min(b)),
+                law(&d, 1),
+            ];
+            step(w, state, (x, u), &parts, both);
+        };
     for k in k0..=k1 {
         let x = k as f64 * hs;
         let u = path.param_at_arc_length(u_prev, x - x_prev);
@@ -969,6 +1115,7 @@ fn sample_laws(
             parts.iter().fold(cfg.max_path_speed, |a, &b| a.min(b)),
             law(&d, 1),
         ];
+        let here = feature(&d);
         if curve {
             // Per-axis samples at every law sample and between (the terms
             // change fast near a curvature peak); each kept where its axis
@@ -984,9 +1131,31 @@ fn sample_laws(
                 0
             };
             sample_at(w, x, &d, both[0].min(both[1]), side);
+            let state = (&mut t1, &mut t2, &mut prev_both);
             if k > k0 {
-                let um = (0.5 * (u_prev + u)).clamp(u_lo, u_hi);
-                sample(w, x - 0.5 * hs, &path.eval(um, 3));
+                let n = between(prev_feature.min(here), hs);
+                if n == 2 {
+                    let um = (0.5 * (u_prev + u)).clamp(u_lo, u_hi);
+                    sample(w, x - 0.5 * hs, &path.eval(um, 3));
+                } else {
+                    for j in 1..n {
+                        let um = (u_prev + j as f64 / n as f64 * (u - u_prev)).clamp(u_lo, u_hi);
+                        let xm = x_prev + path.arc_length(u_prev, um);
+                        sub_sample(w, (&mut *state.0, &mut *state.1, &mut *state.2), xm, um);
+                    }
+                }
+            } else if x - seg.s0 > 0.25 * hs {
+                // (And between the block's start and its first sample.)
+                let n = between(feature(&d_start).min(here), x - seg.s0);
+                for j in 1..n {
+                    let um = (u_lo + j as f64 / n as f64 * (u - u_lo)).clamp(u_lo, u_hi);
+                    let xm = seg.s0 + path.arc_length(u_lo, um);
+                    if n == 2 {
+                        sample(w, xm, &path.eval(um, 3));
+                    } else {
+                        sub_sample(w, (&mut *state.0, &mut *state.1, &mut *state.2), xm, um);
+                    }
+                }
             }
         }
         for which in 0..2 {
@@ -1006,70 +1175,95 @@ fn sample_laws(
             }
             last[which] = Some((k, v));
         }
-        for term in 0..TERMS {
-            let (which, v) = if term < MACHINE_LAW_PARTS {
-                (0, parts[term])
-            } else {
-                (1, both[1])
-            };
-            // t2, t1, this: a local minimum at t1 is refined between t2 and
-            // this sample, if the term comes near the law there (a term far
-            // above the others cannot dip below them between two samples).
-            if let (true, Some((ka, ua, va)), Some((_, _, vb))) = (refine, t2[term], t1[term])
-                && vb < va
-                && vb <= v
-                && vb.is_finite()
-                && vb <= TERM_NEAR * prev_both[which]
-            {
-                let at = |uu: f64| {
-                    let d = path.eval(uu.clamp(u_lo, u_hi), 3);
-                    if which == 0 {
-                        machine_limit_parts(&d, cfg, 1.0)[term]
-                    } else {
-                        law(&d, 1)
-                    }
-                };
-                let (u_min, v_min) = golden_section_argmin(at, ua, u, GOLDEN_ITERS, 0.0);
-                if v_min.is_nan() {
-                    // The search failed: the bracket as its sampled minimum.
-                    lower(w, ka as f64 * hs, x, which, vb);
+        step(w, (&mut t1, &mut t2, &mut prev_both), (x, u), &parts, both);
+        if curve && k == k1 && seg.s1() - x > 0.25 * hs {
+            // (And between the last sample and the block's end.)
+            let n = between(feature(&path.eval(u_hi, 3)).min(here), seg.s1() - x);
+            for j in 1..n {
+                let um = (u + j as f64 / n as f64 * (u_hi - u)).clamp(u_lo, u_hi);
+                let xm = x + path.arc_length(u, um);
+                if n == 2 {
+                    sample(w, xm, &path.eval(um, 3));
                 } else {
-                    // From the bracket's start (at arc length ka·hs), not
-                    // the block's: linear, not quadratic, in the block.
-                    let u_min = u_min.clamp(u_lo, u_hi);
-                    let s_min = ka as f64 * hs + path.arc_length(ua, u_min);
-                    let d_min = path.eval(u_min, 3);
-                    // The law there (the minimum of the terms), at the
-                    // sub-range it lies in (both, on a boundary), not over
-                    // the whole bracket: which sample brackets it may turn
-                    // on round-off, where it lies does not.
-                    lower(w, s_min, s_min, which, law(&d_min, which).min(v_min));
-                    if which == 0 && (term == 0 || term >= 4) {
-                        // Where a peak of the curvature or of an axis's `C‴`
-                        // lies: a per-axis sample there too.
-                        sample(w, s_min, &d_min);
-                    }
+                    sub_sample(w, (&mut t1, &mut t2, &mut prev_both), xm, um);
                 }
             }
-            t2[term] = t1[term];
-            t1[term] = Some((k, u, v));
         }
-        prev_both = both;
+        prev_feature = here;
         u_prev = u;
         x_prev = x;
+    }
+    if refine && k0 <= k1 {
+        // The block's end as the last sample: a minimum at the last grid
+        // sample, or a dip between it and the end.
+        let d_end = path.eval(u_hi, 3);
+        let end_both = [law(&d_end, 0), law(&d_end, 1)];
+        for term in 0..TERMS {
+            let which = usize::from(term >= MACHINE_LAW_PARTS);
+            let v = term_of(&d_end, term);
+            let near =
+                |vb: f64| vb.is_finite() && vb <= TERM_NEAR * prev_both[which].min(end_both[which]);
+            if let (Some((xa, ua, va)), Some((_, _, vb))) = (t2[term], t1[term])
+                && vb < va
+                && vb <= v
+                && near(vb)
+            {
+                refine_in(w, term, xa, ua, u_hi, f64::INFINITY, (seg.s1(), vb));
+            }
+            if let Some((xb, ub, vb)) = t1[term]
+                && v < vb
+                && near(v)
+            {
+                refine_in(w, term, xb, ub, u_hi, DIP * v, (seg.s1(), v));
+            }
+        }
     }
     if let Path::Nurbs(n) = path {
         // A knot span narrower than twice the law spacing (a fit's tight turn
         // of a few µm between two grid samples) may hold a peak of `C‴` that
         // no grid sample sees: its worst point, and a per-axis sample there.
         let knots = n.knots();
+        let p = n.degree();
         let (mut at_u, mut at_s) = (u_lo, seg.s0);
-        let mut i = n.degree() + 1;
+        let mut i = p + 1;
         let mut prev = u_lo;
         while i < knots.len() {
             let u = knots[i].min(u_hi);
             if u > prev {
                 let len = path.arc_length(prev, u);
+                let mult = knots[i..].iter().take_while(|&&k| k == knots[i]).count();
+                // `C‴` steps at a knot of continuity C2 (lower ones are
+                // junctions, `knot_junctions`): the axis jerk steps with it
+                // (`v³·ΔC‴`), and a grid sample a few µm past the knot sees
+                // the right side's jerk already fallen. A random `G64 P`
+                // program's cubic fit reached 1.04× an axis's jerk there.
+                // Where the step could take more than the planning margin
+                // at the laws' speed there, both sides are per-axis samples
+                // (every knot's filled the intervals of a raster's fits,
+                // a knot every few tens of µm, and the overflow slowed it
+                // 2.5 %).
+                if u < u_hi && mult + 2 == p {
+                    let left = path.eval(u - (u - prev) * 1e-9, 3);
+                    let right = path.eval(u, 3);
+                    if let (Some(a), Some(b)) =
+                        (ArcLengthDerivs::new(&left), ArcLengthDerivs::new(&right))
+                    {
+                        let v = law(&left, 0)
+                            .min(law(&left, 1))
+                            .min(law(&right, 0))
+                            .min(law(&right, 1))
+                            .min(cfg.max_path_speed);
+                        let step = (0..3).any(|i| {
+                            v * v * v * libm::fabs(a.c_sss[i] - b.c_sss[i])
+                                > cfg.planning_margin * cfg.axis_max_jerk[i]
+                        });
+                        if step {
+                            let s_knot = at_s + path.arc_length(at_u, u);
+                            sample(w, s_knot, &left);
+                            sample(w, s_knot, &right);
+                        }
+                    }
+                }
                 // (Between two knots: a segment's ends have their own samples,
                 // and a stationary end its laws taken a tick inside.)
                 if len < 2.0 * hs && prev > u_lo && u < u_hi {

@@ -11,7 +11,7 @@ use interp_core::feed::{junction_speed, speed_limit};
 use interp_core::geom::{Curve, Vec3};
 use interp_core::metrics::chord_error_between;
 use interp_core::nurbs::Nurbs;
-use interp_core::path::{Block, MrrParams, Path, ToolSide};
+use interp_core::path::{Block, Line, MrrParams, Path, ToolSide};
 use interp_core::{InterpConfig, Interpolator, ParamUpdate, RunState, Setpoint};
 use proptest::prelude::*;
 
@@ -406,6 +406,61 @@ fn curvature_steps_at_knots_hold_every_axis_limit_at_production_feed() {
     let curve = Nurbs::new(2, &pts, &vec![1.0; n], &knots).unwrap();
     let cfg = InterpConfig::default();
     let blocks = [Block::new(1, Path::Nurbs(curve), 100.0)];
+    let (sps, stats) = run(cfg, &blocks);
+    check_properties(&cfg, &blocks, &sps);
+    assert_eq!(stats.stale_plans, 0);
+}
+
+/// A cubic piece of a random `G64 P` program's fit (issue 15's property
+/// test) that the run leaves from rest, with a 6 µm turn between the
+/// piece's start and its first law sample: no sample saw it, and the run
+/// passed it at 2.7× an axis's jerk. (The property test's programs hold
+/// the other cases: `random_programs.rs`.)
+#[test]
+fn a_tight_turn_before_a_fitted_piece_s_first_sample_holds_every_axis_limit() {
+    let l = |a: [f64; 3], b: [f64; 3]| Path::Line(Line::new(Vec3::from(a), Vec3::from(b)).unwrap());
+    let cubic = |pts: &[[f64; 3]], knots: &[f64]| {
+        Path::Nurbs(Nurbs::new(3, pts, &vec![1.0; pts.len()], knots).unwrap())
+    };
+    // The law samples lie on a grid of arc length from the run's start
+    // (1/32 mm here): the lead-in puts the piece where it lay on it, and
+    // ends in a corner, so the run leaves the piece from rest.
+    let start = [-278.60937833186273, -4993.002577520504, -2185.3363030271603];
+    let into = Vec3::new(4.10607e-6, -2.64377e-5, 8.8871e-6).normalize();
+    let lead = Vec3::from(start) - into * 1.000_582_087_358_452_6;
+    let leaving = [
+        l([lead.x, lead.y, lead.z], start),
+        cubic(
+            &[
+                [-278.60937833186273, -4993.002577520504, -2185.3363030271603],
+                [-278.5944402204163, -4993.00333520864, -2185.3303024313586],
+                [-278.63415154489525, -4992.934930023209, -2185.316954186813],
+                [-278.6439931574047, -4992.89013288131, -2185.297187135324],
+                [-278.6535865228425, -4992.854542998575, -2185.285027540752],
+            ],
+            &[
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.04724324867051341,
+                0.16365720725215188,
+                0.16365720725215188,
+                0.16365720725215188,
+                0.16365720725215188,
+            ],
+        ),
+        l(
+            [-278.6535865228425, -4992.854542998575, -2185.285027540752],
+            [-279.52051704642435, -4989.713772878327, -2184.2221311853255],
+        ),
+    ];
+    let cfg = InterpConfig::default();
+    let blocks: Vec<Block> = leaving
+        .iter()
+        .enumerate()
+        .map(|(i, p)| Block::new(i as u32 + 1, *p, 203.97))
+        .collect();
     let (sps, stats) = run(cfg, &blocks);
     check_properties(&cfg, &blocks, &sps);
     assert_eq!(stats.stale_plans, 0);

@@ -127,21 +127,16 @@ fn check_text(
     let run = interpolated_run_within(&out, &cfg, true, max_ticks)
         .unwrap_or_else(|e| panic!("{what}: {e} (bound {bound} s)"));
     // Every limit on every tick, by finite differences of the setpoints.
-    // The path jerk holds (a stop just past a short segment was landed on
-    // ticks early: up to 21× the limit). Single ticks of three of the
-    // proptest's programs still pass an axis's jerk or the feed: reported,
-    // not yet asserted (BENCHMARKS.md, "Curvature steps at knots").
     let v = run.violations;
-    let jerk = run.measured.path_jerk_mm_s3 / cfg.max_path_jerk;
-    assert_eq!(v.over_jerk, 0, "{what}: the path jerk {jerk:.3}× its limit");
-    if v.total() > 0 {
-        eprintln!(
-            "{what}: {} (first at seq {:?}); axis jerk {:?} mm/s³",
-            v.breakdown(),
-            v.first_seq,
-            run.measured.axis_jerk_mm_s3
-        );
-    }
+    assert_eq!(
+        v.total(),
+        0,
+        "{what}: {} (first at seq {:?}); path jerk {:.0}, axis jerk {:?} mm/s³",
+        v.breakdown(),
+        v.first_seq,
+        run.measured.path_jerk_mm_s3,
+        run.measured.axis_jerk_mm_s3
+    );
     let ours = run.time;
     let last = *run.points.last().unwrap();
     assert_eq!(last, *pts.last().unwrap(), "{what}: ends on its last point");
@@ -174,6 +169,20 @@ proptest! {
         let (ours, reference, moves, stops) = check(seed, n, None);
         eprintln!("seed {seed}: {moves} moves, {stops} stops, {ours:.3} s, reference {reference:.3} s, {:.3}×", ours / reference);
     }
+}
+
+/// Found by the property test: fitted pieces with turns of a few µm
+/// radius. A cubic C2 knot's step of `C‴` (the axis jerk steps with it) was
+/// seen by no sample a few µm past it (1.04× an axis's jerk); a turn between
+/// a piece's start and its first law sample by none at all (3.4×); a turn
+/// at a piece's end, where the run stops, at its peak only (1.12×); and a
+/// 15 µm turn between samples 16 µm apart (1.01×). The first 60 moves of
+/// this seed hold the third; the property test's fixed seed holds the
+/// first, `interpolator.rs` the second (BENCHMARKS.md has the fourth).
+#[test]
+fn tight_turns_of_fitted_pieces_hold_every_axis_limit() {
+    let (ours, reference, moves, _) = check(8181703606750537106, 60, None);
+    eprintln!("{moves} moves, {ours:.3} s, {:.3}×", ours / reference);
 }
 
 /// Found by the property test: micro-moves (20 nm to 2 mm) turning sharply
@@ -268,6 +277,22 @@ fn a_blend_s_derivatives_do_not_hold_back_the_line_after_it() {
     );
     // 379.7 s before (1.78× the reference), 320.3 s now (1.50×).
     assert!(ours < 350.0, "{ours} s (reference {reference} s)");
+}
+
+/// Eighty programs of 299 moves (seeds drawn from two fixed streams), each
+/// held to every limit on every tick: the property test's six cases, and
+/// more (release: four minutes).
+#[test]
+#[ignore]
+fn eighty_random_programs_hold_every_limit_on_every_tick() {
+    for stream in [777, 4242] {
+        let mut r = Rng(stream);
+        for _ in 0..40 {
+            let seed = (r.unit() * 1.8e19) as u64;
+            let (ours, reference, moves, _) = check(seed, 299, None);
+            eprintln!("seed {seed}: {moves} moves, {:.3}×", ours / reference);
+        }
+    }
 }
 
 /// The size: programs of 10⁴ and 10⁵ moves, `G64 P` and `G61`
