@@ -871,7 +871,7 @@ impl Data {
             let v = sub(p.x0, b.min(p.x1));
             (v, v)
         };
-        while level == CutLevel::All && b < p.x1 - sliver {
+        while level >= CutLevel::All && b < p.x1 - sliver {
             let v = sub(b, (b + hs).min(p.x1));
             let (nlo, nhi) = (lo.min(v), hi.max(v));
             if nhi > RUN_RATIO * nlo {
@@ -881,6 +881,38 @@ impl Data {
                 (lo, hi) = (nlo, nhi);
             }
             b += hs;
+        }
+        // (Only where a tick is at most half of it: a tick as long as a
+        // part averages the speed over it, and at a 4 ms period the tick
+        // into a slow point passed the chord-error law at its end.)
+        if level == CutLevel::Slow && 2.0 * self.cfg.period <= SLOW_PIECE_TIME {
+            // At fixed places of the grid, from the interval's own limits
+            // (not the piece's, whose ends depend on the other cuts): a
+            // curve cut into two blocks keeps the same pieces.
+            let xg = p.g as f64 * self.h;
+            let (m, f) = self.sub_range_limits(xg, xg + self.h);
+            let v = m.min(f);
+            // Not where a span holds the speed (a junction, a corner's
+            // blend): there the plan is flat at the span's speed, and more
+            // pieces only let it ripple.
+            let (a, b) = (xg - self.h, xg + 2.0 * self.h);
+            let in_span = self.spans_near(a, b).any(|sp| sp.overlaps(a, b, hs));
+            // And only inside a slow stretch of three intervals or more:
+            // cutting an isolated dip (a corner's blend of 0.1 mm) let the
+            // plan undershoot the blend's speed before it.
+            let slow = |x: f64| {
+                let (m, f) = self.sub_range_limits(x, x + self.h);
+                RUN_RATIO * m.min(f) < f
+            };
+            if v > 0.0 && RUN_RATIO * v < f && !in_span && slow(xg - self.h) && slow(xg + self.h) {
+                let mut q = 1;
+                while q < SLOW_PIECE_PARTS && self.h > q as f64 * v * SLOW_PIECE_TIME {
+                    q *= 2;
+                }
+                for k in 1..q {
+                    push(xg + self.h * k as f64 / q as f64);
+                }
+            }
         }
         // Sort (few), then drop slivers.
         raw[..k].sort_unstable_by(|a, b| a.total_cmp(b));
@@ -943,6 +975,11 @@ impl Data {
                 if level == CutLevel::Rests && reach < n {
                     self.ungraded += 1;
                 }
+            }
+            // Slow pieces are cut last, with the room every other cut left,
+            // nearest the machine first.
+            if reach == n {
+                claim(self, from, n, CutLevel::Slow);
             }
         } else if head < n {
             self.ungraded += 1;
@@ -2211,7 +2248,8 @@ const GRADE: [f64; 2] = [1.0 / 16.0, 0.25];
 const RUN_RATIO: f64 = 1.5;
 /// Most cuts inside one piece (grading at both ends, every sub-range
 /// boundary, and the spans near it, graded both ways).
-const MAX_CUTS: usize = 2 * GRADE.len() + SUB + SPANS * (2 + 2 * GRADE.len());
+const MAX_CUTS: usize =
+    2 * GRADE.len() + SUB + SPANS * (2 + 2 * GRADE.len()) + SLOW_PIECE_PARTS - 1;
 
 /// Which cuts of a piece [`Data::refine_pieces`] makes, in the order they
 /// claim room in the linear program: where short moves and slow points
@@ -2231,7 +2269,21 @@ enum CutLevel {
     /// And the grading away from slow spans, and the sub-range boundaries
     /// where the limit changes.
     All,
+    /// And the cuts of slow pieces (see [`SLOW_PIECE_TIME`]).
+    Slow,
 }
+
+/// An interval that takes longer than this at its speed limit, where that
+/// is the machine's limit well below the feed (a slow point), is cut into
+/// 2 or 4 equal parts, room permitting: a quadratic piece's jerk `α·v`
+/// follows its speed, so one that the machine takes several milliseconds
+/// over cannot hold the jerk limit through the phases of a slowdown (a
+/// jerk-limited ramp of the acceleration takes `A/J` = 20 ms at the
+/// defaults). At 25 mm/s a grid piece of 0.25 mm takes 10 ms. Measured:
+/// 1.25 ms and 5 ms are slower on the corpus.
+const SLOW_PIECE_TIME: f64 = 0.0025;
+/// The most parts [`SLOW_PIECE_TIME`] cuts an interval into (a power of two).
+const SLOW_PIECE_PARTS: usize = 4;
 
 /// Refinement passes after the first solve.
 const REFINE_PASSES: usize = 1;
