@@ -178,12 +178,20 @@ fn a_busy_send_is_refused_naming_the_owner_or_waits_its_turn() {
     let out_a = wait_child(first, "send A");
     let out_b = wait_child(second, "send B --wait-turn");
     let err_b = String::from_utf8_lossy(&out_b.stderr);
+    // (`--quiet` sends its reasons to the final status on stdout.)
     assert!(
         out_a.status.success(),
-        "{}",
+        "send A: {}; stdout: {}; stderr: {}",
+        out_a.status,
+        String::from_utf8_lossy(&out_a.stdout),
         String::from_utf8_lossy(&out_a.stderr)
     );
-    assert!(out_b.status.success(), "{err_b}");
+    assert!(
+        out_b.status.success(),
+        "send B: {}; stdout: {}; stderr: {err_b}",
+        out_b.status,
+        String::from_utf8_lossy(&out_b.stdout)
+    );
     assert!(
         err_b.contains("busy: program 1 belongs to connection")
             && err_b.contains("waiting for its end (--wait-turn)")
