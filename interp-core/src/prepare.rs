@@ -1026,9 +1026,16 @@ fn sample_laws(
     // Per term: (arc length, u, value) of a sample.
     type Terms = [Option<(f64, f64, f64)>; TERMS];
     let (mut t1, mut t2): (Terms, Terms) = ([None; TERMS], [None; TERMS]);
+    // Every term at `d` (one evaluation of the machine law's).
+    let terms_at = |d: &Derivs| {
+        let mut v = [0.0; TERMS];
+        v[..MACHINE_LAW_PARTS].copy_from_slice(&machine_limit_parts(d, cfg, 1.0));
+        v[MACHINE_LAW_PARTS] = law(d, 1);
+        v
+    };
     if refine && k0 <= k1 {
-        for (term, t) in t1.iter_mut().enumerate() {
-            *t = Some((seg.s0, u_lo, term_of(&d_start, term)));
+        for (t, v) in t1.iter_mut().zip(terms_at(&d_start)) {
+            *t = Some((seg.s0, u_lo, v));
         }
     }
     // Both laws at the last sample.
@@ -1093,15 +1100,21 @@ fn sample_laws(
     // A per-axis sample between law samples, at `u` (arc length `x`); where
     // they are denser than every half spacing (a tight turn), also a
     // sample of the terms, so that a dip between them is refined.
+    // The machine law's terms at `d`, and both laws (the machine law as
+    // `law(d, 0)`, from the terms already at hand).
+    let laws_at = |d: &Derivs| {
+        let parts = machine_limit_parts(d, cfg, 1.0);
+        let both = [
+            parts.iter().fold(cfg.max_path_speed, |a, &b| a.min(b)),
+            law(d, 1),
+        ];
+        (parts, both)
+    };
     let sub_sample =
         |w: &mut Window, state: (&mut Terms, &mut Terms, &mut [f64; 2]), x: f64, u: f64| {
             let d = path.eval(u, 3);
             sample(w, x, &d);
-            let parts = machine_limit_parts(&d, cfg, 1.0);
-            let both = [
-                parts.iter().fold(cfg.max_path_speed, |a, &b| a.min(b)),
-                law(&d, 1),
-            ];
+            let (parts, both) = laws_at(&d);
             step(w, state, (x, u), &parts, both);
         };
     for k in k0..=k1 {
@@ -1109,12 +1122,7 @@ fn sample_laws(
         let u = path.param_at_arc_length(u_prev, x - x_prev);
         // One evaluation for both laws at the sample.
         let d = path.eval(u.clamp(u_lo, u_hi), 3);
-        let parts = machine_limit_parts(&d, cfg, 1.0);
-        // (As `law(&d, 0)`, from the terms already at hand.)
-        let both = [
-            parts.iter().fold(cfg.max_path_speed, |a, &b| a.min(b)),
-            law(&d, 1),
-        ];
+        let (parts, both) = laws_at(&d);
         let here = feature(&d);
         if curve {
             // Per-axis samples at every law sample and between (the terms
@@ -1198,9 +1206,8 @@ fn sample_laws(
         // sample, or a dip between it and the end.
         let d_end = path.eval(u_hi, 3);
         let end_both = [law(&d_end, 0), law(&d_end, 1)];
-        for term in 0..TERMS {
+        for (term, v) in terms_at(&d_end).into_iter().enumerate() {
             let which = usize::from(term >= MACHINE_LAW_PARTS);
-            let v = term_of(&d_end, term);
             let near =
                 |vb: f64| vb.is_finite() && vb <= TERM_NEAR * prev_both[which].min(end_both[which]);
             if let (Some((xa, ua, va)), Some((_, _, vb))) = (t2[term], t1[term])
