@@ -5,6 +5,7 @@
 use crate::config::InterpConfig;
 use crate::geom::{Derivs, Vec3};
 use crate::path::{MrrParams, ToolSide};
+use crate::plan::JumpReserve;
 
 /// Chord-error law, eq. 16–17 without the cap: the speed at which one tick's
 /// chord on the osculating circle of radius `r = 1/k` deviates from the
@@ -364,18 +365,35 @@ pub const JUMP_SEEN: f64 = 0.75;
 pub const KNOT_JUMP_SHARE: f64 = 0.85;
 
 /// The share of each axis's jerk a junction passed at `v` takes with its
-/// curvature's step (at most `share`, the one its speed was set with): the
-/// jerk rows at and near the junction keep to the rest.
-pub fn jump_reserve(left: &Derivs, right: &Derivs, v: f64, share: f64, cfg: &InterpConfig) -> f64 {
+/// curvature's step (at most `share`, the one its speed was set with), on
+/// the side of the jerk the step adds: the jerk rows at and near the
+/// junction keep to the rest there, and may use the whole limit the other
+/// way.
+pub fn jump_reserve(
+    left: &Derivs,
+    right: &Derivs,
+    v: f64,
+    share: f64,
+    cfg: &InterpConfig,
+) -> JumpReserve {
+    let mut out = JumpReserve::NONE;
     let (Some(l), Some(r)) = (ArcLengthDerivs::new(left), ArcLengthDerivs::new(right)) else {
-        return 0.0;
+        return out;
     };
     let keep = 1.0 - cfg.planning_margin;
     let dk = r.c_ss - l.c_ss;
-    (0..3)
-        .map(|i| JUMP_SEEN * v * v * libm::fabs(dk[i]) / (cfg.period * keep * cfg.axis_max_jerk[i]))
-        .fold(0.0, f64::max)
-        .min(share)
+    for i in 0..3 {
+        let take =
+            JUMP_SEEN * v * v * libm::fabs(dk[i]) / (cfg.period * keep * cfg.axis_max_jerk[i]);
+        // (Travelled from `left` to `right`: the step adds jerk of its sign.)
+        let side = if dk[i] > 0.0 {
+            &mut out.up
+        } else {
+            &mut out.down
+        };
+        side[i] = take.min(share);
+    }
+    out
 }
 
 /// A junction whose jump would limit the speed only above this many times the

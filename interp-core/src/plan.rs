@@ -77,13 +77,67 @@ pub struct AxisSample {
     /// start of the other, with other derivatives: each bounds only its own
     /// side (a fillet's curvature does not hold back the line before it).
     pub side: i8,
-    /// The share of each axis's jerk a junction's curvature step takes here
-    /// (`feed::jump_reserve`; 0 away from a junction): the rows keep to the
-    /// rest. Samples within [`Window::reserve_around_jump`]'s reach of a
-    /// junction keep it too.
-    pub reserve: f64,
+    /// The share of each axis's jerk a junction's curvature step takes here,
+    /// on the side of the jerk it adds (`feed::jump_reserve`; none away from
+    /// a junction): the rows keep to the rest. Samples within
+    /// [`Window::reserve_around_jump`]'s reach of a junction keep it too.
+    pub reserve: JumpReserve,
     /// One of a junction's own two samples (its sides' derivatives).
     pub junction: bool,
+}
+
+/// The shares of each axis's jerk that curvature steps nearby take from its
+/// jerk rows, by the sign of the jerk they add. A step `v²·ΔC″ᵢ` adds to a
+/// third difference of the setpoints a part `θ`-dependent but never of the
+/// other sign (`(1−θ)²/2`, `(1+2θ−2θ²)/2`, `θ²/2` of `v²·ΔC″ᵢ/Ts`): a row
+/// keeps its share on that side only, and may use the whole limit against
+/// the step.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct JumpReserve {
+    /// Where the step adds positive jerk to axis `i` (`ΔC″ᵢ > 0` in the
+    /// direction of travel): the share of `+J_i` it takes.
+    pub up: [f64; 3],
+    /// Where it adds negative jerk: the share of `−J_i`.
+    pub down: [f64; 3],
+}
+
+impl JumpReserve {
+    /// No step nearby.
+    pub const NONE: JumpReserve = JumpReserve {
+        up: [0.0; 3],
+        down: [0.0; 3],
+    };
+
+    /// True where no step takes anything.
+    pub fn is_none(&self) -> bool {
+        self.up.iter().chain(self.down.iter()).all(|&r| r <= 0.0)
+    }
+
+    /// What both leave, axis by axis and side by side.
+    pub fn max(self, other: JumpReserve) -> JumpReserve {
+        let mut r = self;
+        for i in 0..3 {
+            r.up[i] = r.up[i].max(other.up[i]);
+            r.down[i] = r.down[i].max(other.down[i]);
+        }
+        r
+    }
+
+    /// Every share times `f` (a step's share falls as the square of the
+    /// speed below the junction's).
+    pub fn scaled(self, f: f64) -> JumpReserve {
+        let mut r = self;
+        for i in 0..3 {
+            r.up[i] *= f;
+            r.down[i] *= f;
+        }
+        r
+    }
+
+    /// The larger side's share on axis `ax` (where a bound must hold both ways).
+    pub fn larger(&self, ax: usize) -> f64 {
+        self.up[ax].max(self.down[ax])
+    }
 }
 
 /// Where a junction's curvature step shows in the setpoints' third
@@ -95,8 +149,8 @@ pub struct JumpZone {
     pub x0: f64,
     /// Where it ends, mm.
     pub x1: f64,
-    /// The share of each axis's jerk the step takes (0: no zone).
-    pub reserve: f64,
+    /// The shares of each axis's jerk the step takes (none: no zone).
+    pub reserve: JumpReserve,
     /// The squared speed the junction is passed at most, mm²/s²: the
     /// step's share falls as the square of the speed below it.
     pub v2: f64,
@@ -1280,7 +1334,7 @@ impl Window {
     /// difference of the setpoints spans three ticks: one that sees the step
     /// sees the jerk up to three ticks' travel from it, so every sample
     /// there, offered before or after this, keeps the reserve.
-    pub fn reserve_around_jump(&mut self, s: f64, v: f64, reserve: f64) {
+    pub fn reserve_around_jump(&mut self, s: f64, v: f64, reserve: JumpReserve) {
         let cfg = &self.data.cfg;
         let ts = cfg.period;
         // (Three ticks at `v`, and what the acceleration adds over them.)
@@ -1292,7 +1346,7 @@ impl Window {
                 continue;
             };
             let z = &mut it.jump;
-            if z.reserve > 0.0 {
+            if !z.reserve.is_none() {
                 // (The union of two is bounded by the larger reserve, falling
                 // from the lower speed.)
                 (z.x0, z.x1) = (z.x0.min(x0), z.x1.max(x1));
@@ -1318,7 +1372,7 @@ impl Window {
             return None;
         }
         let z = d.interval(g).jump;
-        (z.reserve > 0.0 && s >= z.x0 && s <= z.x1).then_some(z)
+        (!z.reserve.is_none() && s >= z.x0 && s <= z.x1).then_some(z)
     }
 
     /// The data of interval `g`, if held.
@@ -2035,13 +2089,15 @@ fn assemble_and_solve(
                     // |Σ a_m·d_m| ≤ Σ |a_m|·d_m for d ≥ 0: one row bounds
                     // every sample (a junction's scaled to its share).
                     for m in 0..3 {
-                        let am = libm::fabs(a[m]) / (1.0 - smp.reserve);
+                        let am = libm::fabs(a[m]) / (1.0 - smp.reserve.larger(ax));
                         agg[ax][m] = agg[ax][m].max(am);
                     }
                     any[ax] = true;
                 } else {
-                    let jb = cfg.axis_max_jerk[ax] * keep * (1.0 - smp.reserve) / vmax;
-                    sink.push(d, i, a, -jb, jb)?;
+                    // (A step nearby takes its share on its own side only.)
+                    let jb = cfg.axis_max_jerk[ax] * keep / vmax;
+                    let r = &smp.reserve;
+                    sink.push(d, i, a, -jb * (1.0 - r.down[ax]), jb * (1.0 - r.up[ax]))?;
                 }
             }
         }
@@ -2283,7 +2339,7 @@ enum CutLevel {
 /// 1.25 ms and 5 ms are slower on the corpus.
 const SLOW_PIECE_TIME: f64 = 0.0025;
 /// The most parts [`SLOW_PIECE_TIME`] cuts an interval into (a power of two).
-const SLOW_PIECE_PARTS: usize = 4;
+const SLOW_PIECE_PARTS: usize = 16;
 
 /// Refinement passes after the first solve.
 const REFINE_PASSES: usize = 1;
@@ -2350,7 +2406,7 @@ fn crawl(d: &mut Data, from: usize, ovr: f64, lift: &Option<(f64, Stop)>) {
                     + 1.5 * smp.css[ax] * 2.0 / h * (1.0 - 2.0 * u)
                     - 0.5 * smp.t[ax] * 4.0 / (h * h);
                 if coef != 0.0 {
-                    let jb = cfg.axis_max_jerk[ax] * keep * (1.0 - smp.reserve);
+                    let jb = cfg.axis_max_jerk[ax] * keep * (1.0 - smp.reserve.larger(ax));
                     best = best.min(jb / vmax / libm::fabs(coef));
                 }
             }

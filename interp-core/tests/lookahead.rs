@@ -687,7 +687,7 @@ fn a_slow_fillet_between_exact_stops_slows_only_itself() {
 /// every retry would fill their interval, which then lowers the speed.
 #[test]
 fn a_refused_block_leaves_the_window_as_it_was() {
-    use interp_core::plan::{AxisSample, Window};
+    use interp_core::plan::{AxisSample, JumpReserve, Window};
     let cfg = InterpConfig::default();
     let h = 0.25;
     let mut w = Window::new(cfg, h, 0.0);
@@ -697,7 +697,7 @@ fn a_refused_block_leaves_the_window_as_it_was() {
         css: [0.0, 2.0, 0.0],
         csss: [0.0, 0.0, 30.0],
         side: 0,
-        reserve: 0.0,
+        reserve: JumpReserve::NONE,
         junction: false,
     };
     // A queue ending at 1.1 mm, inside interval 4, with a rest point.
