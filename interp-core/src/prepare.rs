@@ -976,14 +976,6 @@ fn sample_laws(
             law(d, 1)
         }
     };
-    // A term's minimum between `ua` (at arc length `xa`) and `ub`, where its
-    // samples show one: the law there, at the sub-range it lies in (both, on
-    // a boundary), not over the whole bracket (which sample brackets it may
-    // turn on round-off, where it lies does not), and a per-axis sample
-    // where a peak of the curvature or of an axis's `C‴` lies. `below`: only
-    // a minimum below it counts (a bracket at a block's end, whose own value
-    // its junction prices); `fallback`, the bracket's sampled minimum if the
-    // search fails.
     // The outer extents of the sharp dips described by nested spans so far
     // (see `staircase`): a term's minimum inside one is described already.
     let stairs: Cell<[(f64, f64); MAX_STAIRS]> = Cell::new([(0.0, 0.0); MAX_STAIRS]);
@@ -996,8 +988,9 @@ fn sample_laws(
     // sub-range (a 1.5 µm turn of `homer-q2` held 31 µm at 0.59 mm/s:
     // 54 ms). Returns the law's lower bound outside the outermost span
     // (the law rises away from the dip), or `None` where the dip is not
-    // sharp or not one (a level that does not close within the bracket
-    // and a sub-range, or a law below its level where the walk checks it).
+    // sharp or not one (its first level wider than a sub-range or reaching
+    // the segment's end, a law that jumps at an edge, or one below a level
+    // where the walk checks it).
     let staircase = |w: &mut Window, xa: f64, ua: f64, ub: f64, u_min: f64, v0: f64| {
         let law_u = |uu: f64| law(&path.eval(uu.clamp(u_lo, u_hi), 3), 0);
         let width_max = h / crate::plan::SUB as f64;
@@ -1011,11 +1004,13 @@ fn sample_laws(
         };
         // (Only a sub-range or more inside the segment: a dip at a
         // junction is the junction's, priced with both sides.)
-        let s_dip = seg.s0 + path.arc_length(u_lo, u_min);
+        let s_dip = xa + path.arc_length(ua, u_min);
         if s_dip - seg.s0 < width_max || seg.s1() - s_dip < width_max {
             return None;
         }
         let mut ext = [(0.0f64, 0.0f64, 0.0f64); STAIR_LEVELS];
+        // The innermost level's edges, in `u`.
+        let mut inner = (u_min, u_min);
         let mut n = 0;
         let (mut ul_prev, mut ur_prev) = (u_min, u_min);
         while n < STAIR_LEVELS {
@@ -1084,6 +1079,9 @@ fn sample_laws(
                 return None;
             }
             ext[n] = (x0, x1, floor);
+            if n == 0 {
+                inner = (ul, ur);
+            }
             (ul_prev, ur_prev) = (ul, ur);
             n += 1;
         }
@@ -1091,11 +1089,7 @@ fn sample_laws(
             return None;
         }
         // The innermost level at the lowest law inside it.
-        let (ul, ur) = (
-            path.param_at_arc_length(ua, ext[0].0 - xa),
-            path.param_at_arc_length(ua, ext[0].1 - xa),
-        );
-        let (_, v_in) = golden_section_argmin(law_u, ul, ur, GOLDEN_ITERS, 0.0);
+        let (_, v_in) = golden_section_argmin(law_u, inner.0, inner.1, GOLDEN_ITERS, 0.0);
         if !(v_in > 0.0) {
             return None;
         }
@@ -1109,6 +1103,14 @@ fn sample_laws(
         n_stairs.set(n_stairs.get() + 1);
         Some(v0 * libm::exp2(n as f64))
     };
+    // A term's minimum between `ua` (at arc length `xa`) and `ub`, where its
+    // samples show one: the law there, at the sub-range it lies in (both, on
+    // a boundary), not over the whole bracket (which sample brackets it may
+    // turn on round-off, where it lies does not), and a per-axis sample
+    // where a peak of the curvature or of an axis's `C‴` lies. `below`: only
+    // a minimum below it counts (a bracket at a block's end, whose own value
+    // its junction prices); `fallback`, the bracket's sampled minimum if the
+    // search fails.
     let refine_in = |w: &mut Window,
                      term: usize,
                      xa: f64,
