@@ -14,12 +14,14 @@
 //! |---|---|
 //! | pointwise laws `V(s)` (feed, chord error, MRR, centripetal, axis velocity and acceleration) | the Bernstein hull `0 ≤ e, d ≤ V_p²` |
 //! | tangential acceleration `\|S'/2\| ≤ A` | at the knots, where the linear `S'` peaks |
-//! | tangential jerk `\|α·v\| ≤ J`, `α = S''/2` | `\|e_p − 2d_p + e_{p+1}\| ≤ J·h²/V_p` |
-//! | axis jerk `v·(C'''_i·S + 1.5·C''_i·S' + 0.5·t_i·S'') ` | at the per-axis samples, `≤ J_i/V_p` |
+//! | tangential jerk `\|α·v\| ≤ J`, `α = S''/2` | `±(e_p − 2d_p + e_{p+1}) ≤ (J·h²/V_p)·(1.5 − c/(2V_p²))`, `c` the coefficients that can hold the piece's largest `S` |
+//! | axis jerk `v·(C'''_i·S + 1.5·C''_i·S' + 0.5·t_i·S'') ` | at the per-axis samples, `±(…) ≤ (J_i/V_p)·(1.5 − S/(2V_p²))` |
 //! | rest points | `\|S'/2\| ≤ J·Ts/2` next to them: arriving and leaving, the acceleration steps by at most one tick of jerk |
 //!
-//! (`C''`, `C'''` are the path's derivatives in arc length, `t` its tangent;
-//! `v ≤ V_p` on the piece, which makes the jerk rows linear and safe.) The
+//! (`C''`, `C'''` are the path's derivatives in arc length, `t` its tangent.
+//! A jerk limit `|F(S)| ≤ J/√S` is held through the tangent of its convex
+//! right side at the piece's cap `V_p²`, which lies below it for every `S`:
+//! linear and safe, and exact at the cap.) The
 //! objective is `max ∫S ds`. [`crate::lp`] solves it in O(n) per iteration.
 //!
 //! Blocks stream in. Each one lifts the provisional rest point at the old
@@ -1650,6 +1652,11 @@ impl Window {
         // After a failed first pass: once more with the rows past the kept
         // pieces as loose as the kept plan's were (see [`kept_caps`]).
         let mut keep_rows = false;
+        // First near the kept pieces with the caps the kept plan was solved
+        // under (see [`kept_caps`]), so the new rows are no tighter there
+        // than the ones the kept state was planned with; without them on
+        // failure.
+        let mut warm = first > 0;
         loop {
             self.data.rebuild_from(first, from_x, rest, end)?;
             let n = self.data.n_pieces;
@@ -1670,6 +1677,8 @@ impl Window {
                 &lift,
                 if keep_rows {
                     Pass::KeptRows
+                } else if warm {
+                    Pass::Warm
                 } else {
                     Pass::First
                 },
@@ -1732,6 +1741,10 @@ impl Window {
                     t.ungraded = self.data.ungraded;
                     self.commit_region(freeze, keep_from, from_x);
                     return Ok(changed);
+                }
+                Err(PlanError::Solver(e)) if warm => {
+                    self.totals.last_failure = Some(e);
+                    warm = false;
                 }
                 Err(PlanError::Solver(e)) if !keep_rows && first > 0 => {
                     self.totals.last_failure = Some(e);
@@ -1865,6 +1878,9 @@ enum Pass {
     KeptRows,
     /// A trust region about the last plan.
     Refine,
+    /// The reach caps, and next to the kept pieces the kept plan's, where
+    /// its end's rest did not shape it ([`kept_caps`] with `guard`).
+    Warm,
 }
 
 /// Build the linear program over the unknowns of pieces `first ..n` and
@@ -1914,8 +1930,9 @@ fn assemble_and_solve(
         {
             sc.cap2[lo_i] = sc.cap2[lo_i].min(c);
         }
-        if pass == Pass::KeptRows {
-            kept_caps(d, &mut sc.cap2, &sc.backup[..sc.backup_n], first);
+        if pass == Pass::KeptRows || pass == Pass::Warm {
+            let guard = pass == Pass::Warm;
+            kept_caps(d, &mut sc.cap2, &sc.backup[..sc.backup_n], first, guard);
         }
         sc.first_cap2[..nv].copy_from_slice(&sc.cap2[first..n]);
     }
@@ -1940,10 +1957,13 @@ fn assemble_and_solve(
     for i in lo_i..n {
         let p = d.pieces[i];
         let l2 = sc.cap2[i];
-        needed += 3;
+        // (Five tangential jerk rows on a quadratic piece, one on a ramp.)
+        needed += if d.form(i) == Form::Quadratic { 7 } else { 3 };
         let rest_end = i + 1 >= n || d.pieces[i + 1].rest_start;
+        // (Two rows each on a quadratic piece: its tangent rows.)
+        let per = if d.form(i) == Form::Quadratic { 2 } else { 1 };
         for smp in d.piece_samples(&p, rest_end) {
-            needed += (0..3).filter(|&ax| binds(smp, ax, l2)).count();
+            needed += per * (0..3).filter(|&ax| binds(smp, ax, l2)).count();
         }
     }
     let aggregate = needed > MAX_ROWS;
@@ -2036,7 +2056,23 @@ fn assemble_and_solve(
                 far[2] - 7.0 / 3.0 * mid[2],
             ],
         };
-        sink.push(d, i, jerk_form, -jb, jb)?;
+        if form == Form::Quadratic {
+            // `|S''|/2·v ≤ J` through the tangent of `J/√S` at the cap, as
+            // the axis rows below: at most `(1.5 − S/(2·l2))·jb` for the
+            // largest `S` on the piece, which is at an end where `S'' > 0`
+            // and one of the three coefficients otherwise.
+            let k = 0.5 * jb / l2.max(floor);
+            for c in [e0, e1] {
+                let row = [0, 1, 2].map(|m| curv[m] + k * c[m]);
+                sink.push(d, i, row, f64::NEG_INFINITY, 1.5 * jb)?;
+            }
+            for c in [e0, mid, e1] {
+                let row = [0, 1, 2].map(|m| -curv[m] + k * c[m]);
+                sink.push(d, i, row, f64::NEG_INFINITY, 1.5 * jb)?;
+            }
+        } else {
+            sink.push(d, i, jerk_form, -jb, jb)?;
+        }
         if !rest_end {
             // The end knot within both pieces' limits, and the acceleration there.
             let l2n = sc.cap2[i + 1];
@@ -2093,6 +2129,21 @@ fn assemble_and_solve(
                         agg[ax][m] = agg[ax][m].max(am);
                     }
                     any[ax] = true;
+                } else if form == Form::Quadratic {
+                    // `v·g ≤ J` with `g` the form `a`: `J/√S` is convex in
+                    // `S`, so its tangent at the cap, `(J/√l2)·(1.5 −
+                    // S/(2·l2))`, lies below it for every `S`; with `S ≤ l2`
+                    // it is at least `J/√l2`, the bound `v ≤ √l2` gives.
+                    // (A step nearby takes its share on its own side only.)
+                    let jb = cfg.axis_max_jerk[ax] * keep / vmax;
+                    let r = &smp.reserve;
+                    let (up, down) = (jb * (1.0 - r.up[ax]), jb * (1.0 - r.down[ax]));
+                    let (ku, kd) = (0.5 * up / l2.max(floor), 0.5 * down / l2.max(floor));
+                    let sv = |m: usize| e0[m] * b0 + mid[m] * b1 + e1[m] * b2;
+                    let row_up = [0, 1, 2].map(|m| a[m] + ku * sv(m));
+                    let row_down = [0, 1, 2].map(|m| -a[m] + kd * sv(m));
+                    sink.push(d, i, row_up, f64::NEG_INFINITY, 1.5 * up)?;
+                    sink.push(d, i, row_down, f64::NEG_INFINITY, 1.5 * down)?;
                 } else {
                     // (A step nearby takes its share on its own side only.)
                     let jb = cfg.axis_max_jerk[ax] * keep / vmax;
@@ -2213,7 +2264,7 @@ fn reach_caps(
 /// from the speed there takes, each piece is capped by the caps the old plan
 /// was solved under where it overlaps them: the old plan stays feasible
 /// there, and the plan beyond is free.
-fn kept_caps(d: &Data, cap2: &mut [f64; WINDOW], old: &[WPiece], first: usize) {
+fn kept_caps(d: &Data, cap2: &mut [f64; WINDOW], old: &[WPiece], first: usize, guard: bool) {
     let n = d.n_pieces;
     if first == 0 || first >= n || old.is_empty() {
         return;
@@ -2230,6 +2281,16 @@ fn kept_caps(d: &Data, cap2: &mut [f64; WINDOW], old: &[WPiece], first: usize) {
     // Braking distance with a jerk-limited ramp, doubled.
     let reach = 2.0 * (vb * vb / (2.0 * a) + vb * a / j);
     let mut end = (xb + reach).min(old[old.len() - 1].x1);
+    if guard {
+        // Within two braking distances from its top speed of the old end
+        // the old plan was slowing for the rest there, which is lifted now.
+        let top = old[at..]
+            .iter()
+            .filter_map(|p| p.solved_cap)
+            .fold(cb, f64::max);
+        let v = libm::sqrt(top.max(0.0));
+        end = end.min(old[old.len() - 1].x1 - 2.0 * (v * v / (2.0 * a) + v * a / j));
+    }
     for p in &d.pieces[first + 1..n] {
         if p.rest_start {
             end = end.min(p.x0);

@@ -265,3 +265,27 @@ fn a_curve_with_a_sharp_turn_is_within_the_target_at_production_feed() {
     assert!(ours <= 1.2 * optimum, "ratio {}", ours / optimum);
     assert_eq!(run.violations.total(), 0, "{:?}", run.violations);
 }
+
+/// Issue 15 on a curve of repeated tight turns: `ruota_dentata-q1` (a gear
+/// wheel, a tooth every 2.4 mm) at F6000. Between its teeth the schedule is
+/// jerk-limited all the way (no stretch reaches the tangential acceleration
+/// limit), so it shows how much of the jerk limit the linear program's rows
+/// let a plan use: with rows at `v ≤ V_p` the plans used 77–93 % of it and
+/// took 1.244× the acceleration-only optimum; with tangent rows 1.227×. A
+/// sequential-LP reference (`scp_reference`, 0.025 mm grid) reaches 1.194×,
+/// so the issue's 1.2× is not excluded here. The threshold, 1.235×, is our
+/// measured time with some slack, not the target.
+#[test]
+fn a_gear_wheel_at_production_feed_uses_the_jerk_limit() {
+    let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../gcode/tests/programs/ruota_dentata-q1.ngc");
+    let blocks = first_curve(&load_program(&file, Some(6000.0), None).unwrap());
+    let cfg = InterpConfig::default();
+    let run = interpolated_run(&blocks, &cfg, false).unwrap();
+    let (ours, optimum) = (run.time, accel_only_optimum(&blocks, &cfg));
+    let bound = jerk_aware_bound(&blocks, &cfg);
+    eprintln!("ruota_dentata F6000: ours {ours} optimum {optimum} bound {bound}");
+    assert!(bound <= ours, "the bound {bound} is above our time {ours}");
+    assert!(ours <= 1.235 * optimum, "ratio {}", ours / optimum);
+    assert_eq!(run.violations.total(), 0, "{:?}", run.violations);
+}
