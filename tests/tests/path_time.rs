@@ -244,6 +244,26 @@ fn the_bound_holds_below_our_time_where_steps_and_stops_bind() {
     }
 }
 
+/// A bundled program's first curve at F6000 through the interpolator (one
+/// run gives our time and the checks; the trapezoid is not needed), checked
+/// to stay between the jerk-aware bound and `most` × the optimum with every
+/// limit held on every tick.
+fn assert_first_curve_at_f6000(program: &str, most: f64) {
+    let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../gcode/tests/programs")
+        .join(program);
+    let blocks = first_curve(&load_program(&file, Some(6000.0), None).unwrap());
+    let cfg = InterpConfig::default();
+    let run = interpolated_run(&blocks, &cfg, false).unwrap();
+    let (ours, optimum) = (run.time, accel_only_optimum(&blocks, &cfg));
+    let bound = jerk_aware_bound(&blocks, &cfg);
+    eprintln!("{program} F6000: ours {ours} optimum {optimum} bound {bound}");
+    assert!(optimum < bound, "optimum {optimum} bound {bound}");
+    assert!(bound <= ours, "the bound {bound} is above our time {ours}");
+    assert!(ours <= most * optimum, "ratio {}", ours / optimum);
+    assert_eq!(run.violations.total(), 0, "{:?}", run.violations);
+}
+
 /// Issue 15's target on a curve with a sharp turn: `homer-q2`'s first curve
 /// at F6000 within 1.2× its acceleration-only optimum, every limit held on
 /// every tick. Its 1.5 µm turn dips the machine law to 0.6 mm/s over a few
@@ -251,19 +271,7 @@ fn the_bound_holds_below_our_time_where_steps_and_stops_bind() {
 /// for 54 ms and took 1.21× (nested spans now describe the dip).
 #[test]
 fn a_curve_with_a_sharp_turn_is_within_the_target_at_production_feed() {
-    let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../gcode/tests/programs/homer-q2.ngc");
-    let blocks = first_curve(&load_program(&file, Some(6000.0), None).unwrap());
-    let cfg = InterpConfig::default();
-    // (One run gives our time and the checks; the trapezoid is not needed.)
-    let run = interpolated_run(&blocks, &cfg, false).unwrap();
-    let (ours, optimum) = (run.time, accel_only_optimum(&blocks, &cfg));
-    let bound = jerk_aware_bound(&blocks, &cfg);
-    eprintln!("homer-q2 F6000: ours {ours} optimum {optimum} bound {bound}");
-    assert!(optimum < bound, "optimum {optimum} bound {bound}");
-    assert!(bound <= ours, "the bound {bound} is above our time {ours}");
-    assert!(ours <= 1.2 * optimum, "ratio {}", ours / optimum);
-    assert_eq!(run.violations.total(), 0, "{:?}", run.violations);
+    assert_first_curve_at_f6000("homer-q2.ngc", 1.2);
 }
 
 /// Issue 15 on a curve of repeated tight turns: `ruota_dentata-q1` (a gear
@@ -277,15 +285,5 @@ fn a_curve_with_a_sharp_turn_is_within_the_target_at_production_feed() {
 /// measured time with some slack, not the target.
 #[test]
 fn a_gear_wheel_at_production_feed_uses_the_jerk_limit() {
-    let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../gcode/tests/programs/ruota_dentata-q1.ngc");
-    let blocks = first_curve(&load_program(&file, Some(6000.0), None).unwrap());
-    let cfg = InterpConfig::default();
-    let run = interpolated_run(&blocks, &cfg, false).unwrap();
-    let (ours, optimum) = (run.time, accel_only_optimum(&blocks, &cfg));
-    let bound = jerk_aware_bound(&blocks, &cfg);
-    eprintln!("ruota_dentata F6000: ours {ours} optimum {optimum} bound {bound}");
-    assert!(bound <= ours, "the bound {bound} is above our time {ours}");
-    assert!(ours <= 1.235 * optimum, "ratio {}", ours / optimum);
-    assert_eq!(run.violations.total(), 0, "{:?}", run.violations);
+    assert_first_curve_at_f6000("ruota_dentata-q1.ngc", 1.235);
 }
