@@ -9,7 +9,7 @@
 //! - **Runs of short moves** (each at most `compress_max_move`, turning by at
 //!   most [`FIT_MAX_TURN`] at each vertex) are compressed into cubic B-spline
 //!   pieces of at most [`MAX_CTRL`] control points, fitted by least squares
-//!   ([`crate::fit`]; one free control point per two data points first, so a
+//!   ([`crate::fit`]; one free control point per eight, four, then two data points first, so a
 //!   short run is smoothed, not interpolated). Consecutive pieces of a run join with the same first
 //!   and second derivative (the next piece's first three control points are
 //!   fixed by the previous piece's end), so the schedule sees one
@@ -80,9 +80,11 @@ const CHECK_REACH: usize = 2;
 /// Degree of the compressed pieces.
 const DEGREE: usize = 3;
 
-/// Data points per free control point a piece is fitted with first (a
-/// least-squares fit, not an interpolant): see [`fit_piece`].
-const LEAN_POINTS: usize = 2;
+/// Data points per free control point a piece is fitted with, leanest
+/// first (least-squares fits, not interpolants): see [`fit_piece`]. A
+/// leaner fit within the tolerance is smoother, and its lower `C‴` lets the
+/// axes' jerk pass it faster (the steady law `C‴ᵢ·v³ ≤ Jᵢ`).
+const LEAN_POINTS: [usize; 3] = [8, 4, 2];
 
 /// Blocks a single decision emits at most (a line and its corner blend).
 const OUT: usize = 4;
@@ -721,7 +723,7 @@ impl<const W: usize> Smoother<W> {
 /// curvature). `None` unless the piece passes the check within `tol` and is
 /// nowhere slower than a stop ([`slower_than_a_stop`]).
 ///
-/// First with one free control point per [`LEAN_POINTS`] data points (a
+/// First with one free control point per [`LEAN_POINTS`] data points, leanest first (a
 /// least-squares fit), then with as many as the data supports (at most
 /// [`MAX_CTRL`]: an interpolant when the run is short). A short run's
 /// interpolant whose start curvature is fixed by a join swings from point to
@@ -742,12 +744,17 @@ fn fit_piece(
     let fs = if join.is_some() { 3 } else { 1 };
     let fe = if end.is_some() { 3 } else { 1 };
     let full = (k - 1 + fs + fe).min(MAX_CTRL);
-    let lean = (fs + fe + (k - 1).div_ceil(LEAN_POINTS)).max(DEGREE + 1);
     let fast = |c: &Nurbs| !slower_than_a_stop(c, cfg);
-    if lean < full
-        && let Some(c) = fit_count(q, t, join, end, tol, lean, s).filter(fast)
-    {
-        return Some(c);
+    let mut tried = usize::MAX;
+    for points in LEAN_POINTS {
+        let lean = (fs + fe + (k - 1).div_ceil(points)).max(DEGREE + 1);
+        if lean < full
+            && lean < tried
+            && let Some(c) = fit_count(q, t, join, end, tol, lean, s).filter(fast)
+        {
+            return Some(c);
+        }
+        tried = lean;
     }
     fit_count(q, t, join, end, tol, full, s).filter(fast)
 }
