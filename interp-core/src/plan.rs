@@ -59,8 +59,15 @@ pub const CHUNK: usize = 128;
 pub const SAMPLES_PER_INTERVAL: usize = 48;
 /// Rest points the window can hold.
 pub const MAX_STOPS: usize = 256;
-/// Rows of one linear program.
-pub const MAX_ROWS: usize = REGION * 8;
+/// Rows of one linear program: at most ten per piece when the per-axis rows
+/// are aggregated (five tangential jerk rows, a knot's cap and its
+/// acceleration, one aggregate row per axis), for the region's pieces and
+/// the kept one before them; below that, the per-axis rows are written one
+/// by one (`assemble_and_solve` counts them first). 240 kB more than the
+/// 8 per piece that sufficed with one tangential row.
+pub const MAX_ROWS: usize = (REGION + 1) * ROWS_PER_PIECE;
+/// Most rows one piece gives with its per-axis rows aggregated.
+const ROWS_PER_PIECE: usize = 10;
 
 /// The path's derivatives in arc length at one point, for the per-axis jerk
 /// rows: tangent `t`, `C''` and `C'''`.
