@@ -1875,6 +1875,26 @@ impl RowSink<'_> {
     }
 }
 
+impl RowSink<'_> {
+    /// `f ≤ J/√S` for a form `f` and the form `s` of an `S`, with `bound`
+    /// = `J/√s0`, through the tangent of the convex `J/√S` at `s0`:
+    /// `f + bound·S/(2·s0) ≤ 1.5·bound`. The tangent lies below `J/√S` for
+    /// every `S`, so the row holds the true limit, and exactly at `s0`.
+    fn push_tangent(
+        &mut self,
+        d: &Data,
+        i: usize,
+        f: [f64; 3],
+        s: [f64; 3],
+        bound: f64,
+        s0: f64,
+    ) -> Result<(), PlanError> {
+        let k = 0.5 * bound / s0;
+        let row = [0, 1, 2].map(|m| f[m] + k * s[m]);
+        self.push(d, i, row, f64::NEG_INFINITY, 1.5 * bound)
+    }
+}
+
 /// Which caps a linear program's rows are written with.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Pass {
@@ -1964,11 +1984,12 @@ fn assemble_and_solve(
     for i in lo_i..n {
         let p = d.pieces[i];
         let l2 = sc.cap2[i];
-        // (Five tangential jerk rows on a quadratic piece, one on a ramp.)
-        needed += if d.form(i) == Form::Quadratic { 7 } else { 3 };
+        // A quadratic piece's jerk rows are tangent rows (`push_tangent`):
+        // five tangential ones and two per axis sample; a ramp's are one each.
+        let quadratic = d.form(i) == Form::Quadratic;
+        needed += if quadratic { 7 } else { 3 };
         let rest_end = i + 1 >= n || d.pieces[i + 1].rest_start;
-        // (Two rows each on a quadratic piece: its tangent rows.)
-        let per = if d.form(i) == Form::Quadratic { 2 } else { 1 };
+        let per = if quadratic { 2 } else { 1 };
         for smp in d.piece_samples(&p, rest_end) {
             needed += per * (0..3).filter(|&ax| binds(smp, ax, l2)).count();
         }
@@ -2068,14 +2089,11 @@ fn assemble_and_solve(
             // the axis rows below: at most `(1.5 − S/(2·l2))·jb` for the
             // largest `S` on the piece, which is at an end where `S'' > 0`
             // and one of the three coefficients otherwise.
-            let k = 0.5 * jb / l2.max(floor);
             for c in [e0, e1] {
-                let row = [0, 1, 2].map(|m| curv[m] + k * c[m]);
-                sink.push(d, i, row, f64::NEG_INFINITY, 1.5 * jb)?;
+                sink.push_tangent(d, i, curv, c, jb, l2.max(floor))?;
             }
             for c in [e0, mid, e1] {
-                let row = [0, 1, 2].map(|m| -curv[m] + k * c[m]);
-                sink.push(d, i, row, f64::NEG_INFINITY, 1.5 * jb)?;
+                sink.push_tangent(d, i, curv.map(|x| -x), c, jb, l2.max(floor))?;
             }
         } else {
             sink.push(d, i, jerk_form, -jb, jb)?;
@@ -2103,6 +2121,8 @@ fn assemble_and_solve(
                 Form::FromRest => (libm::cbrt(u), 1.0),
             };
             let (w2, w3) = (w * w, w * w * w);
+            // `S` at the sample as a form on the coefficients (quadratic).
+            let s_at = [0, 1, 2].map(|m| e0[m] * b0 + mid[m] * b1 + e1[m] * b2);
             for ax in 0..3 {
                 if !binds(smp, ax, l2) {
                     continue;
@@ -2111,7 +2131,7 @@ fn assemble_and_solve(
                 let mut a = [0.0; 3];
                 if form == Form::Quadratic {
                     for m in 0..3 {
-                        let sv = e0[m] * b0 + mid[m] * b1 + e1[m] * b2;
+                        let sv = s_at[m];
                         let sd = 2.0 / h * ((mid[m] - e0[m]) * (1.0 - u) + (e1[m] - mid[m]) * u);
                         let sdd = 2.0 / (h * h) * curv[m];
                         a[m] = csss * sv + 1.5 * css * sd + 0.5 * t * sdd;
@@ -2136,26 +2156,17 @@ fn assemble_and_solve(
                         agg[ax][m] = agg[ax][m].max(am);
                     }
                     any[ax] = true;
-                } else if form == Form::Quadratic {
-                    // `v·g ≤ J` with `g` the form `a`: `J/√S` is convex in
-                    // `S`, so its tangent at the cap, `(J/√l2)·(1.5 −
-                    // S/(2·l2))`, lies below it for every `S`; with `S ≤ l2`
-                    // it is at least `J/√l2`, the bound `v ≤ √l2` gives.
-                    // (A step nearby takes its share on its own side only.)
-                    let jb = cfg.axis_max_jerk[ax] * keep / vmax;
-                    let r = &smp.reserve;
-                    let (up, down) = (jb * (1.0 - r.up[ax]), jb * (1.0 - r.down[ax]));
-                    let (ku, kd) = (0.5 * up / l2.max(floor), 0.5 * down / l2.max(floor));
-                    let sv = |m: usize| e0[m] * b0 + mid[m] * b1 + e1[m] * b2;
-                    let row_up = [0, 1, 2].map(|m| a[m] + ku * sv(m));
-                    let row_down = [0, 1, 2].map(|m| -a[m] + kd * sv(m));
-                    sink.push(d, i, row_up, f64::NEG_INFINITY, 1.5 * up)?;
-                    sink.push(d, i, row_down, f64::NEG_INFINITY, 1.5 * down)?;
+                    continue;
+                }
+                // (A step nearby takes its share on its own side only.)
+                let jb = cfg.axis_max_jerk[ax] * keep / vmax;
+                let r = &smp.reserve;
+                let (up, down) = (jb * (1.0 - r.up[ax]), jb * (1.0 - r.down[ax]));
+                if form == Form::Quadratic {
+                    sink.push_tangent(d, i, a, s_at, up, l2.max(floor))?;
+                    sink.push_tangent(d, i, a.map(|x| -x), s_at, down, l2.max(floor))?;
                 } else {
-                    // (A step nearby takes its share on its own side only.)
-                    let jb = cfg.axis_max_jerk[ax] * keep / vmax;
-                    let r = &smp.reserve;
-                    sink.push(d, i, a, -jb * (1.0 - r.down[ax]), jb * (1.0 - r.up[ax]))?;
+                    sink.push(d, i, a, -down, up)?;
                 }
             }
         }
@@ -2287,7 +2298,8 @@ fn kept_caps(d: &Data, cap2: &mut [f64; WINDOW], old: &[WPiece], first: usize, g
     let vb = libm::sqrt(cb.max(0.0));
     // Braking distance with a jerk-limited ramp, doubled.
     let reach = 2.0 * (vb * vb / (2.0 * a) + vb * a / j);
-    let mut end = (xb + reach).min(old[old.len() - 1].x1);
+    let old_end = old[old.len() - 1].x1;
+    let mut end = (xb + reach).min(old_end);
     if guard {
         // Within two braking distances from its top speed of the old end
         // the old plan was slowing for the rest there, which is lifted now.
@@ -2296,7 +2308,7 @@ fn kept_caps(d: &Data, cap2: &mut [f64; WINDOW], old: &[WPiece], first: usize, g
             .filter_map(|p| p.solved_cap)
             .fold(cb, f64::max);
         let v = libm::sqrt(top.max(0.0));
-        end = end.min(old[old.len() - 1].x1 - 2.0 * (v * v / (2.0 * a) + v * a / j));
+        end = end.min(old_end - 2.0 * (v * v / (2.0 * a) + v * a / j));
     }
     for p in &d.pieces[first + 1..n] {
         if p.rest_start {

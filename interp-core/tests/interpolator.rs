@@ -141,18 +141,28 @@ fn run(cfg: InterpConfig, blocks: &[Block]) -> (Vec<Setpoint>, interp_core::inte
     (out, ip.stats())
 }
 
+/// The stationary points (`C′ = 0`) of a block's path, in parameter.
+fn stationary_points(path: &Path) -> Vec<f64> {
+    let mut out = Vec::new();
+    if let Path::Nurbs(n) = path {
+        n.for_each_stationary(0.0, |u| out.push(u));
+    }
+    out
+}
+
 /// Where the laws stand for the point at `u`: the point itself, but within
-/// a quarter of a tick's step `step` of a stationary point (`C′ = 0`, where
-/// the curvature and the law go like `1/√s` and `√s`), the point that far
-/// from it (`feed::stationary_offset`: a sampled machine does not see the
-/// curvature at the point, and the planner holds the laws from there).
-fn law_point(path: &Path, u: f64, step: f64) -> f64 {
+/// a quarter of a tick's step `step` of a stationary point (one of
+/// `stationary`; `C′ = 0`, where the curvature and the law go like `1/√s`
+/// and `√s`), the point that far from it (`feed::stationary_offset`: a
+/// sampled machine does not see the curvature at the point, and the
+/// planner holds the laws from there).
+fn law_point(path: &Path, stationary: &[f64], u: f64, step: f64) -> f64 {
     let Path::Nurbs(n) = path else {
         return u;
     };
     let delta = interp_core::feed::STATIONARY_STEP_SHARE * step;
     let mut at = u;
-    n.for_each_stationary(0.0, |us| {
+    for &us in stationary {
         let d = n.arc_length(us.min(u), us.max(u), 1e-12);
         if d < delta {
             // Bisection on the arc length from the stationary point, on u's side.
@@ -167,7 +177,7 @@ fn law_point(path: &Path, u: f64, step: f64) -> f64 {
             }
             at = 0.5 * (lo + hi);
         }
-    });
+    }
     at
 }
 
@@ -175,6 +185,11 @@ fn law_point(path: &Path, u: f64, step: f64) -> f64 {
 fn check_properties(cfg: &InterpConfig, blocks: &[Block], sps: &[Setpoint]) {
     let ts = cfg.period;
     let block = |id: u32| blocks.iter().find(|b| b.id == id).unwrap();
+    let stationary: Vec<(u32, Vec<f64>)> = blocks
+        .iter()
+        .map(|b| (b.id, stationary_points(&b.path)))
+        .collect();
+    let stationary_of = |id: u32| &stationary.iter().find(|s| s.0 == id).unwrap().1;
     let mut prev_point = blocks[0].path.start_point();
     let mut prev: Option<&Setpoint> = None;
     check_kinematics(cfg, prev_point, sps);
@@ -214,7 +229,7 @@ fn check_properties(cfg: &InterpConfig, blocks: &[Block], sps: &[Setpoint]) {
             if let Some(q) = prev {
                 if q.block_id == sp.block_id {
                     for u in [q.u, sp.u] {
-                        let u = law_point(&b.path, u, delta);
+                        let u = law_point(&b.path, stationary_of(sp.block_id), u, delta);
                         let lim = speed_limit(&b.path.eval(u, 3), b.feed, b.mrr.as_ref(), cfg);
                         assert!(
                             sp.feed <= lim * (1.0 + LIMIT_REL_TOL),
