@@ -173,11 +173,90 @@ pub fn normal_equations(
     Ok(unknowns)
 }
 
+/// Weights of a cubic's third derivative on knot span `j` (`knots[j] <
+/// knots[j + 1]`, `3 <= j`): `C‴ = Σ w_l·P_{j−3+l}` there (a cubic's `C‴` is
+/// constant on each span; the derivative control points of The NURBS Book
+/// eq. 3.8 applied three times).
+pub fn cubic_third_derivative_weights(knots: &[f64], j: usize) -> [f64; 4] {
+    let i0 = j - 3;
+    // Q1_i = 3(P_{i+1} − P_i)/(u_{i+4} − u_{i+1}), as weights on P_{i0..i0+3}.
+    let mut q1 = [[0.0; 4]; 3];
+    for (r, row) in q1.iter_mut().enumerate() {
+        let i = i0 + r;
+        let f = 3.0 / (knots[i + 4] - knots[i + 1]);
+        row[r] = -f;
+        row[r + 1] = f;
+    }
+    let mut q2 = [[0.0; 4]; 2];
+    for (r, row) in q2.iter_mut().enumerate() {
+        let i = i0 + r;
+        let f = 2.0 / (knots[i + 4] - knots[i + 2]);
+        for l in 0..4 {
+            row[l] = f * (q1[r + 1][l] - q1[r][l]);
+        }
+    }
+    let f = 1.0 / (knots[j + 1] - knots[j]);
+    core::array::from_fn(|l| f * (q2[1][l] - q2[0][l]))
+}
+
+/// Adds `weight·∫|C‴|² du` of a cubic to the normal equations of
+/// [`normal_equations`] (a smoothing spline's penalty: the fit trades
+/// distance to the data for a lower third derivative, which the axes' jerk
+/// sees as `C‴·v³`). Same arguments as there.
+/// The penalty couples four consecutive control points, within the band.
+#[allow(clippy::too_many_arguments)]
+pub fn add_cubic_jerk_penalty(
+    knots: &[f64],
+    ctrl: &[Vec3],
+    fixed_start: usize,
+    fixed_end: usize,
+    weight: f64,
+    band: &mut [[f64; BAND]],
+    rhs: &mut [[f64; 3]],
+) {
+    let count = ctrl.len();
+    let free = |i: usize| i >= fixed_start && i < count - fixed_end;
+    for j in 3..count {
+        let du = knots[j + 1] - knots[j];
+        if !(du > 0.0) {
+            continue;
+        }
+        let w = cubic_third_derivative_weights(knots, j);
+        let s = weight * du;
+        // The fixed control points' share of C‴ on this span.
+        let mut fixed = Vec3::zeros();
+        for (l, &wl) in w.iter().enumerate() {
+            if !free(j - 3 + l) {
+                fixed += ctrl[j - 3 + l] * wl;
+            }
+        }
+        for (l, &wl) in w.iter().enumerate() {
+            let i = j - 3 + l;
+            if !free(i) {
+                continue;
+            }
+            let row = i - fixed_start;
+            for c in 0..3 {
+                rhs[row][c] -= s * wl * fixed[c];
+            }
+            for (ll, &wll) in w.iter().enumerate().take(l + 1) {
+                let ii = j - 3 + ll;
+                if free(ii) {
+                    band[row][i - ii] += s * wl * wll;
+                }
+            }
+        }
+    }
+}
+
 /// Least-squares control points of degree `p` over `knots` for the data
 /// `q` at parameters `ub`: `ctrl[..fixed_start]` and
 /// `ctrl[ctrl.len() − fixed_end..]` are given by the caller and kept; the
 /// others minimise `Σ |C(ub_k) − q_k|²` over the interior data (`k` in
 /// `1..m`; the end points are the fixed ends' business).
+///
+/// With `smoothing > 0` (cubics only) the sum gains
+/// `smoothing·∫|C‴|² du` ([`add_cubic_jerk_penalty`]).
 ///
 /// `band` and `rhs` are scratch of at least the number of free control
 /// points. No allocation.
@@ -190,12 +269,19 @@ pub fn lsq_fit(
     ctrl: &mut [Vec3],
     fixed_start: usize,
     fixed_end: usize,
+    smoothing: f64,
     band: &mut [[f64; BAND]],
     rhs: &mut [[f64; 3]],
 ) -> Result<(), FitError> {
     let unknowns = normal_equations(q, ub, p, knots, ctrl, fixed_start, fixed_end, band, rhs)?;
     if unknowns == 0 {
         return Ok(());
+    }
+    if smoothing > 0.0 {
+        if p != 3 {
+            return Err(FitError::Shape);
+        }
+        add_cubic_jerk_penalty(knots, ctrl, fixed_start, fixed_end, smoothing, band, rhs);
     }
     let (band, rhs) = (&mut band[..unknowns], &mut rhs[..unknowns]);
     if !banded_cholesky_solve(band, p, rhs) {
@@ -238,7 +324,10 @@ mod tests {
         ctrl[5] = q[39];
         let mut band = [[0.0; BAND]; 6];
         let mut rhs = [[0.0; 3]; 6];
-        lsq_fit(&q, &ub, 3, &knots, &mut ctrl, 1, 1, &mut band, &mut rhs).unwrap();
+        lsq_fit(
+            &q, &ub, 3, &knots, &mut ctrl, 1, 1, 0.0, &mut band, &mut rhs,
+        )
+        .unwrap();
         for (c, t) in ctrl.iter().zip(&truth) {
             assert!((c - t).norm() < 1e-10, "{c:?} vs {t:?}");
         }
@@ -252,11 +341,115 @@ mod tests {
                 &mut ctrl,
                 1,
                 1,
+                0.0,
                 &mut band,
                 &mut rhs
             ),
             Err(FitError::Shape)
         );
+    }
+
+    #[test]
+    fn third_derivative_weights_give_the_curve_s_third_derivative() {
+        use crate::geom::Curve;
+        let knots = [0.0, 0.0, 0.0, 0.0, 0.2, 0.45, 0.5, 1.0, 1.0, 1.0, 1.0];
+        let pts: [[f64; 3]; 7] =
+            core::array::from_fn(|i| [i as f64, (i * i % 5) as f64, (i as f64 * 1.3).sin()]);
+        let curve = crate::nurbs::Nurbs::non_rational(3, &pts, &knots).unwrap();
+        for j in 3..7 {
+            let w = cubic_third_derivative_weights(&knots, j);
+            let mid = 0.5 * (knots[j] + knots[j + 1]);
+            let d3 = curve.eval(mid, 3).d3;
+            for c in 0..3 {
+                let ours: f64 = (0..4).map(|l| w[l] * pts[j - 3 + l][c]).sum();
+                assert!(
+                    (ours - d3[c]).abs() < 1e-9 * (1.0 + d3[c].abs()),
+                    "{ours} vs {}",
+                    d3[c]
+                );
+            }
+        }
+    }
+
+    /// Data and knots of a cubic fit: `n_data` points on a line that turns
+    /// into an arc of radius 3 at x = 0 (the path of a ball over a mesh
+    /// edge: a curvature step).
+    fn edge_data<const N: usize>() -> ([Vec3; N], [f64; N]) {
+        let r = 3.0;
+        let q: [Vec3; N] = core::array::from_fn(|i| {
+            let x = -1.0 + 2.0 * i as f64 / (N - 1) as f64;
+            if x <= 0.0 {
+                Vec3::new(x, 0.0, 0.0)
+            } else {
+                let a = x / r;
+                Vec3::new(r * a.sin(), 0.0, -r * (1.0 - a.cos()))
+            }
+        });
+        let mut t = [0.0; N];
+        for i in 1..N {
+            t[i] = t[i - 1] + (q[i] - q[i - 1]).norm();
+        }
+        (q, t)
+    }
+
+    #[test]
+    fn the_jerk_penalty_lowers_the_third_derivative_and_keeps_what_it_cannot_lower() {
+        const N: usize = 121;
+        let (q, t) = edge_data::<N>();
+        let n = 23;
+        let mut knots = [0.0; 28];
+        place_knots(&t, n, 3, &mut knots);
+        let fit = |smoothing: f64| {
+            let mut ctrl = [Vec3::zeros(); 24];
+            ctrl[0] = q[0];
+            ctrl[n] = q[N - 1];
+            let (mut band, mut rhs) = ([[0.0; BAND]; 24], [[0.0; 3]; 24]);
+            lsq_fit(
+                &q, &t, 3, &knots, &mut ctrl, 1, 1, smoothing, &mut band, &mut rhs,
+            )
+            .unwrap();
+            let c3 = (3..=n)
+                .filter(|&j| knots[j + 1] > knots[j])
+                .map(|j| {
+                    let w = cubic_third_derivative_weights(&knots, j);
+                    (0..4)
+                        .fold(Vec3::zeros(), |a, l| a + ctrl[j - 3 + l] * w[l])
+                        .norm()
+                })
+                .fold(0.0, f64::max);
+            let dev = (1..N - 1)
+                .map(|k| {
+                    let (sp, nb) = crate::nurbs::basis_functions(3, &knots, t[k]);
+                    let p = (0..4).fold(Vec3::zeros(), |a, j| a + ctrl[sp - 3 + j] * nb[j]);
+                    (p - q[k]).norm()
+                })
+                .fold(0.0, f64::max);
+            (c3, dev)
+        };
+        let (c3_plain, dev_plain) = fit(0.0);
+        // Weights as the `G64 P` stage scales them: tol²·(points per mm).
+        let (c3_smooth, dev_smooth) = fit(1e-6 * (N - 1) as f64 / t[N - 1]);
+        assert!(c3_smooth < 0.5 * c3_plain, "{c3_smooth} vs {c3_plain}");
+        assert!(dev_smooth < 2e-3, "{dev_smooth}");
+        assert!(dev_plain <= dev_smooth, "{dev_plain} vs {dev_smooth}");
+        // A quadratic lies in the cubic space with C‴ = 0: no weight moves it.
+        let quad: [Vec3; N] = core::array::from_fn(|i| {
+            let x = t[i];
+            Vec3::new(x, 0.3 * x * x - x, 0.1 * x * x)
+        });
+        let mut ctrl = [Vec3::zeros(); 24];
+        ctrl[0] = quad[0];
+        ctrl[n] = quad[N - 1];
+        let (mut band, mut rhs) = ([[0.0; BAND]; 24], [[0.0; 3]; 24]);
+        lsq_fit(
+            &quad, &t, 3, &knots, &mut ctrl, 1, 1, 1.0, &mut band, &mut rhs,
+        )
+        .unwrap();
+        for k in 0..N {
+            let (sp, nb) = crate::nurbs::basis_functions(3, &knots, t[k]);
+            let p = (0..4).fold(Vec3::zeros(), |a, j| a + ctrl[sp - 3 + j] * nb[j]);
+            assert!((p - quad[k]).norm() < 1e-9, "{k}: {p:?} vs {:?}", quad[k]);
+        }
     }
 
     #[test]

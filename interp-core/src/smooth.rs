@@ -86,6 +86,20 @@ const DEGREE: usize = 3;
 /// axes' jerk pass it faster (the steady law `C‴ᵢ·v³ ≤ Jᵢ`).
 const LEAN_POINTS: [usize; 3] = [8, 4, 2];
 
+/// Weights of the smoothing fits tried before [`LEAN_POINTS`], largest
+/// first, relative to `tol²` times the data points per mm: a piece
+/// minimises its squared distances to the data plus
+/// `weight·tol²·(points/mm)·∫|C‴|² du` ([`crate::fit::add_cubic_jerk_penalty`]),
+/// so at weight 1 a residual of `tol` balances a `C‴` of 1/mm². The first
+/// that passes the check is kept: the smoothest piece found within the
+/// tolerance. Between a raster's slow points the steady axis-jerk law
+/// `C‴ᵢ·v³ ≤ Jᵢ` of the least-squares pieces held the speed (see
+/// docs/interp-core.md, "Runs of short moves").
+const SMOOTHING: [f64; 6] = [10.0, 3.0, 1.0, 0.3, 0.1, 0.01];
+
+/// Data points per free control point of the smoothing fits.
+const SMOOTH_POINTS: usize = 4;
+
 /// Blocks a single decision emits at most (a line and its corner blend).
 const OUT: usize = 4;
 
@@ -723,8 +737,11 @@ impl<const W: usize> Smoother<W> {
 /// curvature). `None` unless the piece passes the check within `tol` and is
 /// nowhere slower than a stop ([`slower_than_a_stop`]).
 ///
-/// First with one free control point per [`LEAN_POINTS`] data points, leanest first (a
-/// least-squares fit), then with as many as the data supports (at most
+/// First as a smoothing fit with one free control point per
+/// [`SMOOTH_POINTS`] data points and each weight of [`SMOOTHING`], heaviest
+/// first; then with one free control point per [`LEAN_POINTS`] data points,
+/// leanest first (a plain least-squares fit), then with as many as the data
+/// supports (at most
 /// [`MAX_CTRL`]: an interpolant when the run is short). A short run's
 /// interpolant whose start curvature is fixed by a join swings from point to
 /// point: on a smooth slope it took a bend of µm radius (2 mm/s) and left
@@ -745,21 +762,33 @@ fn fit_piece(
     let fe = if end.is_some() { 3 } else { 1 };
     let full = (k - 1 + fs + fe).min(MAX_CTRL);
     let fast = |c: &Nurbs| !slower_than_a_stop(c, cfg);
+    let density = k as f64 / (t[k] - t[0]);
+    let count = (fs + fe + (k - 1).div_ceil(SMOOTH_POINTS))
+        .max(DEGREE + 1)
+        .min(full);
+    for weight in SMOOTHING {
+        let smoothing = weight * tol * tol * density;
+        if let Some(c) = fit_count(q, t, join, end, tol, count, smoothing, s).filter(fast) {
+            return Some(c);
+        }
+    }
     let mut tried = usize::MAX;
     for points in LEAN_POINTS {
         let lean = (fs + fe + (k - 1).div_ceil(points)).max(DEGREE + 1);
         if lean < full
             && lean < tried
-            && let Some(c) = fit_count(q, t, join, end, tol, lean, s).filter(fast)
+            && let Some(c) = fit_count(q, t, join, end, tol, lean, 0.0, s).filter(fast)
         {
             return Some(c);
         }
         tried = lean;
     }
-    fit_count(q, t, join, end, tol, full, s).filter(fast)
+    fit_count(q, t, join, end, tol, full, 0.0, s).filter(fast)
 }
 
-/// [`fit_piece`] with `count` control points.
+/// [`fit_piece`] with `count` control points and a `smoothing` weight (0 for
+/// a plain least-squares fit).
+#[allow(clippy::too_many_arguments)]
 fn fit_count(
     q: &[Vec3],
     t: &[f64],
@@ -767,6 +796,7 @@ fn fit_count(
     end: Option<Vec3>,
     tol: f64,
     count: usize,
+    smoothing: f64,
     s: &mut Fit,
 ) -> Option<Nurbs> {
     let k = q.len() - 1;
@@ -805,7 +835,19 @@ fn fit_count(
         ctrl[n - 1] = ctrl[n] - e1 * ((b - knots[n]) / 3.0);
         ctrl[n - 2] = ctrl[n - 1] - e1 * ((b - knots[n - 1]) / 3.0);
     }
-    lsq_fit(q, t, p, knots, ctrl, fs, fe, &mut s.band, &mut s.rhs).ok()?;
+    lsq_fit(
+        q,
+        t,
+        p,
+        knots,
+        ctrl,
+        fs,
+        fe,
+        smoothing,
+        &mut s.band,
+        &mut s.rhs,
+    )
+    .ok()?;
     let pts: [[f64; 3]; MAX_CTRL] = core::array::from_fn(|i| {
         let c = if i < count { ctrl[i] } else { Vec3::zeros() };
         [c.x, c.y, c.z]

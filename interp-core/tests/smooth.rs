@@ -455,3 +455,52 @@ fn the_short_rest_of_a_long_run_joins_it_smoothly() {
         assert!(max_dev(&out, &pts, 2000) <= tol);
     }
 }
+
+/// A ball's path over a mesh edge: a nearly flat stretch, then an arc of
+/// the ball's radius (the curvature steps to 1/3 mm⁻¹), sampled every
+/// 17 µm as a raster samples it. Within 1 µm the step can be spread over a
+/// few tenths of a millimetre, a `C‴` near 1/mm²; the axes' jerk passes a
+/// piece no faster than `(Jᵢ/|C‴ᵢ|)^⅓`. The smoothing fit gives 0.92/mm²;
+/// plain least-squares pieces followed the samples with 2.7/mm².
+#[test]
+fn a_ball_path_over_a_mesh_edge_is_fitted_with_a_low_third_derivative() {
+    use interp_core::feed::ArcLengthDerivs;
+    let cfg = InterpConfig::default();
+    let tol = 0.001;
+    let (r, step) = (3.0, 0.017);
+    // The flat stretch bends a little (radius 500 mm, as facets at slight
+    // angles do), so it is not merged into one line.
+    let flat = 500.0;
+    let mut pts: Vec<Vec3> = (0..=120)
+        .rev()
+        .map(|i| {
+            let a = step * i as f64 / flat;
+            Vec3::new(-flat * a.sin(), 0.0, -flat * (1.0 - a.cos()))
+        })
+        .collect();
+    pts.extend((1..=120).map(|i| {
+        let a = step * i as f64 / r;
+        Vec3::new(r * a.sin(), 0.0, -r * (1.0 - a.cos()))
+    }));
+    let blocks = polyline(
+        &pts,
+        100.0,
+        Blending::Within {
+            tolerance: Some(tol),
+        },
+    );
+    let out = smooth_all(&blocks, &cfg, Policy::Auto);
+    assert!(out.iter().any(|b| matches!(b.path, Path::Nurbs(_))));
+    assert!(max_dev(&out, &pts, 2000) <= tol);
+    let c3 = out
+        .iter()
+        .flat_map(|b| {
+            let (ua, ub) = (b.path.u_start(), b.path.u_end());
+            (0..=2000).map(move |i| b.path.eval(ua + (ub - ua) * i as f64 / 2000.0, 3))
+        })
+        .filter_map(|d| ArcLengthDerivs::new(&d))
+        .map(|a| a.c_sss.norm())
+        .fold(0.0, f64::max);
+    eprintln!("{} pieces, largest C''' {c3}", out.len());
+    assert!(c3 < 1.5, "largest C''' {c3} /mm²");
+}
