@@ -1985,9 +1985,10 @@ fn assemble_and_solve(
         let p = d.pieces[i];
         let l2 = sc.cap2[i];
         // A quadratic piece's jerk rows are tangent rows (`push_tangent`):
-        // five tangential ones and two per axis sample; a ramp's are one each.
+        // five tangential ones and two per axis sample; a ramp has two
+        // tangential ones and one per axis sample.
         let quadratic = d.form(i) == Form::Quadratic;
-        needed += if quadratic { 7 } else { 3 };
+        needed += if quadratic { 7 } else { 4 };
         let rest_end = i + 1 >= n || d.pieces[i + 1].rest_start;
         let per = if quadratic { 2 } else { 1 };
         for smp in d.piece_samples(&p, rest_end) {
@@ -2013,14 +2014,17 @@ fn assemble_and_solve(
         // The middle coefficient's bound: next to a rest point, the
         // acceleration step allowed there; on a ramp (`S' = 0` at the rest)
         // `3d ≤ cap`, so that `v ≤ w²·√cap` on it, its jerk at the rest
-        // `(2/3)·d·√cap/h² ≤ J` (the jerk row below at w = 0), and its
+        // `(2/3)·d·√(3d)/h² ≤ J` through the tangent of `J/√G` at the cap
+        // (`G` = 3d there; the jerk rows below, at w = 0), and its
         // acceleration inside, at most `4d/(3h) ≤ A`.
         let d_hi = match form {
             Form::Quadratic if p.rest_start || rest_end => {
                 l2.min(rest_accel(a_rest, &it, &cfg) * h)
             }
             Form::Quadratic => l2,
-            _ => (l2 / 3.0).min(0.75 * it.accel * h).min(1.5 * jb),
+            _ => (l2 / 3.0)
+                .min(0.75 * it.accel * h)
+                .min(1.5 * jb / (2.0 / 3.0 + 1.5 * jb / (vmax * vmax))),
         };
         if i >= first {
             let j = i - first;
@@ -2096,7 +2100,12 @@ fn assemble_and_solve(
                 sink.push_tangent(d, i, curv.map(|x| -x), c, jb, l2.max(floor))?;
             }
         } else {
-            sink.push(d, i, jerk_form, -jb, jb)?;
+            // A ramp's jerk `|L|·√G/h²`, `L` = (2/3)d + (far − 3d)·w²,
+            // `G` = 3d + (far − 3d)·w² (= S/w⁴): through the tangent of
+            // `J/√G` at the cap, linear in w², so it holds on the whole
+            // ramp when it holds at w = 0 (`d_hi`) and at w = 1 (these).
+            sink.push_tangent(d, i, jerk_form, far, jb, vmax * vmax)?;
+            sink.push_tangent(d, i, jerk_form.map(|x| -x), far, jb, vmax * vmax)?;
         }
         if !rest_end {
             // The end knot within both pieces' limits, and the acceleration there.
