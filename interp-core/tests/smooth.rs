@@ -19,6 +19,13 @@ fn polyline(pts: &[Vec3], feed: f64, blending: Blending) -> Vec<Block> {
         .collect()
 }
 
+/// `G64 P tol`.
+fn within(tol: f64) -> Blending {
+    Blending::Within {
+        tolerance: Some(tol),
+    }
+}
+
 /// Everything through the stage, popping after each push (as the drivers do).
 fn smooth_all(blocks: &[Block], cfg: &InterpConfig, policy: Policy) -> Vec<Block> {
     let mut st: Box<Smoother> = Box::new(Smoother::with_policy(cfg, 1, policy).unwrap());
@@ -88,13 +95,7 @@ fn dense_arc_is_compressed_within_the_tolerance() {
     let cfg = InterpConfig::default();
     let pts = arc_points(2000, 5.0, 1.5);
     let tol = 0.001;
-    let blocks = polyline(
-        &pts,
-        100.0,
-        Blending::Within {
-            tolerance: Some(tol),
-        },
-    );
+    let blocks = polyline(&pts, 100.0, within(tol));
     let out = smooth_all(&blocks, &cfg, Policy::Auto);
     eprintln!("{} blocks out", out.len());
     assert!(out.len() < 40, "{} blocks", out.len());
@@ -310,13 +311,7 @@ fn long_moves_get_curvature_continuous_corner_blends_within_the_tolerance() {
         Vec3::new(10.0, 5.0, 5.0),
     ];
     let tol = 0.01;
-    let blocks = polyline(
-        &pts,
-        100.0,
-        Blending::Within {
-            tolerance: Some(tol),
-        },
-    );
+    let blocks = polyline(&pts, 100.0, within(tol));
     let out = smooth_all(&blocks, &cfg, Policy::Auto);
     // Every corner blended: the two 90° corners and the last one, which
     // turns by 123°. Its blend within 0.01 mm is tight, but at constant
@@ -397,13 +392,7 @@ fn the_short_rest_of_a_long_run_joins_it_smoothly() {
         // A crease of 84°, then a line.
         let a = step * n as f64 / r + 84f64.to_radians();
         pts.push(pts[n] + Vec3::new(a.cos(), 0.0, -a.sin()) * 3.0);
-        let blocks = polyline(
-            &pts,
-            100.0,
-            Blending::Within {
-                tolerance: Some(tol),
-            },
-        );
+        let blocks = polyline(&pts, 100.0, within(tol));
         let out = smooth_all(&blocks, &cfg, Policy::Auto);
         let fitted = out
             .iter()
@@ -482,13 +471,7 @@ fn a_ball_path_over_a_mesh_edge_is_fitted_with_a_low_third_derivative() {
         let a = step * i as f64 / r;
         Vec3::new(r * a.sin(), 0.0, -r * (1.0 - a.cos()))
     }));
-    let blocks = polyline(
-        &pts,
-        100.0,
-        Blending::Within {
-            tolerance: Some(tol),
-        },
-    );
+    let blocks = polyline(&pts, 100.0, within(tol));
     let out = smooth_all(&blocks, &cfg, Policy::Auto);
     assert!(out.iter().any(|b| matches!(b.path, Path::Nurbs(_))));
     assert!(max_dev(&out, &pts, 2000) <= tol);
