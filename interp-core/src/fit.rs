@@ -371,9 +371,9 @@ mod tests {
         }
     }
 
-    /// Data and knots of a cubic fit: `n_data` points on a line that turns
-    /// into an arc of radius 3 at x = 0 (the path of a ball over a mesh
-    /// edge: a curvature step).
+    /// `N` points on a line that turns into an arc of radius 3 at x = 0
+    /// (the path of a ball over a mesh edge: a curvature step), and their
+    /// chord-length parameters.
     fn edge_data<const N: usize>() -> ([Vec3; N], [f64; N]) {
         let r = 3.0;
         let q: [Vec3; N] = core::array::from_fn(|i| {
@@ -390,6 +390,12 @@ mod tests {
             t[i] = t[i - 1] + (q[i] - q[i - 1]).norm();
         }
         (q, t)
+    }
+
+    /// The cubic of `ctrl` over `knots` at `u`.
+    fn cubic_at(knots: &[f64], ctrl: &[Vec3], u: f64) -> Vec3 {
+        let (sp, nb) = crate::nurbs::basis_functions(3, knots, u);
+        (0..4).fold(Vec3::zeros(), |a, j| a + ctrl[sp - 3 + j] * nb[j])
     }
 
     #[test]
@@ -418,11 +424,7 @@ mod tests {
                 })
                 .fold(0.0, f64::max);
             let dev = (1..N - 1)
-                .map(|k| {
-                    let (sp, nb) = crate::nurbs::basis_functions(3, &knots, t[k]);
-                    let p = (0..4).fold(Vec3::zeros(), |a, j| a + ctrl[sp - 3 + j] * nb[j]);
-                    (p - q[k]).norm()
-                })
+                .map(|k| (cubic_at(&knots, &ctrl, t[k]) - q[k]).norm())
                 .fold(0.0, f64::max);
             (c3, dev)
         };
@@ -446,8 +448,7 @@ mod tests {
         )
         .unwrap();
         for k in 0..N {
-            let (sp, nb) = crate::nurbs::basis_functions(3, &knots, t[k]);
-            let p = (0..4).fold(Vec3::zeros(), |a, j| a + ctrl[sp - 3 + j] * nb[j]);
+            let p = cubic_at(&knots, &ctrl, t[k]);
             assert!((p - quad[k]).norm() < 1e-9, "{k}: {p:?} vs {:?}", quad[k]);
         }
     }
