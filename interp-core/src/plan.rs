@@ -380,6 +380,9 @@ pub struct PlanTotals {
     pub passes: u64,
     /// Interior-point iterations, all passes.
     pub iterations: u64,
+    /// Warm first passes (near a kept plan, see `Pass::Warm`) that failed
+    /// and were tried again as a plain first pass.
+    pub warm_failed: u64,
     /// First passes that failed and were retried with the rows past the
     /// kept plan as loose as that plan's (see `kept_caps`).
     pub kept_rows: u64,
@@ -851,6 +854,19 @@ impl Data {
             })
     }
 
+    /// Where a piece that starts at `x` would start had no freeze point cut
+    /// it: the grid line or rest point at or before `x`, and whether it is
+    /// a rest point.
+    fn natural_start(&self, x: f64) -> (f64, bool) {
+        let g = index_of(x, self.h) as f64 * self.h;
+        let rests = self.rests();
+        let k = rests.partition_point(|&r| r <= x);
+        match k.checked_sub(1).map(|k| rests[k]) {
+            Some(r) if r >= g => (r, true),
+            _ => (g, false),
+        }
+    }
+
     /// Cuts inside piece `p` (ascending, none within a sliver of another or
     /// of its ends) into `out`; returns how many:
     /// - where the speed limit of its sub-ranges changes by more than
@@ -868,7 +884,6 @@ impl Data {
         level: CutLevel,
         out: &mut [f64; MAX_CUTS],
     ) -> usize {
-        let len = p.x1 - p.x0;
         let sliver = SLIVER * self.h;
         let mut raw = [0.0; MAX_CUTS];
         let mut k = 0;
@@ -885,7 +900,12 @@ impl Data {
             let (m, f) = self.sub_range_limits(a, b);
             m.min(f)
         };
-        let (rs, re) = (p.rest_start, rest_end);
+        // Graded from where the piece would start had no freeze point cut
+        // it, so that a re-solve frozen inside a graded stretch keeps its
+        // cuts (and the kept plan stays feasible).
+        let (x0, rest_before) = self.natural_start(p.x0);
+        let (rs, re) = (p.rest_start || rest_before, rest_end);
+        let len = p.x1 - x0;
         let scale = |both: bool| self.h.min(if both { 0.5 * len } else { len });
         if rs {
             let sc = scale(re);
@@ -917,7 +937,7 @@ impl Data {
             }
             if RUN_RATIO * v < sub(sp.x0 - hs, sp.x0) {
                 for f in GRADE {
-                    push(sp.x0 - self.h.min(sp.x0 - p.x0) * f);
+                    push(sp.x0 - self.h.min(sp.x0 - x0) * f);
                 }
             }
             if RUN_RATIO * v < sub(sp.x1, sp.x1 + hs) {
@@ -1751,6 +1771,7 @@ impl Window {
                 }
                 Err(PlanError::Solver(e)) if warm => {
                     self.totals.last_failure = Some(e);
+                    self.totals.warm_failed += 1;
                     warm = false;
                 }
                 Err(PlanError::Solver(e)) if !keep_rows && first > 0 => {
@@ -2309,7 +2330,12 @@ fn kept_caps(d: &Data, cap2: &mut [f64; WINDOW], old: &[WPiece], first: usize, g
     let reach = 2.0 * (vb * vb / (2.0 * a) + vb * a / j);
     let old_end = old[old.len() - 1].x1;
     let mut end = (xb + reach).min(old_end);
-    if guard {
+    let next_rest = d.pieces[first + 1..n]
+        .iter()
+        .find(|p| p.rest_start)
+        .map(|p| p.x0);
+    // (Up to a rest point the old plan keeps, the old end's did not shape it.)
+    if guard && next_rest.is_none_or(|r| r > old_end) {
         // Within two braking distances from its top speed of the old end
         // the old plan was slowing for the rest there, which is lifted now.
         let top = old[at..]
@@ -2319,11 +2345,8 @@ fn kept_caps(d: &Data, cap2: &mut [f64; WINDOW], old: &[WPiece], first: usize, g
         let v = libm::sqrt(top.max(0.0));
         end = end.min(old_end - 2.0 * (v * v / (2.0 * a) + v * a / j));
     }
-    for p in &d.pieces[first + 1..n] {
-        if p.rest_start {
-            end = end.min(p.x0);
-            break;
-        }
+    if let Some(r) = next_rest {
+        end = end.min(r);
     }
     for i in first..n {
         let p = &d.pieces[i];

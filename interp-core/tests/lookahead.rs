@@ -789,3 +789,53 @@ fn a_crawl_is_planned_again_once_the_machine_gets_to_it() {
     // The crawl is gone: nothing more due.
     assert!(!w.take_crawl_retry(machine + 1.0));
 }
+
+/// A re-solve frozen inside the stretch graded next to a rest point keeps
+/// that stretch's cuts, and the old plan's rows up to the rest: graded
+/// again from the freeze point, the last piece before the rest was cut
+/// finer, the quadratic pieces could not follow the kept plan's ramp into
+/// the rest, and every linear program failed (23 crawls on five rasters of
+/// the corpus meshes); and the warm pass, which kept the old plan's rows
+/// only short of the old end's braking, failed before the rest too (263
+/// retries with the kept rows on the same rasters).
+#[test]
+fn a_re_solve_frozen_next_to_a_rest_point_keeps_its_cuts() {
+    use interp_core::plan::{Freeze, Window};
+    let cfg = InterpConfig::default();
+    let h = 0.25;
+    let mut w = Window::new(cfg, h, 0.0);
+    assert!(w.extend_to(160));
+    w.set_tail(40.0);
+    let rest = 10.13;
+    assert!(w.add_stop(rest));
+    w.solve(Freeze::Rest(0.0), 20.0, 1.0, None, 0.0, true)
+        .unwrap();
+    let cuts = |w: &Window, from: f64| -> Vec<f64> {
+        (0..w.n_pieces())
+            .map(|i| w.piece(i).x0)
+            .filter(|&x| x > from && x <= rest)
+            .collect()
+    };
+    let before = cuts(&w, 0.0);
+    // The grading before the rest: pieces of ratio 4 up to it.
+    let last = (0..w.n_pieces())
+        .find(|&i| w.piece(i).x1() >= rest)
+        .unwrap();
+    assert!(
+        w.piece(last).x1() - w.piece(last).x0 < h / 8.0,
+        "graded: the last piece before the rest is short"
+    );
+    // Frozen where the last piece before the rest begins, and where the
+    // one before it begins.
+    for back in [1, 2] {
+        let f = last - back;
+        let from = w.piece(f).x1();
+        w.solve(Freeze::At(f), 20.0, 1.0, None, 0.0, true).unwrap();
+        let kept: Vec<f64> = before.iter().copied().filter(|&x| x > from).collect();
+        assert_eq!(cuts(&w, from), kept, "frozen at {from}");
+        // Up to the rest point the old plan's rows hold on the first try:
+        // the rest at the old end (lifted by a new block) did not shape it.
+        let t = w.totals;
+        assert_eq!((t.warm_failed, t.kept_rows, t.crawled), (0, 0, 0), "{t:?}");
+    }
+}

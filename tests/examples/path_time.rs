@@ -36,7 +36,10 @@
 //! rests and slow points and the curvature steps' caps) and our time over it,
 //! and the setpoints' check: the largest path or axis jerk as a share of its
 //! limit, and how many checks of every limit on every tick failed (0 when
-//! all held).
+//! all held). `retries / crawls`: the look-ahead's solves that failed and
+//! were tried again with other rows (`PlanTotals::warm_failed` plus
+//! `kept_rows`), and those that fell back to a rest point or to the crawl
+//! (`fell_back` plus `crawled`; a crawl rests at every knot of its stretch).
 //! `--bound-parts` adds two columns: the bound without the curvature
 //! steps' caps, and with the ramps at rests and slow points alone (no
 //! jerk-down before top speeds either), to see what each part costs.
@@ -104,7 +107,7 @@ fn main() {
     };
     let cfg = InterpConfig::default();
     println!(
-        "program | part | blocks in | out | length mm | ours s | trapezoid s | optimum s | ours/opt | trap/opt | setpoint dev um | chord dev um | bound s | ours/bound | jerk use | failed checks{}",
+        "program | part | blocks in | out | length mm | ours s | trapezoid s | optimum s | ours/opt | trap/opt | setpoint dev um | chord dev um | bound s | ours/bound | jerk use | failed checks | retries / crawls{}",
         if parts {
             " | bound w/o steps s | bound rests s"
         } else {
@@ -148,7 +151,7 @@ fn main() {
                         String::new()
                     };
                     println!(
-                        "{name} | {part} | {} | {} | {:.1} | {:.3} | {:.3} | {:.3} | {:.4} | {:.4} | {:.3} | {:.3} | {:.3} | {:.4} | {:.3} | {}{extra}",
+                        "{name} | {part} | {} | {} | {:.1} | {:.3} | {:.3} | {:.3} | {:.4} | {:.4} | {:.3} | {:.3} | {:.3} | {:.4} | {:.3} | {} | {} / {}{extra}",
                         r.blocks_in,
                         r.blocks_out,
                         length,
@@ -163,6 +166,8 @@ fn main() {
                         t.ours / t.bound,
                         r.jerk_use,
                         r.violations.total(),
+                        r.plan.warm_failed + r.plan.kept_rows,
+                        r.plan.fell_back + r.plan.crawled,
                     )
                 }
                 Err(e) => {

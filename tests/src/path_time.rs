@@ -23,6 +23,7 @@ use interp_core::feed::{ArcLengthDerivs, junction_speed, speed_limit};
 use interp_core::geom::{Curve, Derivs};
 use interp_core::nurbs::Side;
 use interp_core::path::{Blending, Block, Path};
+use interp_core::plan::PlanTotals;
 use interp_core::smooth::{Policy, SmoothError, SmoothStats, Smoother};
 use interp_core::{InterpConfig, RunState, Vec3};
 use interp_run::Run;
@@ -121,6 +122,8 @@ pub struct InterpolatedRun {
     pub violations: Violations,
     /// The largest jerks and accelerations measured.
     pub measured: Measured,
+    /// What the look-ahead's solves did (how many failed and fell back).
+    pub plan: PlanTotals,
 }
 
 impl InterpolatedRun {
@@ -220,6 +223,8 @@ pub struct ProgramRun {
     pub violations: Violations,
     /// The largest path or axis jerk of the setpoints, as a share of its limit.
     pub jerk_use: f64,
+    /// What the look-ahead's solves did.
+    pub plan: PlanTotals,
 }
 
 /// Runs `blocks` as a driver does (stage, then interpolator) and, with
@@ -253,6 +258,7 @@ pub fn program_run(
         max_chord_deviation,
         violations: run.violations,
         jerk_use: run.jerk_use(cfg),
+        plan: run.plan,
     })
 }
 
@@ -342,6 +348,7 @@ fn run_to_done(
         points,
         violations: check.finish(Some([end.x, end.y, end.z])),
         measured: check.measured,
+        plan: run.driver_mut().window_mut().totals,
     })
 }
 
