@@ -5,7 +5,7 @@
 //!
 //! ```text
 //! cargo run --release -p interpd-tests --features scp --example scp_reference -- \
-//!     [--feed MM_PER_MIN] [--step MM] [--iterations N] FILE.ngc...
+//!     [--feed MM_PER_MIN] [--g64 P] [--step MM] [--iterations N] FILE.ngc...
 //! ```
 //!
 //! `--step` is the reference's grid (0.1 mm), `--iterations` the most
@@ -34,6 +34,7 @@ fn main() {
     let step = flag("--step")
         .and_then(|v| v.parse::<f64>().ok())
         .unwrap_or(0.1);
+    let g64 = flag("--g64").and_then(|v| v.parse::<f64>().ok());
     let iterations = flag("--iterations")
         .and_then(|v| v.parse::<usize>().ok())
         .unwrap_or(30);
@@ -48,7 +49,14 @@ fn main() {
             .to_string_lossy()
             .to_string();
         let run = || -> Result<String, String> {
-            let curve = first_curve(&load_program(&f, feed, None)?);
+            // `--g64 P`: the whole program through the `G64 P` stage;
+            // otherwise its first NURBS curve.
+            let program = load_program(&f, feed, g64)?;
+            let curve = if g64.is_some() {
+                program
+            } else {
+                first_curve(&program)
+            };
             if curve.is_empty() {
                 return Err("no NURBS curve".into());
             }
