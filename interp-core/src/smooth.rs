@@ -762,10 +762,10 @@ fn fit_piece(
     let fe = if end.is_some() { 3 } else { 1 };
     let full = (k - 1 + fs + fe).min(MAX_CTRL);
     let fast = |c: &Nurbs| !slower_than_a_stop(c, cfg);
+    // Control points for one free one per `points` data points.
+    let lean = |points: usize| (fs + fe + (k - 1).div_ceil(points)).max(DEGREE + 1);
     let density = k as f64 / (t[k] - t[0]);
-    let count = (fs + fe + (k - 1).div_ceil(SMOOTH_POINTS))
-        .max(DEGREE + 1)
-        .min(full);
+    let count = lean(SMOOTH_POINTS).min(full);
     for weight in SMOOTHING {
         let smoothing = weight * tol * tol * density;
         if let Some(c) = fit_count(q, t, join, end, tol, count, smoothing, s).filter(fast) {
@@ -774,14 +774,14 @@ fn fit_piece(
     }
     let mut tried = usize::MAX;
     for points in LEAN_POINTS {
-        let lean = (fs + fe + (k - 1).div_ceil(points)).max(DEGREE + 1);
-        if lean < full
-            && lean < tried
-            && let Some(c) = fit_count(q, t, join, end, tol, lean, 0.0, s).filter(fast)
+        let count = lean(points);
+        if count < full
+            && count < tried
+            && let Some(c) = fit_count(q, t, join, end, tol, count, 0.0, s).filter(fast)
         {
             return Some(c);
         }
-        tried = lean;
+        tried = count;
     }
     fit_count(q, t, join, end, tol, full, 0.0, s).filter(fast)
 }
