@@ -59,7 +59,15 @@ fn simulate_writes_a_trace_that_replays_and_summarises_alike() {
     let o = interpd(&["trace", "summary", out.to_str().unwrap(), "--json"]);
     assert!(o.status.success(), "{}", text(&o));
     let summary: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON");
-    assert_eq!(sim, summary);
+    // The same analysis of the same setpoints; the planner's counters are
+    // the simulation's own (a trace holds the setpoints, not the solves).
+    let mut from_setpoints = sim.clone();
+    let planner = from_setpoints.as_object_mut().unwrap().remove("planner");
+    assert!(
+        planner.is_some_and(|p| p["solves"].as_u64() > Some(0)),
+        "{sim}"
+    );
+    assert_eq!(from_setpoints, summary);
     let o = interpd(&["replay", out.to_str().unwrap()]);
     assert!(o.status.success(), "{}", text(&o));
     assert!(text(&o).contains("bit-identical"), "{}", text(&o));
@@ -253,10 +261,13 @@ fn gcode_programs_simulate_and_replay_from_the_trace_alone() {
 /// jerk-limited schedule changes sign once at each speed extremum and once
 /// on arriving at rest: a rest-to-rest move twice (jerk up, down, then up
 /// again into the stop), whatever its length, and a `G64` corner once on the
-/// way into it and once out of it. Chatter would count hundreds.
+/// way into it and once out of it. Chatter would count hundreds. It also
+/// counts the rests before the end, from the setpoints, and says why the
+/// path stopped there: every rest of these programs is a junction stop the
+/// program asks for, none one the look-ahead added.
 #[test]
-fn simulate_reports_jerk_sign_changes_as_planned_phases() {
-    let sign_changes = |name: &str, program: &str| {
+fn simulate_reports_jerk_sign_changes_as_planned_phases_and_every_rest_with_its_reason() {
+    let simulate = |name: &str, program: &str| {
         let ngc = tmp(name);
         std::fs::write(&ngc, program).unwrap();
         let o = interpd(&["simulate", ngc.to_str().unwrap(), "--json"]);
@@ -267,15 +278,27 @@ fn simulate_reports_jerk_sign_changes_as_planned_phases() {
         let per_s = s["jerk_sign_changes_per_s"].as_f64().expect("a rate");
         let motion = s["motion_time_s"].as_f64().expect("a time");
         assert!((per_s * motion - changes as f64).abs() < 1e-9, "{s}");
-        changes
+        let p = &s["planner"];
+        assert!(p["solves"].as_u64().expect("a count") > 0, "{s}");
+        for added in ["kept_rests", "crawls"] {
+            assert_eq!(p[added], 0, "{s}");
+        }
+        let count = |v: &serde_json::Value| v.as_u64().expect("a count");
+        (
+            changes,
+            count(&s["rests"]),
+            count(&p["junction_stops"]),
+            count(&p["junctions_blended"]),
+        )
     };
     // Exact stops: four rest-to-rest moves at production feed, one of them
-    // too short to reach it.
+    // too short to reach it; three rests between them.
     let stops = "G21 G90 G61\nG1 X100 F6000\nG1 Y5\nG1 X0\nG1 X0.3\nM2\n";
-    assert_eq!(sign_changes("stops.ngc", stops), 8);
+    assert_eq!(simulate("stops.ngc", stops), (8, 3, 3, 0));
     // Three blended corners: four speed maxima, three minima, one stop.
     let corners = "G21 G90 G64 P0.01\nG1 X50 F6000\nG1 Y50\nG1 X0\nG1 Y0.5\nM2\n";
-    assert_eq!(sign_changes("corners.ngc", corners), 8);
+    let (changes, rests, stopped, _) = simulate("corners.ngc", corners);
+    assert_eq!((changes, rests, stopped), (8, 0, 0));
 }
 
 /// `interpd` as a user runs it, with the main thread's stack limited to

@@ -339,6 +339,9 @@ fn hold_resume_and_abort_stop_on_the_path_and_a_new_program_starts_there() {
     // path); the third program leaving the second's `done` is not one.
     assert_eq!(sum["events"]["abort"], 2, "{sum}");
     assert_eq!(sum["events"]["next-program"], 1, "{sum}");
+    // The hold, the abort and the ends of programs are no rests the
+    // program or the planner made: none before the end.
+    assert_eq!(sum["rests"], 0, "{sum}");
 }
 
 #[test]
@@ -673,6 +676,17 @@ fn served_as_simulated(
         out.status.success(),
         "simulate: {}",
         String::from_utf8_lossy(&out.stderr)
+    );
+    // Both say why the machine stopped where it did, alike: the junction
+    // stops the program asks for, and every rest before the end one of them.
+    let sim: serde_json::Value = serde_json::from_slice(&out.stdout).expect("summary JSON");
+    let planner = &sim["planner"];
+    assert_eq!(status["junction_stops"], planner["junction_stops"], "{sim}");
+    assert_eq!(sim["rests"], planner["junction_stops"], "{sim}");
+    assert_eq!(status["look_ahead_added_stops"], 0, "{status}");
+    assert_eq!(
+        (&planner["kept_rests"], &planner["crawls"]),
+        (&0.into(), &0.into())
     );
     let a = moving_setpoints(&served);
     let b = moving_setpoints(&simulated);

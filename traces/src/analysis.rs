@@ -10,6 +10,7 @@ use std::fmt;
 
 use interp_core::feed::{relative_mrr, signed_curvature};
 use interp_core::metrics::chord_error_between;
+use interp_core::plan::PlanTotals;
 use interp_core::{Block, Curve, RunState, Setpoint, Vec3};
 use serde::Serialize;
 
@@ -97,6 +98,11 @@ pub struct Summary {
     pub jerk_sign_changes_per_s: f64,
     /// Largest centripetal acceleration, mm/s².
     pub max_centripetal_accel_mm_s2: f64,
+    /// Times the path came to rest while running and then moved on: every
+    /// stop before the end that no hold asked for (a corner or exact stop
+    /// of the program, a queue that ran dry, or a stop the look-ahead added;
+    /// [`Summary::planner`] says which, where the run is simulated).
+    pub rests: u64,
     /// Smallest and largest relative MRR while cutting (feed > 0) on blocks
     /// with MRR parameters, if any.
     pub relative_mrr_range: Option<[f64; 2]>,
@@ -108,6 +114,67 @@ pub struct Summary {
     pub events: BTreeMap<String, u64>,
     /// Largest wake lateness, µs (real-time runs only).
     pub max_wake_lateness_us: Option<f64>,
+    /// Why the path came to rest, from the interpolator's and the
+    /// look-ahead's counters (simulated runs only: a trace holds the
+    /// setpoints, not the planner's work).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub planner: Option<PlannerReport>,
+}
+
+/// What the look-ahead did over a run, and the stops it planned by reason.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PlannerReport {
+    /// Joins between segments planned as rest points: corners slower to
+    /// pass than to stop at, exact stops (`G61`), cusps.
+    pub junction_stops: u64,
+    /// Joins passed without a stop.
+    pub junctions_blended: u64,
+    /// Ticks at rest at the end of what was queued before the program ended
+    /// (the queue ran dry).
+    pub starved_ticks: u64,
+    /// Linear programs solved (first passes).
+    pub solves: u64,
+    /// Refinement passes that improved a plan.
+    pub refinements: u64,
+    /// Solves that failed and were tried again with other rows (a warm
+    /// first pass, then the rows of the kept plan): slower planning, the
+    /// same motion.
+    pub retries: u64,
+    /// Re-solves that failed every pass and kept a rest point at the old
+    /// end of the queue: a stop the program does not ask for.
+    pub kept_rests: u64,
+    /// Re-solves that fell back to the crawl (a rest at every knot of the
+    /// stretch): stops the program does not ask for.
+    pub crawls: u64,
+    /// Rebuilds that left pieces uncut for lack of room in one linear
+    /// program (slower there, never over a limit).
+    pub uncut: u64,
+    /// The last solver failure (retried, or behind a kept rest or a crawl), if any.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub last_failure: Option<String>,
+}
+
+impl PlannerReport {
+    /// From the interpolator's counters and the look-ahead's totals.
+    pub fn new(stats: &interp_core::interp::Stats, plan: &PlanTotals) -> Self {
+        PlannerReport {
+            junction_stops: stats.junctions_stopped,
+            junctions_blended: stats.junctions_blended,
+            starved_ticks: stats.starved_ticks,
+            solves: plan.solves,
+            refinements: plan.passes,
+            retries: plan.warm_failed + plan.kept_rows,
+            kept_rests: plan.fell_back,
+            crawls: plan.crawled,
+            uncut: plan.uncut,
+            last_failure: plan.last_failure.map(|e| e.to_string()),
+        }
+    }
+
+    /// Stops the look-ahead added that the program does not ask for.
+    pub fn added_stops(&self) -> u64 {
+        self.kept_rests + self.crawls
+    }
 }
 
 /// Computes [`Sample`]s tick by tick and keeps the [`Summary`] maxima.
@@ -119,6 +186,9 @@ pub struct Analyzer {
     prev_accel: f64,
     /// Sign of the last tangential jerk outside the dead band (0: none yet).
     jerk_sign: i8,
+    /// The path came to rest while running; a rest once it moves on (the
+    /// rest at the end of a run is no stop).
+    resting: bool,
     /// The dead band's half width, mm/s³.
     jerk_dead_band: f64,
     summary: Summary,
@@ -169,16 +239,19 @@ impl Analyzer {
                 motion_time_s: 0.0,
                 jerk_sign_changes_per_s: 0.0,
                 max_centripetal_accel_mm_s2: 0.0,
+                rests: 0,
                 relative_mrr_range: None,
                 final_state: "idle".into(),
                 final_point: [config.start[0], config.start[1], config.start[2]],
                 events: BTreeMap::new(),
                 max_wake_lateness_us: None,
+                planner: None,
             },
             segments,
             prev,
             prev_accel: 0.0,
             jerk_sign: 0,
+            resting: false,
             jerk_dead_band: JERK_SIGN_THRESHOLD * config.interp.max_path_jerk,
             mrr_range: None,
             new_program: false,
@@ -321,6 +394,11 @@ impl Analyzer {
         if sp.feed > 0.0 || self.prev.feed > 0.0 {
             m.motion_time_s += dt;
         }
+        if sp.feed > 0.0 {
+            m.rests += u64::from(core::mem::take(&mut self.resting));
+        } else if self.prev.feed > 0.0 && sp.state == RunState::Running {
+            self.resting = true;
+        }
         // Only consecutive ticks give a jerk (a gap's is a difference over
         // several periods, not the schedule's); a turn's is in deg/s³.
         if !turning && ticks == 1 && jerk.abs() > self.jerk_dead_band {
@@ -350,6 +428,11 @@ impl Analyzer {
             .and_then(|v| v.as_str().map(str::to_owned))
             .unwrap_or_default();
         *self.summary.events.entry(name).or_insert(0) += 1;
+    }
+
+    /// Notes why the path came to rest, from a simulated run's counters.
+    pub fn planner(&mut self, stats: &interp_core::interp::Stats, plan: &PlanTotals) {
+        self.summary.planner = Some(PlannerReport::new(stats, plan));
     }
 
     /// Notes a wake lateness, ns.
@@ -562,6 +645,32 @@ impl fmt::Display for Summary {
             "  centripetal   max accel {:.3} mm/s²",
             self.max_centripetal_accel_mm_s2
         )?;
+        match &self.planner {
+            Some(p) => {
+                writeln!(
+                    f,
+                    "  rests         {} before the end: {} at junction stops (corners, exact stops, cusps), {} added by the look-ahead",
+                    self.rests,
+                    p.junction_stops,
+                    p.added_stops(),
+                )?;
+                writeln!(
+                    f,
+                    "  look-ahead    {} solves, {} refinements, {} retries, {} uncut; {} rests kept at a queue end, {} crawls; {} ticks with the queue dry",
+                    p.solves,
+                    p.refinements,
+                    p.retries,
+                    p.uncut,
+                    p.kept_rests,
+                    p.crawls,
+                    p.starved_ticks
+                )?;
+                if let Some(e) = &p.last_failure {
+                    writeln!(f, "  last failure  {e}")?;
+                }
+            }
+            None => writeln!(f, "  rests         {} before the end", self.rests)?,
+        }
         match self.relative_mrr_range {
             Some([lo, hi]) => writeln!(f, "  MRR           relative {lo:.4} .. {hi:.4}")?,
             None => writeln!(f, "  MRR           no block carries MRR parameters")?,

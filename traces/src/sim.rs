@@ -113,6 +113,8 @@ pub struct SimOutcome {
     pub segments: usize,
     /// The interpolator's counters.
     pub stats: interp_core::interp::Stats,
+    /// The look-ahead's counters over every solve.
+    pub plan: interp_core::plan::PlanTotals,
     /// What the `G64 P` stage did.
     pub smoothing: SmoothStats,
 }
@@ -283,6 +285,7 @@ pub fn run<E>(
         blocks: expanded.blocks.len(),
         segments,
         stats: ip.stats(),
+        plan: ip.driver().planner().window().totals,
         smoothing: pipeline.stats(),
     })
 }

@@ -284,6 +284,14 @@ pub struct StatusReply {
     pub pieces_refused: u64,
     /// Last refusal.
     pub last_refusal: Option<String>,
+    /// Joins planned as rest points in the session: corners slower to pass
+    /// than to stop at, exact stops (`G61`), cusps.
+    #[serde(default)]
+    pub junction_stops: u64,
+    /// Stops the look-ahead added that no program asks for (a re-solve
+    /// that failed kept a rest at the old end of the queue, or crawled).
+    #[serde(default)]
+    pub look_ahead_added_stops: u64,
     /// Lines answered with an error.
     pub line_errors: u64,
     /// Missed periods.
@@ -481,6 +489,8 @@ impl Control {
             pieces_pushed: s.blocks_pushed.load(Ordering::Acquire),
             pieces_refused: s.blocks_refused.load(Ordering::Acquire),
             last_refusal: self.last_refusal.lock().ok().and_then(|l| l.clone()),
+            junction_stops: s.junction_stops.load(Ordering::Acquire),
+            look_ahead_added_stops: s.look_ahead_added_stops.load(Ordering::Acquire),
             line_errors: self.errors.load(Ordering::Acquire),
             overruns: s.overruns.load(Ordering::Acquire),
             planner_late: s.planner_late.load(Ordering::Acquire),

@@ -176,6 +176,12 @@ pub struct RtStatus {
     pub planner_late: AtomicU64,
     /// Blocks refused by the interpolator.
     pub blocks_refused: AtomicU64,
+    /// Joins planned as rest points in the session (corners slower to pass
+    /// than to stop at, exact stops, cusps; from the planning thread).
+    pub junction_stops: AtomicU64,
+    /// Stops the look-ahead added that no program asks for (a rest kept at
+    /// the old end of the queue, a crawl; from the planning thread).
+    pub look_ahead_added_stops: AtomicU64,
     /// Segments queued in the interpolator.
     pub queued_segments: AtomicU32,
     /// Missed periods.

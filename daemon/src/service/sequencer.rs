@@ -154,6 +154,13 @@ impl Sequencer {
         while let Some(b) = self.spent.dequeue() {
             self.run.recycle(b);
         }
+        // Why the machine will stop where it does, for the status.
+        let plan = self.run.driver().planner().window().totals;
+        let s = &self.status;
+        s.junction_stops
+            .store(self.run.stats().junctions_stopped, Ordering::Release);
+        s.look_ahead_added_stops
+            .store(plan.fell_back + plan.crawled, Ordering::Release);
     }
 
     /// Pushes the segments that fit, in order.

@@ -140,24 +140,24 @@ pub fn run(args: &SimulateOptions) -> Result<Summary> {
         SimItem::Config(_) | SimItem::Block(_) => {}
     };
     let max_time = r.settings.max_machine_time;
-    match &args.out {
+    let outcome = match &args.out {
         Some(path) => {
             let f = File::create(path).with_context(|| format!("creating {}", path.display()))?;
             let mut w = TraceWriter::new(BufWriter::new(f), args.compression)
                 .with_context(|| format!("starting the trace {}", path.display()))?;
-            sim::record(&config, &program, max_time, &mut w, observe)
+            let outcome = sim::record(&config, &program, max_time, &mut w, observe)
                 .with_context(|| format!("simulating {source}"))?;
             w.finish()
                 .with_context(|| format!("finishing the trace {}", path.display()))?;
+            outcome
         }
-        None => {
-            sim::run(&config, &program, max_time, |item| {
-                observe(&item);
-                Ok::<(), std::convert::Infallible>(())
-            })
-            .with_context(|| format!("simulating {source}"))?;
-        }
-    }
+        None => sim::run(&config, &program, max_time, |item| {
+            observe(&item);
+            Ok::<(), std::convert::Infallible>(())
+        })
+        .with_context(|| format!("simulating {source}"))?,
+    };
+    analyzer.planner(&outcome.stats, &outcome.plan);
     Ok(analyzer.summary())
 }
 
