@@ -910,7 +910,7 @@ impl Data {
         if rs {
             let sc = scale(re);
             for f in GRADE {
-                push(p.x0 + sc * f);
+                push(x0 + sc * f);
             }
         }
         if re {

@@ -797,7 +797,8 @@ fn a_crawl_is_planned_again_once_the_machine_gets_to_it() {
 /// the rest, and every linear program failed (23 crawls on five rasters of
 /// the corpus meshes); and the warm pass, which kept the old plan's rows
 /// only short of the old end's braking, failed before the rest too (263
-/// retries with the kept rows on the same rasters).
+/// retries with the kept rows on the same rasters). After the rest point
+/// the grading is measured from it too, not from a freeze point there.
 #[test]
 fn a_re_solve_frozen_next_to_a_rest_point_keeps_its_cuts() {
     use interp_core::plan::{Freeze, Window};
@@ -813,7 +814,7 @@ fn a_re_solve_frozen_next_to_a_rest_point_keeps_its_cuts() {
     let cuts = |w: &Window, from: f64| -> Vec<f64> {
         (0..w.n_pieces())
             .map(|i| w.piece(i).x0)
-            .filter(|&x| x > from && x <= rest)
+            .filter(|&x| x > from && x <= rest + h)
             .collect()
     };
     let before = cuts(&w, 0.0);
@@ -825,10 +826,13 @@ fn a_re_solve_frozen_next_to_a_rest_point_keeps_its_cuts() {
         w.piece(last).x1() - w.piece(last).x0 < h / 8.0,
         "graded: the last piece before the rest is short"
     );
-    // Frozen where the last piece before the rest begins, and where the
-    // one before it begins.
-    for back in [1, 2] {
-        let f = last - back;
+    assert!(
+        before.iter().filter(|&&x| x > rest).count() >= 2,
+        "graded after the rest: {before:?}"
+    );
+    // Frozen where the last piece before the rest begins, where the one
+    // before it begins, and at the first cut after the rest.
+    for f in [last - 1, last - 2, last + 1] {
         let from = w.piece(f).x1();
         w.solve(Freeze::At(f), 20.0, 1.0, None, 0.0, true).unwrap();
         let kept: Vec<f64> = before.iter().copied().filter(|&x| x > from).collect();
