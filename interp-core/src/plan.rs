@@ -63,7 +63,8 @@ pub const MAX_STOPS: usize = 256;
 /// are aggregated (five tangential jerk rows, a knot's cap and its
 /// acceleration, one aggregate row per axis), for the region's pieces and
 /// the kept one before them; below that, the per-axis rows are written one
-/// by one (`assemble_and_solve` counts them first). 240 kB more than the
+/// by one (`assemble_and_solve` counts them first, and aggregates the
+/// farthest pieces' only, as many as it must). 240 kB more than the
 /// 8 per piece that sufficed with one tangential row.
 pub const MAX_ROWS: usize = (REGION + 1) * ROWS_PER_PIECE;
 /// Most rows one piece gives with its per-axis rows aggregated.
@@ -392,6 +393,10 @@ pub struct PlanTotals {
     pub crawled: u64,
     /// Rebuilds that left pieces uncut for lack of room in the program.
     pub uncut: u64,
+    /// Linear programs (any pass) whose per-axis jerk rows did not all fit:
+    /// the farthest pieces' were aggregated, one row per axis (slower
+    /// there, planned again before the machine gets there).
+    pub aggregated: u64,
     /// Of those, rebuilds that left a rest point ungraded (the grading next
     /// to rest points goes first: only where the rests alone need more
     /// room than there is).
@@ -440,6 +445,11 @@ struct Data {
     origin: f64,
     /// Rebuilds that left pieces uncut (see [`PlanTotals::uncut`]).
     uncut: u64,
+    /// Programs with aggregated rows (see [`PlanTotals::aggregated`]).
+    aggregated: u64,
+    /// The most rows one linear program may hold before the farthest
+    /// pieces' per-axis rows are aggregated ([`MAX_ROWS`]; lower in tests).
+    max_rows: usize,
     /// See [`PlanTotals::ungraded`].
     ungraded: u64,
 }
@@ -1128,6 +1138,8 @@ impl Window {
                 tail: s,
                 origin: s,
                 uncut: 0,
+                aggregated: 0,
+                max_rows: MAX_ROWS,
                 ungraded: 0,
             },
             scratch: Scratch {
@@ -1500,6 +1512,14 @@ impl Window {
         self.data.tail = s;
     }
 
+    /// Lowers the most rows one linear program may hold before the
+    /// farthest pieces' per-axis jerk rows are aggregated (at most
+    /// [`MAX_ROWS`]): a short curve then meets the budget a long raster
+    /// meets at [`MAX_ROWS`] (tests and diagnostics).
+    pub fn set_max_rows(&mut self, rows: usize) {
+        self.data.max_rows = rows.min(MAX_ROWS);
+    }
+
     /// Whether the pieces of a crawl lie ahead of `machine` and were not
     /// planned again from near here yet (then they are due, and this
     /// records it): a crawl is the last resort after a failed solve, and
@@ -1765,6 +1785,7 @@ impl Window {
                     t.iterations += u64::from(st.iterations);
                     t.fell_back += u64::from(fell_back);
                     t.uncut = self.data.uncut;
+                    t.aggregated = self.data.aggregated;
                     t.ungraded = self.data.ungraded;
                     self.commit_region(freeze, keep_from, from_x);
                     return Ok(changed);
@@ -2001,22 +2022,45 @@ fn assemble_and_solve(
             d.pieces[i].ramp = p.h() <= reach && !joint_limited;
         }
     }
-    let mut needed = 0usize;
-    for i in lo_i..n {
+    // Piece `i`'s per-axis rows one by one, and aggregated (one per axis).
+    let axis_rows = |d: &Data, i: usize| {
         let p = d.pieces[i];
         let l2 = sc.cap2[i];
+        let rest_end = i + 1 >= n || d.pieces[i + 1].rest_start;
+        let per = if d.form(i) == Form::Quadratic { 2 } else { 1 };
+        let (mut exact, mut axes) = (0usize, [false; 3]);
+        for smp in d.piece_samples(&p, rest_end) {
+            for ax in (0..3).filter(|&ax| binds(smp, ax, l2)) {
+                exact += per;
+                axes[ax] = true;
+            }
+        }
+        (exact, axes.iter().filter(|&&a| a).count())
+    };
+    let mut needed = 0usize;
+    for i in lo_i..n {
         // A quadratic piece's jerk rows are tangent rows (`push_tangent`):
         // five tangential ones and two per axis sample; a ramp has two
         // tangential ones and one per axis sample.
-        let quadratic = d.form(i) == Form::Quadratic;
-        needed += if quadratic { 7 } else { 4 };
-        let rest_end = i + 1 >= n || d.pieces[i + 1].rest_start;
-        let per = if quadratic { 2 } else { 1 };
-        for smp in d.piece_samples(&p, rest_end) {
-            needed += per * (0..3).filter(|&ax| binds(smp, ax, l2)).count();
-        }
+        needed += if d.form(i) == Form::Quadratic { 7 } else { 4 };
+        needed += axis_rows(d, i).0;
     }
-    let aggregate = needed > MAX_ROWS;
+    // Where the rows do not all fit, the pieces from `agg_from` on get one
+    // aggregated row per axis, the farthest first: the aggregate drops the
+    // cancellation of `S''`'s Bernstein form (`t·S''/2` weighs ~t/h² per
+    // unit of S, its terms nearly cancel on a smooth plan), so it holds
+    // the speed to a few mm/s where an axis' jerk binds, and the kept plan,
+    // solved under the exact rows, met it just past the freeze point: the
+    // re-solve failed all its passes and crawled (`ocl_mount_rush`, 80 rows
+    // over the limit). The far pieces are planned again before the machine
+    // gets there.
+    let mut agg_from = n;
+    while needed > d.max_rows && agg_from > lo_i {
+        agg_from -= 1;
+        let (exact, agg) = axis_rows(d, agg_from);
+        needed -= exact - agg.min(exact);
+    }
+    d.aggregated += u64::from(agg_from < n);
     sc.lp.clear_rows();
     let mut sink = RowSink {
         lp: &mut sc.lp,
@@ -2030,6 +2074,7 @@ fn assemble_and_solve(
         let l2 = sc.cap2[i];
         let rest_end = i + 1 >= n || d.pieces[i + 1].rest_start;
         let form = d.form(i);
+        let aggregate = i >= agg_from;
         let vmax = libm::sqrt(l2).max(1e-9);
         let jb = it.jerk * h * h / vmax;
         // The middle coefficient's bound: next to a rest point, the

@@ -138,6 +138,14 @@ fn check_text(
         run.measured.axis_jerk_mm_s3
     );
     let ours = run.time;
+    let p = run.plan;
+    eprintln!(
+        "{what}: look-ahead {} solves, {} aggregated, {} retries, {} crawls",
+        p.solves,
+        p.aggregated,
+        p.warm_failed + p.kept_rows,
+        p.fell_back + p.crawled
+    );
     let last = *run.points.last().unwrap();
     assert_eq!(last, *pts.last().unwrap(), "{what}: ends on its last point");
     assert!(ours <= bound, "{what}: {ours} s against bound {bound} s");

@@ -149,6 +149,9 @@ pub struct PlannerReport {
     /// Rebuilds that left pieces uncut for lack of room in one linear
     /// program (slower there, never over a limit).
     pub uncut: u64,
+    /// Linear programs whose per-axis jerk rows did not all fit: the
+    /// farthest pieces' were aggregated (slower there until planned again).
+    pub aggregated: u64,
     /// The last solver failure (retried, or behind a kept rest or a crawl), if any.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub last_failure: Option<String>,
@@ -167,6 +170,7 @@ impl PlannerReport {
             kept_rests: plan.fell_back,
             crawls: plan.crawled,
             uncut: plan.uncut,
+            aggregated: plan.aggregated,
             last_failure: plan.last_failure.map(|e| e.to_string()),
         }
     }
@@ -656,11 +660,12 @@ impl fmt::Display for Summary {
                 )?;
                 writeln!(
                     f,
-                    "  look-ahead    {} solves, {} refinements, {} retries, {} uncut; {} rests kept at a queue end, {} crawls; {} ticks with the queue dry",
+                    "  look-ahead    {} solves, {} refinements, {} retries, {} uncut, {} aggregated; {} rests kept at a queue end, {} crawls; {} ticks with the queue dry",
                     p.solves,
                     p.refinements,
                     p.retries,
                     p.uncut,
+                    p.aggregated,
                     p.kept_rests,
                     p.crawls,
                     p.starved_ticks
