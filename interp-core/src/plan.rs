@@ -395,7 +395,7 @@ pub struct PlanTotals {
     pub uncut: u64,
     /// Linear programs (any pass) whose per-axis jerk rows did not all fit:
     /// the farthest pieces' were aggregated, one row per axis (slower
-    /// there, planned again before the machine gets there).
+    /// there until the next solve plans them again).
     pub aggregated: u64,
     /// Of those, rebuilds that left a rest point ungraded (the grading next
     /// to rest points goes first: only where the rests alone need more
@@ -2052,8 +2052,7 @@ fn assemble_and_solve(
     // the speed to a few mm/s where an axis' jerk binds, and the kept plan,
     // solved under the exact rows, met it just past the freeze point: the
     // re-solve failed all its passes and crawled (`ocl_mount_rush`, 80 rows
-    // over the limit). The far pieces are planned again before the machine
-    // gets there.
+    // over the limit). The next solve plans the far pieces again.
     let mut agg_from = n;
     while needed > d.max_rows && agg_from > lo_i {
         agg_from -= 1;

@@ -847,8 +847,7 @@ fn a_re_solve_frozen_next_to_a_rest_point_keeps_its_cuts() {
 /// Where a linear program's per-axis jerk rows do not all fit, only the
 /// farthest pieces' are aggregated (one row per axis, `Σ|a_m|·d_m`, which
 /// drops the cancellation of `S''`'s terms and holds the speed to a few
-/// mm/s where an axis's jerk binds); the machine reaches them planned again
-/// with exact rows. Aggregated everywhere, the rows next to the freeze
+/// mm/s where an axis's jerk binds); the next solve plans them again. Aggregated everywhere, the rows next to the freeze
 /// point of a re-solve were far below the kept plan, solved under exact
 /// rows: every pass failed and the stretch crawled (`ocl_mount_rush`'s
 /// raster, 80 rows over the limit). The butterfly at F6000, streamed,
