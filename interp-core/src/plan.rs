@@ -395,7 +395,7 @@ pub struct PlanTotals {
     pub uncut: u64,
     /// Linear programs (any pass) whose per-axis jerk rows did not all fit:
     /// the farthest pieces' were aggregated, one row per axis (slower
-    /// there until the next solve plans them again).
+    /// there until a re-solve plans them again).
     pub aggregated: u64,
     /// Of those, rebuilds that left a rest point ungraded (the grading next
     /// to rest points goes first: only where the rests alone need more
@@ -450,6 +450,10 @@ struct Data {
     /// The most rows one linear program may hold before the farthest
     /// pieces' per-axis rows are aggregated ([`MAX_ROWS`]; lower in tests).
     max_rows: usize,
+    /// Where the last solve's aggregated pieces begin, in any of its passes
+    /// (`+inf`: none): the next re-solve starts at or before it (see
+    /// [`Window::freeze`]).
+    agg_x: f64,
     /// See [`PlanTotals::ungraded`].
     ungraded: u64,
 }
@@ -1140,6 +1144,7 @@ impl Window {
                 uncut: 0,
                 aggregated: 0,
                 max_rows: MAX_ROWS,
+                agg_x: f64::INFINITY,
                 ungraded: 0,
             },
             scratch: Scratch {
@@ -1175,6 +1180,7 @@ impl Window {
         d.prev = (0.0, 0.0);
         d.tail = s;
         d.origin = s;
+        d.agg_x = f64::INFINITY;
         self.crawl_end = f64::NEG_INFINITY;
     }
 
@@ -1526,8 +1532,18 @@ impl Window {
     /// when the look-ahead is full of it no new block comes to replace it.
     /// Tried again once the machine has moved half a grid interval, so a
     /// solve that keeps failing costs one attempt per half interval.
+    /// Pieces planned under aggregated rows are planned again the same way
+    /// once the machine is within a stopping distance from the top speed of
+    /// them (near a program's end no new block comes to do it).
     pub fn take_crawl_retry(&mut self, machine: f64) -> bool {
-        let due = self.crawl_end > machine && machine >= self.crawl_tried + 0.5 * self.data.h;
+        let d = &self.data;
+        let (a, j) = (d.cfg.planned_accel(), d.cfg.max_path_jerk);
+        let reach = 1.5 * Stop::new(d.cfg.max_path_speed, a, a, j).distance() + 2.0 * d.h;
+        let crawl = self.crawl_end > machine && machine >= self.crawl_tried + 0.5 * d.h;
+        let agg = d.agg_x > machine
+            && d.agg_x - machine < reach
+            && machine >= self.crawl_tried + AGG_RETRY_STEP * d.h;
+        let due = crawl || agg;
         if due {
             self.crawl_tried = machine;
         }
@@ -1593,6 +1609,11 @@ impl Window {
             }
             f -= 1;
         }
+        // Pieces planned under aggregated rows (over the budget) are
+        // planned again, with exact rows where they fit now.
+        while f > 0 && d.pieces[f].x0 > d.agg_x && d.agg_x > machine {
+            f -= 1;
+        }
         if f == 0 && d.pieces[0].rest_start && machine_at_rest && machine <= d.pieces[0].x0 {
             return Freeze::Rest(d.pieces[0].x0);
         }
@@ -1629,10 +1650,14 @@ impl Window {
         fallback: bool,
     ) -> Result<usize, PlanError> {
         let (n, prev, origin) = (self.data.n_pieces, self.data.prev, self.data.origin);
+        // Where this solve's passes aggregate rows (any pass shapes the plan:
+        // a refinement stays within its trust region of the first).
+        let agg_x = core::mem::replace(&mut self.data.agg_x, f64::INFINITY);
         let r = self.solve_inner(freeze, end, ovr, lift, keep_from, fallback);
         if r.is_err() {
             // Nothing changed: the plan as it was (the backup holds its pieces).
             let d = &mut self.data;
+            d.agg_x = agg_x;
             d.pieces[..n].copy_from_slice(&self.scratch.backup[..n]);
             d.n_pieces = n;
             d.prev = prev;
@@ -2060,6 +2085,9 @@ fn assemble_and_solve(
         needed -= exact - agg.min(exact);
     }
     d.aggregated += u64::from(agg_from < n);
+    if agg_from < n {
+        d.agg_x = d.agg_x.min(d.pieces[agg_from].x0);
+    }
     sc.lp.clear_rows();
     let mut sink = RowSink {
         lp: &mut sc.lp,
@@ -2450,6 +2478,11 @@ const JUMP_SEEN_TICKS: f64 = 3.0;
 /// distance from rest to `v` is about that; a pure ramp reaching `v` spans
 /// 0.47 of it).
 const RAMP_REACH: f64 = 1.0;
+
+/// Grid steps the machine moves between two re-solves of pieces planned
+/// under aggregated rows ([`Window::take_crawl_retry`]): each plans the
+/// whole look-ahead again.
+const AGG_RETRY_STEP: f64 = 16.0;
 
 /// Where the pieces next to a rest point are cut, as fractions of the grid
 /// step (or of the piece, when shorter) from the rest.

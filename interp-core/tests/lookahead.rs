@@ -847,13 +847,15 @@ fn a_re_solve_frozen_next_to_a_rest_point_keeps_its_cuts() {
 /// Where a linear program's per-axis jerk rows do not all fit, only the
 /// farthest pieces' are aggregated (one row per axis, `Σ|a_m|·d_m`, which
 /// drops the cancellation of `S''`'s terms and holds the speed to a few
-/// mm/s where an axis's jerk binds); the next solve plans them again. Aggregated everywhere, the rows next to the freeze
+/// mm/s where an axis's jerk binds); the next re-solve starts at or before
+/// them, and once the machine is a stopping distance from them (at the end
+/// of a program no block comes) they are planned again from the machine. Aggregated everywhere, the rows next to the freeze
 /// point of a re-solve were far below the kept plan, solved under exact
 /// rows: every pass failed and the stretch crawled (`ocl_mount_rush`'s
 /// raster, 80 rows over the limit). The butterfly at F6000, streamed,
 /// meets a budget of 4,000 rows: aggregated everywhere it crawled 81
-/// times and took 5.186 s; from the far end, 3.708 s (3.173 s with every
-/// row).
+/// times and took 5.186 s; from the far end, 3.708 s; planned again, 3.137
+/// s (3.173 s with every row: the re-solves gain what the budget costs).
 #[test]
 fn rows_that_do_not_fit_are_aggregated_on_the_farthest_pieces_only() {
     let cfg = InterpConfig::default();
@@ -886,7 +888,7 @@ fn rows_that_do_not_fit_are_aggregated_on_the_farthest_pieces_only() {
     assert!(t.aggregated > 0, "the budget binds: {t:?}");
     assert_eq!((t.fell_back, t.crawled), (0, 0), "{t:?}");
     assert!(
-        (ticks as f64) < 1.3 * every_row as f64,
+        (ticks as f64) < 1.02 * every_row as f64,
         "{ticks} ticks against {every_row} with every row"
     );
 }
