@@ -809,7 +809,11 @@ fn cells_time(
                 // is no bound (a rest, a 1 nm move, then 4.2 µm to a rest:
                 // 0.96 s for what takes 11 ms rest to rest).
                 let t = crossing(v0, v1, d, f64::INFINITY, w_fwd[i - 1], w_bwd[i], a, j).1;
-                let held = if v0 > 0.0 { v0 >= caps[i - 1] } else { v1 >= caps[i] };
+                let held = if v0 > 0.0 {
+                    v0 >= caps[i - 1]
+                } else {
+                    v1 >= caps[i]
+                };
                 return if v0 + v1 > 0.0 && held {
                     t.max(2.0 * d / (v0 + v1))
                 } else {
