@@ -886,10 +886,9 @@ impl Data {
     /// - where the speed limit of its sub-ranges changes by more than
     ///   [`RUN_RATIO`], so a slow point limits only its own stretch;
     /// - next to a rest point, pieces that grow geometrically away from it
-    ///   ([`GRADE`], on lines [`LINE_REST_GRADE`]): leaving a rest with
-    ///   bounded jerk, `S` grows like `s^(4/3)`, which one quadratic piece
-    ///   of the grid's length follows poorly (the plan would creep out of
-    ///   every rest).
+    ///   ([`GRADE`]): leaving a rest with bounded jerk, `S` grows like
+    ///   `s^(4/3)`, which one quadratic piece of the grid's length follows
+    ///   poorly (the plan would creep out of every rest).
     ///
     /// `level` says which of them (see [`CutLevel`]).
     fn cuts(
@@ -922,27 +921,15 @@ impl Data {
         let (rs, re) = (p.rest_start || rest_before, rest_end);
         let len = p.x1 - x0;
         let scale = |both: bool| self.h.min(if both { 0.5 * len } else { len });
-        // Finer where the piece is a line (no per-axis samples: its axes'
-        // jerk is the path's, which the tangential rows hold everywhere) and
-        // a tick is at most half of its longest part: the jerk phase out of
-        // a rest ends `A³/(6J²)` (0.13 mm at the defaults) out. On a curve
-        // the graded pieces get shorter than its per-axis samples' spacing,
-        // and the jerk between samples passed an axis's limit.
-        let grade: &[f64] =
-            if 2.0 * self.cfg.period <= SLOW_PIECE_TIME && self.interval(p.g).n_samples == 0 {
-                &LINE_REST_GRADE
-            } else {
-                &GRADE
-            };
         if rs {
             let sc = scale(re);
-            for f in grade {
+            for f in GRADE {
                 push(x0 + sc * f);
             }
         }
         if re {
             let sc = scale(rs);
-            for f in grade.iter().rev() {
+            for f in GRADE.iter().rev() {
                 push(p.x1 - sc * f);
             }
         }
@@ -2500,9 +2487,6 @@ const AGG_RETRY_STEP: f64 = 16.0;
 /// Where the pieces next to a rest point are cut, as fractions of the grid
 /// step (or of the piece, when shorter) from the rest.
 const GRADE: [f64; 2] = [1.0 / 16.0, 0.25];
-/// The same on a line (no per-axis samples), at periods up to
-/// `SLOW_PIECE_TIME / 2`.
-const LINE_REST_GRADE: [f64; 3] = [0.125, 0.25, 0.5];
 
 /// A piece is cut where the speed limits of its sub-ranges differ by more
 /// than this factor.
@@ -2510,7 +2494,7 @@ const RUN_RATIO: f64 = 1.5;
 /// Most cuts inside one piece (grading at both ends, every sub-range
 /// boundary, and the spans near it, graded both ways).
 const MAX_CUTS: usize =
-    2 * LINE_REST_GRADE.len() + SUB + SPANS * (2 + 2 * GRADE.len()) + SLOW_PIECE_PARTS - 1;
+    2 * GRADE.len() + SUB + SPANS * (2 + 2 * GRADE.len()) + SLOW_PIECE_PARTS - 1;
 
 /// Which cuts of a piece [`Data::refine_pieces`] makes, in the order they
 /// claim room in the linear program: where short moves and slow points
