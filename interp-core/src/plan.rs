@@ -456,6 +456,10 @@ struct Data {
     agg_x: f64,
     /// See [`PlanTotals::ungraded`].
     ungraded: u64,
+    /// The last rest point dropped from `stops` (behind the machine or the
+    /// kept pieces; `-inf`: none): the pieces after it are still graded
+    /// from it ([`Self::natural_start`]).
+    rest_behind: f64,
 }
 
 /// Scratch of the linear program.
@@ -477,6 +481,8 @@ struct Scratch {
     backup: [WPiece; WINDOW],
     /// How many pieces `backup` holds.
     backup_n: usize,
+    /// Where its pieces planned under aggregated rows begin (`+inf`: none).
+    backup_agg: f64,
 }
 
 /// What [`Window::roll_back`] restores: the window's intervals and rest
@@ -748,6 +754,7 @@ impl Data {
         }
         let k = self.rests().partition_point(|&s| s < x);
         if k > 0 {
+            self.rest_behind = self.rest_behind.max(self.stops[k - 1]);
             self.stops.copy_within(k..self.n_stops, 0);
             self.n_stops -= k;
         }
@@ -870,15 +877,21 @@ impl Data {
 
     /// Where a piece that starts at `x` would start had no freeze point cut
     /// it: the grid line or rest point at or before `x`, and whether it is
-    /// a rest point.
+    /// a rest point. The rest point may have been dropped already (behind
+    /// the machine, which may be on the piece after it): graded from the
+    /// grid line instead, the last piece before the next rest point lost
+    /// the cuts the kept plan was solved on, and every pass failed (a
+    /// random `G61` program crawled four times).
     fn natural_start(&self, x: f64) -> (f64, bool) {
         let g = index_of(x, self.h) as f64 * self.h;
         let rests = self.rests();
         let k = rests.partition_point(|&r| r <= x);
-        match k.checked_sub(1).map(|k| rests[k]) {
-            Some(r) if r >= g => (r, true),
-            _ => (g, false),
-        }
+        let r = match k.checked_sub(1) {
+            Some(k) => rests[k],
+            None if self.rest_behind <= x => self.rest_behind,
+            None => f64::NEG_INFINITY,
+        };
+        if r >= g { (r, true) } else { (g, false) }
     }
 
     /// Cuts inside piece `p` (ascending, none within a sliver of another or
@@ -886,9 +899,10 @@ impl Data {
     /// - where the speed limit of its sub-ranges changes by more than
     ///   [`RUN_RATIO`], so a slow point limits only its own stretch;
     /// - next to a rest point, pieces that grow geometrically away from it
-    ///   ([`GRADE`]): leaving a rest with bounded jerk, `S` grows like
-    ///   `s^(4/3)`, which one quadratic piece of the grid's length follows
-    ///   poorly (the plan would creep out of every rest).
+    ///   ([`GRADE`], on lines [`LINE_REST_GRADE`]): leaving a rest with
+    ///   bounded jerk, `S` grows like `s^(4/3)`, which one quadratic piece
+    ///   of the grid's length follows poorly (the plan would creep out of
+    ///   every rest).
     ///
     /// `level` says which of them (see [`CutLevel`]).
     fn cuts(
@@ -921,15 +935,27 @@ impl Data {
         let (rs, re) = (p.rest_start || rest_before, rest_end);
         let len = p.x1 - x0;
         let scale = |both: bool| self.h.min(if both { 0.5 * len } else { len });
+        // Finer where the piece is a line (no per-axis samples: its axes'
+        // jerk is the path's, which the tangential rows hold everywhere) and
+        // a tick is at most half of its longest part: the jerk phase out of
+        // a rest ends `A³/(6J²)` (0.13 mm at the defaults) out. On a curve
+        // the graded pieces get shorter than its per-axis samples' spacing,
+        // and the jerk between samples passed an axis's limit.
+        let grade: &[f64] =
+            if 2.0 * self.cfg.period <= SLOW_PIECE_TIME && self.interval(p.g).n_samples == 0 {
+                &LINE_REST_GRADE
+            } else {
+                &GRADE
+            };
         if rs {
             let sc = scale(re);
-            for f in GRADE {
+            for f in grade {
                 push(x0 + sc * f);
             }
         }
         if re {
             let sc = scale(rs);
-            for f in GRADE.iter().rev() {
+            for f in grade.iter().rev() {
                 push(p.x1 - sc * f);
             }
         }
@@ -1146,6 +1172,7 @@ impl Window {
                 max_rows: MAX_ROWS,
                 agg_x: f64::INFINITY,
                 ungraded: 0,
+                rest_behind: f64::NEG_INFINITY,
             },
             scratch: Scratch {
                 lp: LpWork::new(),
@@ -1158,6 +1185,7 @@ impl Window {
                 backup_x: [0.0; REGION],
                 backup: [WPiece::default(); WINDOW],
                 backup_n: 0,
+                backup_agg: f64::INFINITY,
             },
             ovr: 1.0,
             last: SolveStats::default(),
@@ -1176,6 +1204,7 @@ impl Window {
         d.int_head = 0;
         d.n_int = 0;
         d.n_stops = 0;
+        d.rest_behind = f64::NEG_INFINITY;
         d.n_pieces = 0;
         d.prev = (0.0, 0.0);
         d.tail = s;
@@ -1243,6 +1272,7 @@ impl Window {
         }
         let k = d.rests().partition_point(|&s| s < machine);
         if k > 0 {
+            d.rest_behind = d.rest_behind.max(d.stops[k - 1]);
             d.stops.copy_within(k..d.n_stops, 0);
             d.n_stops -= k;
         }
@@ -1653,6 +1683,7 @@ impl Window {
         // Where this solve's passes aggregate rows (any pass shapes the plan:
         // a refinement stays within its trust region of the first).
         let agg_x = core::mem::replace(&mut self.data.agg_x, f64::INFINITY);
+        self.scratch.backup_agg = agg_x;
         let r = self.solve_inner(freeze, end, ovr, lift, keep_from, fallback);
         if r.is_err() {
             // Nothing changed: the plan as it was (the backup holds its pieces).
@@ -2026,7 +2057,14 @@ fn assemble_and_solve(
         }
         if pass == Pass::KeptRows || pass == Pass::Warm {
             let guard = pass == Pass::Warm;
-            kept_caps(d, &mut sc.cap2, &sc.backup[..sc.backup_n], first, guard);
+            kept_caps(
+                d,
+                &mut sc.cap2,
+                &sc.backup[..sc.backup_n],
+                sc.backup_agg,
+                first,
+                guard,
+            );
         }
         sc.first_cap2[..nv].copy_from_slice(&sc.cap2[first..n]);
     }
@@ -2384,7 +2422,14 @@ fn reach_caps(
 /// from the speed there takes, each piece is capped by the caps the old plan
 /// was solved under where it overlaps them: the old plan stays feasible
 /// there, and the plan beyond is free.
-fn kept_caps(d: &Data, cap2: &mut [f64; WINDOW], old: &[WPiece], first: usize, guard: bool) {
+fn kept_caps(
+    d: &Data,
+    cap2: &mut [f64; WINDOW],
+    old: &[WPiece],
+    old_agg: f64,
+    first: usize,
+    guard: bool,
+) {
     let n = d.n_pieces;
     if first == 0 || first >= n || old.is_empty() {
         return;
@@ -2409,13 +2454,26 @@ fn kept_caps(d: &Data, cap2: &mut [f64; WINDOW], old: &[WPiece], first: usize, g
     // (Up to a rest point the old plan keeps, the old end's did not shape it.)
     if guard && next_rest.is_none_or(|r| r > old_end) {
         // Within two braking distances from its top speed of the old end
-        // the old plan was slowing for the rest there, which is lifted now.
+        // the old plan was slowing for the rest there, which is lifted now;
+        // but not before its last peak, where it began to (before it, the
+        // kept state's momentum holds as much: braking from the kept
+        // state towards a slow point, or bending its acceleration down at
+        // the speed limit, under the first pass's tighter rows failed as
+        // the plain first pass does, on a long move whose provisional rest
+        // was lifted).
         let top = old[at..]
             .iter()
             .filter_map(|p| p.solved_cap)
             .fold(cb, f64::max);
         let v = libm::sqrt(top.max(0.0));
-        end = end.min(old_end - 2.0 * (v * v / (2.0 * a) + v * a / j));
+        // (Not into pieces planned under aggregated rows, `old_agg` on:
+        // slow, and planned again now.)
+        let mut peak = old.len() - 1;
+        while peak > at && old[peak - 1].d > old[peak].d {
+            peak -= 1;
+        }
+        let peak_x = old[peak].x1.min(old_agg);
+        end = end.min((old_end - 2.0 * (v * v / (2.0 * a) + v * a / j)).max(peak_x));
     }
     if let Some(r) = next_rest {
         end = end.min(r);
@@ -2487,6 +2545,9 @@ const AGG_RETRY_STEP: f64 = 16.0;
 /// Where the pieces next to a rest point are cut, as fractions of the grid
 /// step (or of the piece, when shorter) from the rest.
 const GRADE: [f64; 2] = [1.0 / 16.0, 0.25];
+/// The same on a line (no per-axis samples), at periods up to
+/// `SLOW_PIECE_TIME / 2`.
+const LINE_REST_GRADE: [f64; 3] = [0.125, 0.25, 0.5];
 
 /// A piece is cut where the speed limits of its sub-ranges differ by more
 /// than this factor.
@@ -2494,7 +2555,7 @@ const RUN_RATIO: f64 = 1.5;
 /// Most cuts inside one piece (grading at both ends, every sub-range
 /// boundary, and the spans near it, graded both ways).
 const MAX_CUTS: usize =
-    2 * GRADE.len() + SUB + SPANS * (2 + 2 * GRADE.len()) + SLOW_PIECE_PARTS - 1;
+    2 * LINE_REST_GRADE.len() + SUB + SPANS * (2 + 2 * GRADE.len()) + SLOW_PIECE_PARTS - 1;
 
 /// Which cuts of a piece [`Data::refine_pieces`] makes, in the order they
 /// claim room in the linear program: where short moves and slow points
