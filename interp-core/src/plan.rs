@@ -405,6 +405,19 @@ pub struct PlanTotals {
     pub last_failure: Option<LpError>,
 }
 
+impl PlanTotals {
+    /// Solves that failed and were tried again with other rows (a warm
+    /// first pass, then the kept plan's rows): the same motion, more work.
+    pub fn retries(&self) -> u64 {
+        self.warm_failed + self.kept_rows
+    }
+    /// Solves that added stops the program does not ask for: a rest kept
+    /// at the old end of the queue, or a crawl.
+    pub fn added_stops(&self) -> u64 {
+        self.fell_back + self.crawled
+    }
+}
+
 /// The linear program's pull towards the pieces' limits (see
 /// [`LpOptions::pull`]): where the time objective is flat (pieces at the
 /// same limit), it picks the fastest plan, and one that does not depend on
@@ -752,12 +765,26 @@ impl Data {
         if self.n_int == 0 {
             self.g_base = g;
         }
+        self.drop_rests_before(x);
+    }
+
+    /// Drop the rest points before arc length `x`, remembering the last
+    /// one ([`Data::rest_behind`]).
+    fn drop_rests_before(&mut self, x: f64) {
         let k = self.rests().partition_point(|&s| s < x);
         if k > 0 {
             self.rest_behind = self.rest_behind.max(self.stops[k - 1]);
             self.stops.copy_within(k..self.n_stops, 0);
             self.n_stops -= k;
         }
+    }
+
+    /// How far before the end of a plan a re-solve must start for a
+    /// machine at up to `v` to be free to brake anew (1.5 stopping
+    /// distances and two grid steps).
+    fn replan_reach(&self, v: f64) -> f64 {
+        let (a, j) = (self.cfg.planned_accel(), self.cfg.max_path_jerk);
+        1.5 * Stop::new(v, a, a, j).distance() + 2.0 * self.h
     }
 
     /// Rebuild pieces `from..` (starting at `x`) up to the tail out of the
@@ -1270,12 +1297,7 @@ impl Window {
             d.g_base += 1;
             d.n_int -= 1;
         }
-        let k = d.rests().partition_point(|&s| s < machine);
-        if k > 0 {
-            d.rest_behind = d.rest_behind.max(d.stops[k - 1]);
-            d.stops.copy_within(k..d.n_stops, 0);
-            d.n_stops -= k;
-        }
+        d.drop_rests_before(machine);
     }
 
     /// Room for intervals up to `g` and `stops` more rest points, with the
@@ -1567,12 +1589,10 @@ impl Window {
     /// them (near a program's end no new block comes to do it).
     pub fn take_crawl_retry(&mut self, machine: f64) -> bool {
         let d = &self.data;
-        let (a, j) = (d.cfg.planned_accel(), d.cfg.max_path_jerk);
-        let reach = 1.5 * Stop::new(d.cfg.max_path_speed, a, a, j).distance() + 2.0 * d.h;
         let crawl = self.crawl_end > machine && machine >= self.crawl_tried + 0.5 * d.h;
         let agg = d.agg_x > machine
-            && d.agg_x - machine < reach
-            && machine >= self.crawl_tried + AGG_RETRY_STEP * d.h;
+            && machine >= self.crawl_tried + AGG_RETRY_STEP * d.h
+            && d.agg_x - machine < d.replan_reach(d.cfg.max_path_speed);
         let due = crawl || agg;
         if due {
             self.crawl_tried = machine;
@@ -1625,7 +1645,6 @@ impl Window {
         if self.crawl_end > machine {
             return self.freeze_after(machine, machine_at_rest);
         }
-        let (a, j) = (d.cfg.planned_accel(), d.cfg.max_path_jerk);
         let mut walked = 0.0;
         let mut top: f64 = 0.0;
         let mut f = d.n_pieces - 1;
@@ -1633,7 +1652,7 @@ impl Window {
             let p = d.piece(f);
             top = top.max(libm::sqrt(p.e0.max(p.d).max(p.e1).max(0.0)));
             walked += p.h;
-            let need = 1.5 * Stop::new(top, a, a, j).distance() + 2.0 * d.h;
+            let need = d.replan_reach(top);
             if walked >= need || f == 0 {
                 break;
             }
@@ -2122,8 +2141,8 @@ fn assemble_and_solve(
         let (exact, agg) = axis_rows(d, agg_from);
         needed -= exact - agg.min(exact);
     }
-    d.aggregated += u64::from(agg_from < n);
     if agg_from < n {
+        d.aggregated += 1;
         d.agg_x = d.agg_x.min(d.pieces[agg_from].x0);
     }
     sc.lp.clear_rows();

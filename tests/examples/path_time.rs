@@ -166,8 +166,8 @@ fn main() {
                         t.ours / t.bound,
                         r.jerk_use,
                         r.violations.total(),
-                        r.plan.warm_failed + r.plan.kept_rows,
-                        r.plan.fell_back + r.plan.crawled,
+                        r.plan.retries(),
+                        r.plan.added_stops(),
                     )
                 }
                 Err(e) => {

@@ -143,8 +143,8 @@ fn check_text(
         "{what}: look-ahead {} solves, {} aggregated, {} retries, {} crawls",
         p.solves,
         p.aggregated,
-        p.warm_failed + p.kept_rows,
-        p.fell_back + p.crawled
+        p.retries(),
+        p.added_stops()
     );
     let last = *run.points.last().unwrap();
     assert_eq!(last, *pts.last().unwrap(), "{what}: ends on its last point");

@@ -166,7 +166,7 @@ impl PlannerReport {
             starved_ticks: stats.starved_ticks,
             solves: plan.solves,
             refinements: plan.passes,
-            retries: plan.warm_failed + plan.kept_rows,
+            retries: plan.retries(),
             kept_rests: plan.fell_back,
             crawls: plan.crawled,
             uncut: plan.uncut,

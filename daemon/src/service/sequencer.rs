@@ -160,7 +160,7 @@ impl Sequencer {
         s.junction_stops
             .store(self.run.stats().junctions_stopped, Ordering::Release);
         s.look_ahead_added_stops
-            .store(plan.fell_back + plan.crawled, Ordering::Release);
+            .store(plan.added_stops(), Ordering::Release);
     }
 
     /// Pushes the segments that fit, in order.
