@@ -868,20 +868,26 @@ fn sample_laws(
             w.lower_range(s0, s1, which, v);
         }
     };
+    // The fastest the laws allow at a point under any feed override (the
+    // override scales the feed law: `Data::limit2`). The samples are
+    // filtered at that speed, not at the programmed feed's: an override
+    // raised after the block was queued re-plans it with the samples it
+    // has, and one dropped as unable to bind at 100 % then had no row
+    // (an axis 1.12× over its jerk limit at 150 %, `homer-q1` at F6000).
+    let top_law = |d: &Derivs| {
+        law(d, 0)
+            .min(cfg.max_feed_override * law(d, 1))
+            .min(cfg.max_path_speed)
+    };
     // A per-axis sample is kept where the axis jerk could bind at the
     // speed `v` the laws allow there (elsewhere no row is needed).
     let sample_at = |w: &mut Window, s: f64, d: &Derivs, v: f64, side: i8| {
         offer_axis_sample(w, s, d, side, JumpReserve::NONE, v, h, cfg);
     };
     let sample_on = |w: &mut Window, s: f64, d: &Derivs, side: i8| {
-        sample_at(
-            w,
-            s,
-            d,
-            law(d, 0).min(law(d, 1)).min(cfg.max_path_speed),
-            side,
-        );
+        sample_at(w, s, d, top_law(d), side);
     };
+
     let sample = |w: &mut Window, s: f64, d: &Derivs| sample_on(w, s, d, 0);
     let curve = !matches!(path, Path::Line(_));
     let (g_first, g_last) = (index_of(seg.s0, h), index_of(seg.s1(), h));
@@ -1276,7 +1282,7 @@ fn sample_laws(
             } else {
                 0
             };
-            sample_at(w, x, &d, both[0].min(both[1]), side);
+            sample_at(w, x, &d, both[0].min(cfg.max_feed_override * both[1]), side);
             let state = (&mut t1, &mut t2, &mut prev_both);
             if k > k0 {
                 let n = between(prev_feature.min(here), hs);

@@ -156,7 +156,23 @@ pub fn interpolated_run_within(
     let (blocks, cfg) = (blocks.to_vec(), *cfg);
     std::thread::Builder::new()
         .stack_size(INTERPOLATOR_STACK)
-        .spawn(move || run_to_done(&blocks, &cfg, keep, max_ticks))
+        .spawn(move || run_to_done(&blocks, &cfg, keep, max_ticks, None))
+        .map_err(|e| e.to_string())?
+        .join()
+        .map_err(|_| "interpolator thread panicked".to_string())?
+}
+
+/// [`interpolated_run`] with the feed override set as an operator turns the
+/// knob: to `value` before tick `at`, for each `(at, value)` (in order).
+pub fn interpolated_run_with_overrides(
+    blocks: &[Block],
+    cfg: &InterpConfig,
+    overrides: &[(u64, f64)],
+) -> Result<InterpolatedRun, String> {
+    let (blocks, cfg, overrides) = (blocks.to_vec(), *cfg, overrides.to_vec());
+    std::thread::Builder::new()
+        .stack_size(INTERPOLATOR_STACK)
+        .spawn(move || run_to_done(&blocks, &cfg, false, MAX_TICKS, Some(&overrides)))
         .map_err(|e| e.to_string())?
         .join()
         .map_err(|_| "interpolator thread panicked".to_string())?
@@ -316,6 +332,7 @@ fn run_to_done(
     cfg: &InterpConfig,
     keep: bool,
     max_ticks: u64,
+    overrides: Option<&[(u64, f64)]>,
 ) -> Result<InterpolatedRun, String> {
     let p = blocks[0].path.start_point();
     let mut run: Run<1024> = Run::new(*cfg, [p.x, p.y, p.z, 0.0, 0.0, 0.0])
@@ -325,20 +342,72 @@ fn run_to_done(
     if keep {
         points.push(p);
     }
-    let fastest = blocks.iter().map(|b| b.feed).fold(0.0, f64::max);
+    // (The feed bound: the fastest feed at the largest override.)
+    let top_override = overrides
+        .unwrap_or(&[])
+        .iter()
+        .fold(1.0, |m, &(_, v)| v.max(m));
+    let fastest = blocks.iter().map(|b| b.feed).fold(0.0, f64::max) * top_override;
     let mut check = Checker::new(cfg.period, Limits::new(cfg, fastest), [p.x, p.y, p.z]);
-    let end = run
-        .run_program::<Infallible>(blocks, |sp, _| {
-            check.check(sp);
-            if keep {
-                points.push(Vec3::new(sp.axes[0], sp.axes[1], sp.axes[2]));
+    let end = match overrides {
+        None => run
+            .run_program::<Infallible>(blocks, |sp, _| {
+                check.check(sp);
+                if keep {
+                    points.push(Vec3::new(sp.axes[0], sp.axes[1], sp.axes[2]));
+                }
+                Ok(())
+            })
+            .map_err(|(k, e)| match k {
+                Some(k) => format!("block {k} of {}: {e}", blocks.len()),
+                None => format!("after the last block: {e}"),
+            }),
+        Some(overrides) => {
+            // As `run_program`, with each override set before its tick.
+            let mut next = 0;
+            let mut step = |run: &mut Run<1024>| {
+                while let Some(&(at, value)) = overrides.get(next)
+                    && at <= run.ticks()
+                {
+                    run.set_feed_override(value)
+                        .map_err(|e| format!("override {value}: {e:?}"))?;
+                    next += 1;
+                }
+                if run.ticks() >= max_ticks {
+                    return Err(format!("no end after {max_ticks} ticks"));
+                }
+                let sp = run.tick();
+                check.check(&sp);
+                if keep {
+                    points.push(Vec3::new(sp.axes[0], sp.axes[1], sp.axes[2]));
+                }
+                Ok(sp.state)
+            };
+            let mut state = run.state();
+            'blocks: for (k, b) in blocks.iter().enumerate() {
+                loop {
+                    match run.push(b) {
+                        Ok(()) => break,
+                        Err(e) if e.is_wait() && run.executor().queued_segments() > 0 => {
+                            state = step(&mut run)?;
+                            if state == RunState::Fault {
+                                break 'blocks;
+                            }
+                        }
+                        Err(e) => return Err(format!("block {k} of {}: {e}", blocks.len())),
+                    }
+                }
             }
-            Ok(())
-        })
-        .map_err(|(k, e)| match k {
-            Some(k) => format!("block {k} of {}: {e}", blocks.len()),
-            None => format!("after the last block: {e}"),
-        })?;
+            if state != RunState::Fault {
+                run.finish();
+            }
+            while !matches!(run.state(), RunState::Done | RunState::Fault) {
+                step(&mut run)?;
+            }
+            Ok(run.state())
+        }
+    };
+    let end = end?;
     if end != RunState::Done {
         return Err(format!("the run ended {end:?}"));
     }

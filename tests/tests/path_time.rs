@@ -7,8 +7,8 @@ use interp_core::path::{Block, Path};
 use interp_core::samples::butterfly;
 use interp_core::{InterpConfig, nurbs::split_program_curve};
 use interpd_tests::path_time::{
-    PathTimes, accel_only_optimum, first_curve, interpolated_run, jerk_aware_bound, load_program,
-    path_times, rest_to_rest, step_cap,
+    PathTimes, accel_only_optimum, first_curve, interpolated_run, interpolated_run_with_overrides,
+    jerk_aware_bound, load_program, path_times, rest_to_rest, step_cap,
 };
 
 /// The target: total path time ≤ 1.10 × the acceleration-only optimum.
@@ -295,4 +295,40 @@ fn a_curve_with_a_sharp_turn_is_within_the_target_at_production_feed() {
 #[test]
 fn a_gear_wheel_at_production_feed_uses_the_jerk_limit() {
     assert_first_curve_at_f6000("ruota_dentata-q1.ngc", 1.235);
+}
+
+/// A feed override raised after the blocks were queued keeps every limit.
+/// `homer-q2` at F6000 is queued at 100 %; at 150 % its curves run at up to
+/// 150 mm/s, where an axis's jerk `C‴·v³` binds at points where it could
+/// not at 100 mm/s. The per-axis samples were filtered at the programmed
+/// feed, so those points had no row and the Y axis reached 1.135× its jerk
+/// limit (the planner now keeps every sample that may bind at the largest
+/// override). The same run at 100 % is the control: no override, no
+/// violation, and the override makes it faster.
+#[test]
+fn an_override_raised_after_queueing_keeps_every_axis_jerk_limit() {
+    let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../gcode/tests/programs/homer-q2.ngc");
+    let blocks = load_program(&file, Some(6000.0), None).unwrap();
+    let cfg = InterpConfig::default();
+    let plain = interpolated_run(&blocks, &cfg, false).unwrap();
+    assert_eq!(plain.violations.total(), 0, "{:?}", plain.violations);
+    let raised = interpolated_run_with_overrides(&blocks, &cfg, &[(2, 1.5)]).unwrap();
+    eprintln!(
+        "homer-q2 F6000: {:.3} s at 100 %, {:.3} s at 150 %, axis jerk {:?}",
+        plain.time, raised.time, raised.measured.axis_jerk_mm_s3
+    );
+    assert_eq!(
+        raised.violations.total(),
+        0,
+        "{:?} {:?}",
+        raised.violations,
+        raised.measured
+    );
+    assert!(
+        raised.time < plain.time,
+        "{} s against {} s",
+        raised.time,
+        plain.time
+    );
 }
