@@ -182,6 +182,12 @@ pub struct BlockPlanner {
     machine: f64,
     machine_at_rest: bool,
     ovr: f64,
+    /// The braking curve a lowered override was planned with (see
+    /// [`Self::replan`]): every later solve keeps the feed limits above it
+    /// until the machine is past it, for the machine may still be braking
+    /// there (without it, the next block's solve found the kept state
+    /// above the new feed limit and failed to a crawl).
+    lift: Option<(f64, Stop)>,
     /// Where the current plan of the speed ends (a rest point): the end of
     /// the queue once the program is finished, else the last chunk mark the
     /// queue has passed (see [`Self::plan`]).
@@ -226,6 +232,7 @@ impl BlockPlanner {
             machine: tail_s,
             machine_at_rest: true,
             ovr: 1.0,
+            lift: None,
             planned_to: tail_s,
             finished: false,
             length_memo: None,
@@ -312,6 +319,7 @@ impl BlockPlanner {
         self.planned_to = tail_s;
         self.finished = false;
         self.refused = None;
+        self.lift = None;
         self.window.reset(tail_s);
         let abc = [
             self.five.joints[3],
@@ -463,6 +471,8 @@ impl BlockPlanner {
         // new feed limit may not fall below what braking from there allows.
         let end = self.planned_to;
         let Freeze::At(f) = freeze else {
+            // From rest: nothing to brake.
+            self.lift = None;
             return self.solve_into(freeze, end, None, true, out);
         };
         // The new feed limit may not fall below what braking allows from
@@ -478,7 +488,12 @@ impl BlockPlanner {
         let (a, j) = (self.cfg.planned_accel(), self.cfg.planned_jerk());
         let mut r = Ok(());
         for (k, gentle) in LIFT_SOFTENING.iter().enumerate() {
-            let stop = Stop::new(v0, a0, a * gentle, j * gentle);
+            // (Gentler in jerk, but from the acceleration the machine has:
+            // clamped to a softened limit, the curve's speed rose less than
+            // the machine's must while its acceleration ramps down, and
+            // every level failed to a crawl when the override fell as the
+            // machine accelerated.)
+            let stop = Stop::new(v0, a0, (a * gentle).max(a0), j * gentle);
             let last = k + 1 == LIFT_SOFTENING.len();
             r = self.solve_into(freeze, end, Some((p.x1(), stop)), last, out);
             if !matches!(r, Err(PushError::Schedule)) {
@@ -486,6 +501,18 @@ impl BlockPlanner {
             }
         }
         r
+    }
+
+    /// The braking curve of the last lowered override while the machine may
+    /// still be on it (see [`Self::lift`]).
+    fn lift_ahead(&mut self) -> Option<(f64, Stop)> {
+        if self
+            .lift
+            .is_some_and(|(x, stop)| self.machine >= x + stop.distance())
+        {
+            self.lift = None;
+        }
+        self.lift
     }
 
     fn freeze(&self) -> Freeze {
@@ -500,6 +527,10 @@ impl BlockPlanner {
         fallback: bool,
         out: &mut PlannedBlock,
     ) -> Result<(), PushError> {
+        // A new override's braking curve holds from now on; any other
+        // solve keeps the last one's.
+        let new_lift = lift.is_some();
+        let lift = if new_lift { lift } else { self.lift_ahead() };
         let from = self
             .window
             .solve(freeze, end, self.ovr, lift, self.machine, fallback)
@@ -507,6 +538,9 @@ impl BlockPlanner {
                 PlanError::Full => PushError::ProfileFull,
                 PlanError::Solver(_) => PushError::Schedule,
             })?;
+        if new_lift {
+            self.lift = lift;
+        }
         let n = self.window.n_pieces();
         out.n_pieces = 0;
         out.from_x = if from < n {
@@ -887,7 +921,6 @@ fn sample_laws(
     let sample_on = |w: &mut Window, s: f64, d: &Derivs, side: i8| {
         sample_at(w, s, d, top_law(d), side);
     };
-
     let sample = |w: &mut Window, s: f64, d: &Derivs| sample_on(w, s, d, 0);
     let curve = !matches!(path, Path::Line(_));
     let (g_first, g_last) = (index_of(seg.s0, h), index_of(seg.s1(), h));

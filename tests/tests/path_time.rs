@@ -332,3 +332,42 @@ fn an_override_raised_after_queueing_keeps_every_axis_jerk_limit() {
         plain.time
     );
 }
+
+/// An operator turning the feed override knob mid-run never stops the
+/// machine: `homer-q2` at F6000 with the override set every 113 ms through
+/// 30–200 % ends at its end, every limit held on every tick, with no stop
+/// the program does not ask for. The look-ahead once crawled six times here:
+/// a lowered override's braking curve was forgotten by the next block's
+/// solve (the machine still braking, above the new feed), and the softened
+/// braking curves started from a clamped acceleration, below the speed a
+/// machine still accelerating must reach (`BlockPlanner::replan`).
+#[test]
+fn turning_the_override_knob_never_stops_the_machine() {
+    let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../gcode/tests/programs/homer-q2.ngc");
+    let blocks = load_program(&file, Some(6000.0), None).unwrap();
+    let cfg = InterpConfig::default();
+    let knob = [1.0, 0.6, 1.2, 0.8, 1.5, 0.3, 1.0, 0.9, 1.1, 0.5, 2.0, 0.7];
+    let turns: Vec<(u64, f64)> = (1..400u64)
+        .map(|k| (113 * k, knob[k as usize % knob.len()]))
+        .collect();
+    let run = interpolated_run_with_overrides(&blocks, &cfg, &turns).unwrap();
+    let t = run.plan;
+    eprintln!(
+        "homer-q2 F6000, override turned every 113 ms: {:.3} s, {t:?}",
+        run.time
+    );
+    assert_eq!(
+        run.violations.total(),
+        0,
+        "{:?} {:?}",
+        run.violations,
+        run.measured
+    );
+    assert_eq!(t.added_stops(), 0, "{t:?}");
+    assert!(
+        run.time > 113.0 * 0.001 * 100.0,
+        "the knob was turned over 100 times: {} s",
+        run.time
+    );
+}
