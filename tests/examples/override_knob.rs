@@ -3,11 +3,11 @@
 //! 30–200 % (1.0, 0.6, 1.2, 0.8, 1.5, 0.3, 1.0, 0.9, 1.1, 0.5, 2.0, 0.7).
 //!
 //! ```text
-//! cargo run --release -p interpd-tests --example override_knob -- [--feed MM_PER_MIN] [--every MS] FILE.ngc...
+//! cargo run --release -p interpd-tests --example override_knob -- [--feed MM_PER_MIN] [--g64 P] [--every MS] FILE.ngc...
 //! ```
 //!
 //! Each program runs as the drivers run it (the `G64 P` stage, then the
-//! interpolator), every setpoint checked against every limit (the feed
+//! interpolator; `--feed` and `--g64` as in the `path_time` example), every setpoint checked against every limit (the feed
 //! bound at the largest override). Prints per program: the path time with
 //! the knob turned and at 100 %, the turns, the look-ahead's solves, its
 //! retries (solves tried again with other rows) and the stops it added (a
@@ -37,13 +37,14 @@ fn main() {
         Some(v)
     };
     let feed = flag("--feed");
+    let g64 = flag("--g64");
     let every = flag("--every").unwrap_or(113.0);
     assert!(every >= 1.0, "--every is at least 1 ms");
     let cfg = InterpConfig::default();
     let every = (every * 1e-3 / cfg.period).round() as u64;
     println!("program | knob s | 100 % s | turns | solves | retries | added stops | failed checks");
     for file in &args {
-        let blocks = match load_program(&PathBuf::from(file), feed, None) {
+        let blocks = match load_program(&PathBuf::from(file), feed, g64) {
             Ok(b) => b,
             Err(e) => {
                 eprintln!("{e}");
