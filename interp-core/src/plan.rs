@@ -1015,10 +1015,14 @@ impl Data {
         }
         // Sub-range boundaries where the limit changes (not graded: the
         // pieces it would take shorten the look-ahead's reach, measured
-        // slower on dense programs).
-        let mut b = (libm::floor(p.x0 / hs + 1e-9) + 1.0) * hs;
+        // slower on dense programs). Scanned from where the piece would
+        // start had no freeze point cut it, as the grading: from the freeze
+        // point, a change was cut elsewhere than in the kept plan, and its
+        // speed at the freeze point lay above the new first piece's limit
+        // (a crawl with the override turned every 37 ms, ruota_dentata-q2).
+        let mut b = (libm::floor(x0 / hs + 1e-9) + 1.0) * hs;
         let (mut lo, mut hi) = {
-            let v = sub(p.x0, b.min(p.x1));
+            let v = sub(x0, b.min(p.x1));
             (v, v)
         };
         while level >= CutLevel::All && b < p.x1 - sliver {

@@ -851,6 +851,53 @@ fn a_re_solve_frozen_next_to_a_rest_point_keeps_its_cuts() {
     }
 }
 
+/// A re-solve frozen inside a grid interval cuts it where its limit
+/// changes as the plan it continues did: the change is scanned from where
+/// the piece would start had no freeze point cut it. Scanned from the
+/// freeze point, the cuts moved (here a cut at 10.21875 where the kept
+/// plan has none); on a gear wheel with the override turned every 37 ms the
+/// first new piece then spanned a slower sub-range than the kept plan's,
+/// its limit fell below the speed the kept plan had there, and every pass
+/// failed to a crawl (`ruota_dentata-q2`).
+#[test]
+fn a_re_solve_frozen_inside_an_interval_keeps_its_cuts_where_the_limit_changes() {
+    use interp_core::plan::{Freeze, SUB, Window};
+    let cfg = InterpConfig::default();
+    let h = 0.25;
+    let hs = h / SUB as f64;
+    let mut w = Window::new(cfg, h, 0.0);
+    assert!(w.extend_to(160));
+    w.set_tail(40.0);
+    // A slow stretch (cut into quarters of the grid, `SLOW_PIECE_TIME`),
+    // rising through [10, 10.25] by a sub-range at a time: scanned from
+    // 10.0 the limit changes by 1.5x at 10.125, from 10.0625 at 10.21875.
+    let e = 1e-3 * hs;
+    w.lower_range(5.0, 10.0 - e, 0, 40.0);
+    w.lower_range(10.25 + e, 15.0, 0, 40.0);
+    for k in 0..SUB {
+        let x = 10.0 + k as f64 * hs;
+        w.lower_range(x + e, x + hs - e, 0, 26.0 + 4.0 * k as f64);
+    }
+    w.solve(Freeze::Rest(0.0), 20.0, 1.0, None, 0.0, true)
+        .unwrap();
+    let cuts = |w: &Window, from: f64| -> Vec<f64> {
+        (0..w.n_pieces())
+            .map(|i| w.piece(i).x0)
+            .filter(|&x| x > from && x < 10.25)
+            .collect()
+    };
+    let before = cuts(&w, 10.0);
+    assert!(
+        before.contains(&10.0625) && before.contains(&10.125),
+        "{before:?}"
+    );
+    // Frozen on the first quarter: the new pieces start at 10.0625.
+    let f = (0..w.n_pieces()).find(|&i| w.piece(i).x0 == 10.0).unwrap();
+    assert_eq!(w.piece(f).x1(), 10.0625);
+    w.solve(Freeze::At(f), 20.0, 1.0, None, 0.0, true).unwrap();
+    assert_eq!(cuts(&w, 10.0625), before[1..].to_vec(), "frozen at 10.0625");
+}
+
 /// Where a linear program's per-axis jerk rows do not all fit, only the
 /// farthest pieces' are aggregated (one row per axis, `Σ|a_m|·d_m`, which
 /// drops the cancellation of `S''`'s terms and holds the speed to a few
