@@ -342,6 +342,20 @@ impl WPiece {
     }
 }
 
+/// A lowered override's braking curve (see [`Window::solve`]): the feed
+/// limits of the pieces before `until` may not fall below the speed of
+/// `stop`, started at arc length `at`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lift {
+    /// Where the braking starts (the end of the kept freeze piece), mm.
+    pub at: f64,
+    /// The braking from the machine's state there.
+    pub stop: Stop,
+    /// Where it no longer lifts the limits, mm (the re-solve's plan is at
+    /// the new feed limit there: infinite for that re-solve itself).
+    pub until: f64,
+}
+
 /// Where a re-solve starts (see [`Window::freeze`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Freeze {
@@ -737,15 +751,17 @@ impl Data {
     }
 
     /// The squared speed limit of piece `i` at override `ovr`.
-    fn limit2(&self, i: usize, ovr: f64, lift: &Option<(f64, Stop)>) -> f64 {
+    fn limit2(&self, i: usize, ovr: f64, lift: &Option<Lift>) -> f64 {
         let p = &self.pieces[i];
         let top = self.cfg.max_path_speed;
         let mut v = p.machine.min(ovr * p.feed).min(top);
-        if let Some((x_f, stop)) = lift {
+        if let Some(l) = lift
+            && p.x0 < l.until
+        {
             // The feed may not fall faster than the machine can brake.
             // Over the whole piece: the speed still rises at first while
             // an acceleration the machine had ramps down.
-            let vb = stop.top_speed_over(p.x0 - x_f, p.x1 - x_f);
+            let vb = l.stop.top_speed_over(p.x0 - l.at, p.x1 - l.at);
             v = v.max(vb.min(p.machine).min(top));
         }
         if !v.is_finite() {
@@ -1264,6 +1280,25 @@ impl Window {
     pub fn piece(&self, i: usize) -> Piece {
         self.data.piece(i)
     }
+    /// Where the plan from piece `from` on is last above the feed limit at
+    /// override `ovr`: the end of the braking a lowered override made it
+    /// follow (`from`'s start when it is nowhere above).
+    pub fn braking_end(&self, from: usize, ovr: f64) -> f64 {
+        let d = &self.data;
+        let mut x = if from < d.n_pieces {
+            d.pieces[from].x0
+        } else {
+            d.origin
+        };
+        for i in from..d.n_pieces {
+            let (p, w) = (d.piece(i), &d.pieces[i]);
+            let v = ovr * w.feed;
+            if p.e0.max(p.d).max(p.e1) > v * v {
+                x = w.x1;
+            }
+        }
+        x
+    }
     /// The data of the interval holding arc length `s` (diagnostics).
     pub fn interval_at(&self, s: f64) -> Option<&Interval> {
         let g = index_of(s, self.data.h);
@@ -1698,7 +1733,7 @@ impl Window {
         freeze: Freeze,
         end: f64,
         ovr: f64,
-        lift: Option<(f64, Stop)>,
+        lift: Option<Lift>,
         keep_from: f64,
         fallback: bool,
     ) -> Result<usize, PlanError> {
@@ -1725,7 +1760,7 @@ impl Window {
         freeze: Freeze,
         end: f64,
         ovr: f64,
-        lift: Option<(f64, Stop)>,
+        lift: Option<Lift>,
         keep_from: f64,
         fallback: bool,
     ) -> Result<usize, PlanError> {
@@ -2038,7 +2073,7 @@ fn assemble_and_solve(
     sc: &mut Scratch,
     first: usize,
     ovr: f64,
-    lift: &Option<(f64, Stop)>,
+    lift: &Option<Lift>,
     pass: Pass,
     trace: &mut dyn FnMut(lp::Iteration),
 ) -> Result<SolveStats, PlanError> {
@@ -2381,7 +2416,7 @@ fn reach_caps(
     lo: usize,
     first: usize,
     ovr: f64,
-    lift: &Option<(f64, Stop)>,
+    lift: &Option<Lift>,
 ) {
     let n = d.n_pieces;
     let cfg = &d.cfg;
@@ -2657,7 +2692,7 @@ fn rest_accel(a_rest: f64, it: &Interval, cfg: &InterpConfig) -> f64 {
 /// (`S = 2d·u(1−u)`), with the largest `d` that keeps every limit of the
 /// linear program's rows, in closed form (each piece depends on its own `d`
 /// alone).
-fn crawl(d: &mut Data, from: usize, ovr: f64, lift: &Option<(f64, Stop)>) {
+fn crawl(d: &mut Data, from: usize, ovr: f64, lift: &Option<Lift>) {
     let cfg = d.cfg;
     let keep = 1.0 - cfg.planning_margin;
     let a_rest = 0.5 * cfg.max_path_jerk * keep * cfg.period;

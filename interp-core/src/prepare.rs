@@ -29,7 +29,7 @@ use crate::kinematics::Machine;
 use crate::nurbs::Side;
 use crate::path::{Blending, Block, Path};
 use crate::plan::{
-    AxisSample, CHUNK, Freeze, JumpReserve, MachinePlace, PlanError, SLIVER, WINDOW, Window,
+    AxisSample, CHUNK, Freeze, JumpReserve, Lift, MachinePlace, PlanError, SLIVER, WINDOW, Window,
     index_of, sample_interval,
 };
 use crate::spline::Piece;
@@ -184,10 +184,11 @@ pub struct BlockPlanner {
     ovr: f64,
     /// The braking curve a lowered override was planned with (see
     /// [`Self::replan`]): every later solve keeps the feed limits above it
-    /// until the machine is past it, for the machine may still be braking
-    /// there (without it, the next block's solve found the kept state
-    /// above the new feed limit and failed to a crawl).
-    lift: Option<(f64, Stop)>,
+    /// up to where that plan came down to the new feed limit, until the
+    /// machine is there, for the machine may still be braking (without it,
+    /// the next block's solve found the kept state above the new feed limit
+    /// and failed to a crawl; past that point the new feed holds).
+    lift: Option<Lift>,
     /// Where the current plan of the speed ends (a rest point): the end of
     /// the queue once the program is finished, else the last chunk mark the
     /// queue has passed (see [`Self::plan`]).
@@ -495,7 +496,12 @@ impl BlockPlanner {
             // machine accelerated.)
             let stop = Stop::new(v0, a0, (a * gentle).max(a0), j * gentle);
             let last = k + 1 == LIFT_SOFTENING.len();
-            r = self.solve_into(freeze, end, Some((p.x1(), stop)), last, out);
+            let lift = Lift {
+                at: p.x1(),
+                stop,
+                until: f64::INFINITY,
+            };
+            r = self.solve_into(freeze, end, Some(lift), last, out);
             if !matches!(r, Err(PushError::Schedule)) {
                 break;
             }
@@ -505,11 +511,8 @@ impl BlockPlanner {
 
     /// The braking curve of the last lowered override while the machine may
     /// still be on it (see [`Self::lift`]).
-    fn lift_ahead(&mut self) -> Option<(f64, Stop)> {
-        if self
-            .lift
-            .is_some_and(|(x, stop)| self.machine >= x + stop.distance())
-        {
+    fn lift_ahead(&mut self) -> Option<Lift> {
+        if self.lift.is_some_and(|l| self.machine >= l.until) {
             self.lift = None;
         }
         self.lift
@@ -523,7 +526,7 @@ impl BlockPlanner {
         &mut self,
         freeze: Freeze,
         end: f64,
-        lift: Option<(f64, Stop)>,
+        lift: Option<Lift>,
         fallback: bool,
         out: &mut PlannedBlock,
     ) -> Result<(), PushError> {
@@ -538,8 +541,9 @@ impl BlockPlanner {
                 PlanError::Full => PushError::ProfileFull,
                 PlanError::Solver(_) => PushError::Schedule,
             })?;
-        if new_lift {
-            self.lift = lift;
+        if let (true, Some(l)) = (new_lift, lift) {
+            let until = self.window.braking_end(from, self.ovr);
+            self.lift = Some(Lift { until, ..l });
         }
         let n = self.window.n_pieces();
         out.n_pieces = 0;
@@ -1694,8 +1698,11 @@ const STAIR_CHECKS: usize = 4;
 const MAX_STAIRS: usize = 16;
 
 /// Braking rates (fractions of the planned acceleration and jerk) a new
-/// override's braking curve is tried with, steepest first.
-const LIFT_SOFTENING: [f64; 4] = [1.0, 0.5, 0.25, 0.1];
+/// override's braking curve is tried with, steepest first. Down to 1 %: in
+/// a tight turn whose axes' jerk binds at a steady speed the machine cannot
+/// slow down at all, and a braking curve at 10 % still asked it to (the
+/// override at 30 % inside a turn of `trident`, which crawled).
+const LIFT_SOFTENING: [f64; 6] = [1.0, 0.5, 0.25, 0.1, 0.03, 0.01];
 
 /// The parameters between which the laws of `path` (of length `len`, a piece
 /// of `block`) are evaluated: its whole range, narrowed by [`stationary_offset`]
