@@ -3,8 +3,12 @@
 //! 30–200 % (1.0, 0.6, 1.2, 0.8, 1.5, 0.3, 1.0, 0.9, 1.1, 0.5, 2.0, 0.7).
 //!
 //! ```text
-//! cargo run --release -p interpd-tests --example override_knob -- [--feed MM_PER_MIN] [--g64 P] [--every MS] FILE.ngc...
+//! cargo run --release -p interpd-tests --example override_knob -- [--feed MM_PER_MIN] [--g64 P] [--every MS] [--hold-every MS] FILE.ngc...
 //! ```
+//!
+//! `--every 0` leaves the knob alone; `--hold-every H` also gives a feed
+//! hold every `H` ms and resumes 60 ms after it (before rest, when the
+//! machine was fast).
 //!
 //! Each program runs as the drivers run it (the `G64 P` stage, then the
 //! interpolator; `--feed` and `--g64` as in the `path_time` example), every setpoint checked against every limit (the feed
@@ -12,14 +16,15 @@
 //! the knob turned and at 100 %, the turns, the look-ahead's solves, its
 //! retries (solves tried again with other rows) and the stops it added (a
 //! rest kept at the old end of the queue, or a crawl: a stop the program
-//! does not ask for), and the checks that failed.
+//! does not ask for), the checks that failed, and the largest path or
+//! axis jerk as a share of its limit.
 
 use std::path::PathBuf;
 
 use interp_core::InterpConfig;
 use interp_core::smooth::Policy;
 use interpd_tests::path_time::{
-    interpolated_run, interpolated_run_with_overrides, load_program, smoothed,
+    Command, interpolated_run, interpolated_run_with_commands, load_program, smoothed,
 };
 
 /// The override values the knob steps through.
@@ -39,10 +44,21 @@ fn main() {
     let feed = flag("--feed");
     let g64 = flag("--g64");
     let every = flag("--every").unwrap_or(113.0);
-    assert!(every >= 1.0, "--every is at least 1 ms");
+    let hold_every = flag("--hold-every").unwrap_or(0.0);
+    assert!(
+        every == 0.0 || every >= 1.0,
+        "--every is 0 (no knob) or at least 1 ms"
+    );
+    assert!(
+        hold_every == 0.0 || hold_every > 60.0,
+        "--hold-every is 0 (no hold) or over 60 ms"
+    );
     let cfg = InterpConfig::default();
-    let every = (every * 1e-3 / cfg.period).round() as u64;
-    println!("program | knob s | 100 % s | turns | solves | retries | added stops | failed checks");
+    let ticks = |ms: f64| (ms * 1e-3 / cfg.period).round() as u64;
+    let (every, hold_every, resume_after) = (ticks(every), ticks(hold_every), ticks(60.0));
+    println!(
+        "program | knob s | 100 % s | turns | solves | retries | added stops | failed checks | jerk use"
+    );
     for file in &args {
         let blocks = match load_program(&PathBuf::from(file), feed, g64) {
             Ok(b) => b,
@@ -59,27 +75,40 @@ fn main() {
                 continue;
             }
         };
-        // Turns up to twice the plain run's length (the knob's mean is
-        // about 100 %).
-        let n = 2 * (plain.time / cfg.period) as u64 / every + 1;
-        let turns: Vec<(u64, f64)> = (1..=n)
-            .map(|k| (k * every, KNOB[k as usize % KNOB.len()]))
-            .collect();
-        match interpolated_run_with_overrides(&blocks, &cfg, &turns) {
+        // Commands up to four times the plain run's length (the knob's
+        // mean is about 100 %; holds add their time).
+        let span = 4 * (plain.time / cfg.period) as u64;
+        let mut commands: Vec<(u64, Command)> = Vec::new();
+        if let Some(n) = span.checked_div(every) {
+            commands.extend(
+                (1..=n).map(|k| (k * every, Command::Override(KNOB[k as usize % KNOB.len()]))),
+            );
+        }
+        if let Some(n) = span.checked_div(hold_every) {
+            for k in 1..=n {
+                commands.push((k * hold_every, Command::Hold));
+                commands.push((k * hold_every + resume_after, Command::Resume));
+            }
+        }
+        commands.sort_by_key(|&(at, _)| at);
+        match interpolated_run_with_commands(&blocks, &cfg, &commands) {
             Ok(run) => {
-                let done = (run.time / cfg.period) as u64 / every;
+                let done = ((run.time / cfg.period) as u64)
+                    .checked_div(every)
+                    .unwrap_or(0);
                 let name = PathBuf::from(file);
                 let name = name
                     .file_name()
                     .map_or(file.clone(), |n| n.to_string_lossy().into());
                 println!(
-                    "{name} | {:.3} | {:.3} | {done} | {} | {} | {} | {}",
+                    "{name} | {:.3} | {:.3} | {done} | {} | {} | {} | {} | {:.3}",
                     run.time,
                     plain.time,
                     run.plan.solves,
                     run.plan.retries(),
                     run.plan.added_stops(),
-                    run.violations.total()
+                    run.violations.total(),
+                    run.jerk_use(&cfg)
                 );
             }
             Err(e) => eprintln!("{file}: {e}"),

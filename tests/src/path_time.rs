@@ -162,6 +162,17 @@ pub fn interpolated_run_within(
         .map_err(|_| "interpolator thread panicked".to_string())?
 }
 
+/// What an operator does during a run ([`interpolated_run_with_commands`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Command {
+    /// Sets the feed override (1 = 100 %).
+    Override(f64),
+    /// Feed hold.
+    Hold,
+    /// Leaves a feed hold.
+    Resume,
+}
+
 /// [`interpolated_run`] with the feed override set as an operator turns the
 /// knob: to `value` before tick `at`, for each `(at, value)` (in order).
 pub fn interpolated_run_with_overrides(
@@ -169,10 +180,24 @@ pub fn interpolated_run_with_overrides(
     cfg: &InterpConfig,
     overrides: &[(u64, f64)],
 ) -> Result<InterpolatedRun, String> {
-    let (blocks, cfg, overrides) = (blocks.to_vec(), *cfg, overrides.to_vec());
+    let commands: Vec<(u64, Command)> = overrides
+        .iter()
+        .map(|&(at, v)| (at, Command::Override(v)))
+        .collect();
+    interpolated_run_with_commands(blocks, cfg, &commands)
+}
+
+/// [`interpolated_run`] with an operator's commands: each given before its
+/// tick `at`, for each `(at, command)` (in order).
+pub fn interpolated_run_with_commands(
+    blocks: &[Block],
+    cfg: &InterpConfig,
+    commands: &[(u64, Command)],
+) -> Result<InterpolatedRun, String> {
+    let (blocks, cfg, commands) = (blocks.to_vec(), *cfg, commands.to_vec());
     std::thread::Builder::new()
         .stack_size(INTERPOLATOR_STACK)
-        .spawn(move || run_to_done(&blocks, &cfg, false, MAX_TICKS, Some(&overrides)))
+        .spawn(move || run_to_done(&blocks, &cfg, false, MAX_TICKS, Some(&commands)))
         .map_err(|e| e.to_string())?
         .join()
         .map_err(|_| "interpolator thread panicked".to_string())?
@@ -332,7 +357,7 @@ fn run_to_done(
     cfg: &InterpConfig,
     keep: bool,
     max_ticks: u64,
-    overrides: Option<&[(u64, f64)]>,
+    commands: Option<&[(u64, Command)]>,
 ) -> Result<InterpolatedRun, String> {
     let p = blocks[0].path.start_point();
     let mut run: Run<1024> = Run::new(*cfg, [p.x, p.y, p.z, 0.0, 0.0, 0.0])
@@ -343,13 +368,16 @@ fn run_to_done(
         points.push(p);
     }
     // (The feed bound: the fastest feed at the largest override.)
-    let top_override = overrides
+    let top_override = commands
         .unwrap_or(&[])
         .iter()
-        .fold(1.0, |m, &(_, v)| v.max(m));
+        .fold(1.0, |m, &(_, c)| match c {
+            Command::Override(v) => v.max(m),
+            _ => m,
+        });
     let fastest = blocks.iter().map(|b| b.feed).fold(0.0, f64::max) * top_override;
     let mut check = Checker::new(cfg.period, Limits::new(cfg, fastest), [p.x, p.y, p.z]);
-    let end = match overrides {
+    let end = match commands {
         None => run
             .run_program::<Infallible>(blocks, |sp, _| {
                 check.check(sp);
@@ -362,15 +390,20 @@ fn run_to_done(
                 Some(k) => format!("block {k} of {}: {e}", blocks.len()),
                 None => format!("after the last block: {e}"),
             }),
-        Some(overrides) => {
-            // As `run_program`, with each override set before its tick.
+        Some(commands) => {
+            // As `run_program`, with each command given before its tick.
             let mut next = 0;
             let mut step = |run: &mut Run<1024>| {
-                while let Some(&(at, value)) = overrides.get(next)
+                while let Some(&(at, command)) = commands.get(next)
                     && at <= run.ticks()
                 {
-                    run.set_feed_override(value)
-                        .map_err(|e| format!("override {value}: {e:?}"))?;
+                    match command {
+                        Command::Override(v) => run
+                            .set_feed_override(v)
+                            .map_err(|e| format!("override {v}: {e:?}"))?,
+                        Command::Hold => run.feed_hold(),
+                        Command::Resume => run.resume(),
+                    }
                     next += 1;
                 }
                 if run.ticks() >= max_ticks {
