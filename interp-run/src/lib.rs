@@ -261,15 +261,18 @@ impl<const Q: usize> Run<Q> {
         self.exec.tick()
     }
 
-    /// Ticks once, within the tick limit, and shows the setpoint to `hook`.
+    /// Ticks once, within the tick limit: `before` first (an operator's
+    /// commands), then the tick, whose setpoint `hook` sees.
     fn tick_hooked<E>(
         &mut self,
+        before: &mut impl FnMut(&mut Self) -> Result<(), E>,
         hook: &mut impl FnMut(&Setpoint, &Executor<Q>) -> Result<(), E>,
     ) -> Result<Setpoint, RunError<E>> {
         let ticks = self.ticks();
         if ticks >= self.limit {
             return Err(RunError::Timeout { ticks });
         }
+        before(self).map_err(RunError::Hook)?;
         let sp = self.tick();
         hook(&sp, &self.exec).map_err(RunError::Hook)?;
         Ok(sp)
@@ -283,11 +286,20 @@ impl<const Q: usize> Run<Q> {
         block: &Block,
         mut hook: impl FnMut(&Setpoint, &Executor<Q>) -> Result<(), E>,
     ) -> Result<Pushed, RunError<E>> {
+        self.push_waiting_with(block, &mut |_: &mut Self| Ok(()), &mut hook)
+    }
+
+    fn push_waiting_with<E>(
+        &mut self,
+        block: &Block,
+        before: &mut impl FnMut(&mut Self) -> Result<(), E>,
+        hook: &mut impl FnMut(&Setpoint, &Executor<Q>) -> Result<(), E>,
+    ) -> Result<Pushed, RunError<E>> {
         loop {
             match self.push(block) {
                 Ok(()) => return Ok(Pushed::Queued),
                 Err(e) if e.is_wait() && self.exec.queued_segments() > 0 => {
-                    if self.tick_hooked(&mut hook)?.state == RunState::Fault {
+                    if self.tick_hooked(before, hook)?.state == RunState::Fault {
                         return Ok(Pushed::Faulted);
                     }
                 }
@@ -302,6 +314,14 @@ impl<const Q: usize> Run<Q> {
         &mut self,
         mut hook: impl FnMut(&Setpoint, &Executor<Q>) -> Result<(), E>,
     ) -> Result<RunState, RunError<E>> {
+        self.run_to_end_with(&mut |_: &mut Self| Ok(()), &mut hook)
+    }
+
+    fn run_to_end_with<E>(
+        &mut self,
+        before: &mut impl FnMut(&mut Self) -> Result<(), E>,
+        hook: &mut impl FnMut(&Setpoint, &Executor<Q>) -> Result<(), E>,
+    ) -> Result<RunState, RunError<E>> {
         if self.state() != RunState::Fault {
             self.finish();
         }
@@ -310,7 +330,7 @@ impl<const Q: usize> Run<Q> {
             if matches!(state, RunState::Done | RunState::Fault) {
                 return Ok(state);
             }
-            self.tick_hooked(&mut hook)?;
+            self.tick_hooked(before, hook)?;
         }
     }
 
@@ -321,16 +341,28 @@ impl<const Q: usize> Run<Q> {
     pub fn run_program<E>(
         &mut self,
         blocks: &[Block],
+        hook: impl FnMut(&Setpoint, &Executor<Q>) -> Result<(), E>,
+    ) -> Result<RunState, (Option<usize>, RunError<E>)> {
+        self.run_program_with(blocks, |_| Ok(()), hook)
+    }
+
+    /// [`Self::run_program`] with `before` called before every tick: an
+    /// operator's commands (override, hold, resume) at the ticks they come.
+    pub fn run_program_with<E>(
+        &mut self,
+        blocks: &[Block],
+        mut before: impl FnMut(&mut Self) -> Result<(), E>,
         mut hook: impl FnMut(&Setpoint, &Executor<Q>) -> Result<(), E>,
     ) -> Result<RunState, (Option<usize>, RunError<E>)> {
         for (k, b) in blocks.iter().enumerate() {
-            match self.push_waiting(b, &mut hook) {
+            match self.push_waiting_with(b, &mut before, &mut hook) {
                 Ok(Pushed::Queued) => {}
                 Ok(Pushed::Faulted) => return Ok(RunState::Fault),
                 Err(e) => return Err((Some(k), e)),
             }
         }
-        self.run_to_end(hook).map_err(|e| (None, e))
+        self.run_to_end_with(&mut before, &mut hook)
+            .map_err(|e| (None, e))
     }
 }
 

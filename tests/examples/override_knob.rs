@@ -24,11 +24,9 @@ use std::path::PathBuf;
 use interp_core::InterpConfig;
 use interp_core::smooth::Policy;
 use interpd_tests::path_time::{
-    Command, interpolated_run, interpolated_run_with_commands, load_program, smoothed,
+    Command, OVERRIDE_KNOB, interpolated_run, interpolated_run_with_commands, load_program,
+    smoothed,
 };
-
-/// The override values the knob steps through.
-const KNOB: [f64; 12] = [1.0, 0.6, 1.2, 0.8, 1.5, 0.3, 1.0, 0.9, 1.1, 0.5, 2.0, 0.7];
 
 fn main() {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
@@ -80,9 +78,12 @@ fn main() {
         let span = 4 * (plain.time / cfg.period) as u64;
         let mut commands: Vec<(u64, Command)> = Vec::new();
         if let Some(n) = span.checked_div(every) {
-            commands.extend(
-                (1..=n).map(|k| (k * every, Command::Override(KNOB[k as usize % KNOB.len()]))),
-            );
+            commands.extend((1..=n).map(|k| {
+                (
+                    k * every,
+                    Command::Override(OVERRIDE_KNOB[k as usize % OVERRIDE_KNOB.len()]),
+                )
+            }));
         }
         if let Some(n) = span.checked_div(hold_every) {
             for k in 1..=n {

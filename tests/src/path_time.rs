@@ -17,10 +17,9 @@
 //! joints. It is a lower bound of any jerk-limited schedule on the same
 //! laws, so `ours / bound` is the part of our time the planner could win.
 
-use core::convert::Infallible;
-
 use interp_core::feed::{ArcLengthDerivs, junction_speed, speed_limit};
 use interp_core::geom::{Curve, Derivs};
+use interp_core::interp::OverrideError;
 use interp_core::nurbs::Side;
 use interp_core::path::{Blending, Block, Path};
 use interp_core::plan::PlanTotals;
@@ -161,6 +160,10 @@ pub fn interpolated_run_within(
         .join()
         .map_err(|_| "interpolator thread panicked".to_string())?
 }
+
+/// The override values an operator's knob steps through, 30–200 % (the
+/// `override_knob` example and the knob test).
+pub const OVERRIDE_KNOB: [f64; 12] = [1.0, 0.6, 1.2, 0.8, 1.5, 0.3, 1.0, 0.9, 1.1, 0.5, 2.0, 0.7];
 
 /// What an operator does during a run ([`interpolated_run_with_commands`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -377,70 +380,37 @@ fn run_to_done(
         });
     let fastest = blocks.iter().map(|b| b.feed).fold(0.0, f64::max) * top_override;
     let mut check = Checker::new(cfg.period, Limits::new(cfg, fastest), [p.x, p.y, p.z]);
-    let end = match commands {
-        None => run
-            .run_program::<Infallible>(blocks, |sp, _| {
-                check.check(sp);
-                if keep {
-                    points.push(Vec3::new(sp.axes[0], sp.axes[1], sp.axes[2]));
-                }
-                Ok(())
-            })
-            .map_err(|(k, e)| match k {
-                Some(k) => format!("block {k} of {}: {e}", blocks.len()),
-                None => format!("after the last block: {e}"),
-            }),
-        Some(commands) => {
-            // As `run_program`, with each command given before its tick.
-            let mut next = 0;
-            let mut step = |run: &mut Run<1024>| {
+    // Each command before its tick (in order).
+    let mut next = 0;
+    let commands = commands.unwrap_or(&[]);
+    let end = run
+        .run_program_with::<OverrideError>(
+            blocks,
+            |run| {
                 while let Some(&(at, command)) = commands.get(next)
                     && at <= run.ticks()
                 {
                     match command {
-                        Command::Override(v) => run
-                            .set_feed_override(v)
-                            .map_err(|e| format!("override {v}: {e:?}"))?,
+                        Command::Override(v) => run.set_feed_override(v)?,
                         Command::Hold => run.feed_hold(),
                         Command::Resume => run.resume(),
                     }
                     next += 1;
                 }
-                if run.ticks() >= max_ticks {
-                    return Err(format!("no end after {max_ticks} ticks"));
-                }
-                let sp = run.tick();
-                check.check(&sp);
+                Ok(())
+            },
+            |sp, _| {
+                check.check(sp);
                 if keep {
                     points.push(Vec3::new(sp.axes[0], sp.axes[1], sp.axes[2]));
                 }
-                Ok(sp.state)
-            };
-            let mut state = run.state();
-            'blocks: for (k, b) in blocks.iter().enumerate() {
-                loop {
-                    match run.push(b) {
-                        Ok(()) => break,
-                        Err(e) if e.is_wait() && run.executor().queued_segments() > 0 => {
-                            state = step(&mut run)?;
-                            if state == RunState::Fault {
-                                break 'blocks;
-                            }
-                        }
-                        Err(e) => return Err(format!("block {k} of {}: {e}", blocks.len())),
-                    }
-                }
-            }
-            if state != RunState::Fault {
-                run.finish();
-            }
-            while !matches!(run.state(), RunState::Done | RunState::Fault) {
-                step(&mut run)?;
-            }
-            Ok(run.state())
-        }
-    };
-    let end = end?;
+                Ok(())
+            },
+        )
+        .map_err(|(k, e)| match k {
+            Some(k) => format!("block {k} of {}: {e}", blocks.len()),
+            None => format!("after the last block: {e}"),
+        })?;
     if end != RunState::Done {
         return Err(format!("the run ended {end:?}"));
     }

@@ -7,8 +7,9 @@ use interp_core::path::{Block, Path};
 use interp_core::samples::butterfly;
 use interp_core::{InterpConfig, nurbs::split_program_curve};
 use interpd_tests::path_time::{
-    PathTimes, accel_only_optimum, first_curve, interpolated_run, interpolated_run_with_overrides,
-    jerk_aware_bound, load_program, path_times, rest_to_rest, step_cap,
+    OVERRIDE_KNOB, PathTimes, accel_only_optimum, first_curve, interpolated_run,
+    interpolated_run_with_overrides, jerk_aware_bound, load_program, path_times, rest_to_rest,
+    step_cap,
 };
 
 /// The target: total path time ≤ 1.10 × the acceleration-only optimum.
@@ -347,7 +348,6 @@ fn an_override_raised_after_queueing_keeps_every_axis_jerk_limit() {
 /// speed: the gentlest braking curve still asked it to slow down there.
 #[test]
 fn turning_the_override_knob_never_stops_the_machine() {
-    let knob = [1.0, 0.6, 1.2, 0.8, 1.5, 0.3, 1.0, 0.9, 1.1, 0.5, 2.0, 0.7];
     for (program, feed, every) in [
         ("homer-q2.ngc", 6000.0, 113),
         ("trident-xy-yz-zx.ngc", 3000.0, 53),
@@ -358,7 +358,7 @@ fn turning_the_override_knob_never_stops_the_machine() {
         let blocks = load_program(&file, Some(feed), None).unwrap();
         let cfg = InterpConfig::default();
         let turns: Vec<(u64, f64)> = (1..1000u64)
-            .map(|k| (every * k, knob[k as usize % knob.len()]))
+            .map(|k| (every * k, OVERRIDE_KNOB[k as usize % OVERRIDE_KNOB.len()]))
             .collect();
         let run = interpolated_run_with_overrides(&blocks, &cfg, &turns).unwrap();
         let t = run.plan;
