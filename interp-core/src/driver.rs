@@ -60,6 +60,9 @@ pub struct ExecStatus {
     pub stopping: bool,
     /// Holding at rest after a resume: waits for a plan from where it stands.
     pub needs_plan: bool,
+    /// A feed hold's or abort's closed-form stop has not moved the machine
+    /// yet: a plan to rest may replace it ([`Driver::plan_to_rest`]).
+    pub stop_unplanned: bool,
     /// The program's end was committed.
     pub finished: bool,
     /// An abort is braking.
@@ -139,8 +142,11 @@ impl Driver {
         st.commits < self.emitted
     }
 
+    /// Before each plan: where the machine is. (A plan is a hold's only
+    /// when [`Self::plan_to_rest`] makes it.)
     fn sync(&mut self, st: &ExecStatus) {
         self.planner.set_machine(st.plan_position, st.at_rest);
+        self.plan.hold = false;
     }
 
     fn emit(&mut self) -> &PlannedBlock {
@@ -252,6 +258,27 @@ impl Driver {
         }
     }
 
+    /// Plan a feed hold or an abort given to the executor whose status is
+    /// `st` (after [`Executor::feed_hold`] or [`Executor::abort`], before
+    /// its next tick): the plan to commit, which brings the machine to rest
+    /// with every limit of the look-ahead held and replaces the executor's
+    /// closed-form stop ([`BlockPlanner::hold`]). `None` when none is to be
+    /// planned, or it could not be (the closed-form stop then brakes).
+    pub fn plan_to_rest(&mut self, st: &ExecStatus) -> Option<&PlannedBlock> {
+        if !st.stop_unplanned || st.queued_segments == 0 || self.in_flight(st) {
+            return None;
+        }
+        self.sync(st);
+        self.plan.finish = false;
+        match self.planner.hold(&mut self.plan) {
+            Ok(_) => Some(self.emit()),
+            Err(e) => {
+                self.last_error = Some(e);
+                None
+            }
+        }
+    }
+
     /// The next plan due on the planning side's own account, if any (call
     /// until `None`, committing each): the next part of a long block when the
     /// queue has room, the program's end, the move from a resumed hold, and
@@ -268,7 +295,8 @@ impl Driver {
     }
 
     fn due(&mut self, st: &ExecStatus, parts_only: bool) -> Option<&PlannedBlock> {
-        if self.in_flight(st) {
+        // Nothing more goes in while an abort brakes.
+        if self.in_flight(st) || st.aborting {
             return None;
         }
         self.plan.finish = false;
@@ -383,6 +411,29 @@ impl Driver {
         self.drive_due(exec, false, sink);
     }
 
+    /// Feed hold in `exec` ([`Executor::feed_hold`]), planned through the
+    /// look-ahead ([`Self::plan_to_rest`]).
+    pub fn feed_hold_into<const Q: usize>(&mut self, exec: &mut Executor<Q>, sink: PlanSink<'_>) {
+        exec.feed_hold();
+        self.plan_stop_into(exec, sink);
+    }
+
+    /// Abort in `exec` ([`Executor::abort`]): the machine comes to rest as
+    /// under a feed hold ([`Self::plan_to_rest`]), then the queue is flushed.
+    pub fn abort_into<const Q: usize>(&mut self, exec: &mut Executor<Q>, sink: PlanSink<'_>) {
+        exec.abort();
+        self.plan_stop_into(exec, sink);
+    }
+
+    fn plan_stop_into<const Q: usize>(&mut self, exec: &mut Executor<Q>, sink: PlanSink<'_>) {
+        if let Some(plan) = self.plan_to_rest(&exec.status()) {
+            sink(plan);
+            if let Err(e) = exec.commit(plan) {
+                self.last_error = Some(e);
+            }
+        }
+    }
+
     /// Set the feed override (see [`Self::set_feed_override`]) and commit
     /// the plan it makes into `exec`.
     pub fn set_feed_override_into<const Q: usize>(
@@ -437,6 +488,7 @@ impl<const Q: usize> Executor<Q> {
             queued_segments: self.queued_segments(),
             stopping: self.is_stopping(),
             needs_plan: self.needs_plan(),
+            stop_unplanned: self.stop_unplanned(),
             finished: self.is_finished(),
             aborting: self.is_aborting(),
             idle_empty: self.state() == RunState::Idle && self.queued_segments() == 0,

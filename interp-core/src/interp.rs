@@ -233,7 +233,7 @@ pub fn grid_step(cfg: &InterpConfig) -> f64 {
 }
 
 /// The real-time half of the interpolator, with a segment queue of capacity `Q`.
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub struct Executor<const Q: usize = DEFAULT_QUEUE> {
     cfg: InterpConfig,
     queue: Deque<Segment, Q>,
@@ -416,8 +416,11 @@ impl<const Q: usize> Executor<Q> {
         }
     }
 
-    /// Feed hold: the fastest stop on the path within the limits, then rest
-    /// until [`resume`](Self::resume). Takes effect at the next tick.
+    /// Feed hold: stop on the path, then rest until [`resume`](Self::resume).
+    /// Takes effect at the next tick. Begins the closed-form stop (the
+    /// fastest with the tangential limits), which a hold's plan committed
+    /// before the next tick replaces ([`crate::Driver::plan_to_rest`]: every
+    /// limit held, the axes' jerk included); without one the stop runs.
     pub fn feed_hold(&mut self) {
         if matches!(self.state, RunState::Running | RunState::Idle) && !self.abort {
             self.hold = true;
@@ -428,9 +431,10 @@ impl<const Q: usize> Executor<Q> {
         }
     }
 
-    /// Leave a feed hold. Motion goes on once a plan from the rest point is
-    /// committed ([`BlockPlanner::replan`] with the machine at rest); a hold
-    /// still braking brakes to rest first.
+    /// Leave a feed hold; a hold still braking brakes to rest first. After
+    /// a hold's plan, motion goes on along it from its rest point; after the
+    /// closed-form stop, once a plan from the rest point is committed
+    /// ([`BlockPlanner::replan`] with the machine at rest).
     pub fn resume(&mut self) {
         if self.hold && !self.abort {
             self.hold = false;
@@ -446,17 +450,40 @@ impl<const Q: usize> Executor<Q> {
         !self.hold && !self.abort && self.stop.is_some() && self.stop_done()
     }
 
+    /// A feed hold's or abort's closed-form stop has not moved the machine
+    /// yet: a plan to rest may replace it (the plan's state is still the
+    /// machine's; [`crate::Driver::plan_to_rest`]).
+    pub fn stop_unplanned(&self) -> bool {
+        (self.hold || self.abort) && matches!(self.stop, Some((_, t, _)) if t == 0.0)
+    }
+
+    /// At rest where the plan rests: on a rest point, at the plan's end, or
+    /// with no plan.
+    fn resting_on_plan(&self) -> bool {
+        self.v == 0.0
+            && match self.current() {
+                None => true,
+                Some(p) => {
+                    (self.x == 0.0 && self.rest[self.head]) || (self.len == 1 && self.x >= p.h)
+                }
+            }
+    }
+
     fn stop_done(&self) -> bool {
         matches!(self.stop, Some((st, t, _)) if t >= st.duration())
     }
 
-    /// Abort: the fastest stop on the path within the limits, then the queue
-    /// is flushed and the executor is idle where it stopped. A finished
-    /// program may be followed by a new one.
+    /// Abort: stop on the path, then the queue is flushed and the executor
+    /// is idle where it stopped. A finished program may be followed by a
+    /// new one. Begins the closed-form stop, which a plan to rest replaces
+    /// as for [`Self::feed_hold`] ([`crate::Driver::abort_into`]); held on
+    /// a hold's plan, it rests where the hold does.
     pub fn abort(&mut self) {
         if matches!(self.state, RunState::Running | RunState::Holding) {
+            // (Held on a hold's plan: the abort rests where the hold does.)
+            let held_on_plan = self.hold && self.stop.is_none();
             self.abort = true;
-            if self.stop.is_none() {
+            if self.stop.is_none() && !held_on_plan {
                 self.begin_stop();
             }
             self.state = RunState::Stopping;
@@ -491,11 +518,17 @@ impl<const Q: usize> Executor<Q> {
         (am, jm)
     }
 
-    /// Arc length at which the machine would come to rest if a feed hold
-    /// were given now (the run's arc length, mm).
+    /// Arc length at which a feed hold comes to rest (the run's arc
+    /// length, mm): once given, where its stop or its plan rests; before,
+    /// the nearest point the tangential limits allow (a hold's plan rests
+    /// there or, where an axis needs gentler braking, farther).
     pub fn hold_stop_position(&self) -> f64 {
         if let Some((st, _, s0)) = &self.stop {
             return s0 + st.distance();
+        }
+        if self.hold || self.abort {
+            // A hold or abort on the plan: its next rest point.
+            return self.next_rest_on_plan();
         }
         match self.current() {
             Some(p) => {
@@ -504,6 +537,17 @@ impl<const Q: usize> Executor<Q> {
             }
             None => self.s,
         }
+    }
+
+    /// Where the plan next comes to rest: the start of the first piece ahead
+    /// that starts at rest (the current one if the machine rests on it), or
+    /// the plan's end.
+    fn next_rest_on_plan(&self) -> f64 {
+        let at_rest = self.x == 0.0 && self.v == 0.0;
+        (0..self.len)
+            .map(|i| self.ring_at(i))
+            .find(|&k| self.rest[k] && (k != self.head || at_rest))
+            .map_or_else(|| self.ring_end(), |k| self.ring[k].x0)
     }
 
     /// Queue a plan: its segments (if any) and its speed-spline update. All
@@ -522,7 +566,16 @@ impl<const Q: usize> Executor<Q> {
     }
 
     fn commit_inner(&mut self, plan: &PlannedBlock) -> Result<(), PushError> {
-        if self.abort {
+        if plan.hold {
+            // A hold or abort planned through the look-ahead: it replaces
+            // the closed-form stop begun for it, if the machine has not
+            // moved on that yet (else the stop goes on).
+            if !self.stop_unplanned() {
+                self.stats.stale_plans += 1;
+                return Err(PushError::Stale);
+            }
+            self.stop = None;
+        } else if self.abort {
             return Err(PushError::Aborting);
         }
         if plan.n_segments > 0 {
@@ -677,6 +730,9 @@ impl<const Q: usize> Executor<Q> {
                 } else {
                     self.state = RunState::Holding;
                 }
+            } else if self.abort && self.stop.is_none() && self.resting_on_plan() {
+                // An abort planned through the look-ahead, at rest.
+                self.flush();
             }
         } else if active && self.abort {
             self.flush();
@@ -710,6 +766,16 @@ impl<const Q: usize> Executor<Q> {
             if let Some(p) = self.current() {
                 return p.x0 + self.x;
             }
+        }
+        if (self.hold || self.abort)
+            && self.x == 0.0
+            && self.v == 0.0
+            && self.len > 0
+            && self.rest[self.head]
+        {
+            // Held at a rest point of the plan (where a hold's plan brought
+            // the machine, or before it starts): stay until resumed.
+            return self.ring[self.head].x0;
         }
         loop {
             let Some(p) = self.current().copied() else {
@@ -823,6 +889,9 @@ impl<const Q: usize> Executor<Q> {
         self.hold = false;
         self.finished = false;
         self.stop = None;
+        // (An abort's plan came to rest on a rest point: no dwell there
+        // for the next program.)
+        self.dwell = false;
         self.tail = self.point;
         self.tail_s = self.s;
         self.len = 0;
@@ -1069,9 +1138,10 @@ impl<const Q: usize> Interpolator<Q> {
         self.driver.finish_into(&mut self.exec, &mut |_| {});
     }
 
-    /// Feed hold (see [`Executor::feed_hold`]).
+    /// Feed hold (see [`Driver::feed_hold_into`]): the machine comes to rest on
+    /// its path with every limit held, then waits for [`Self::resume`].
     pub fn feed_hold(&mut self) {
-        self.exec.feed_hold();
+        self.driver.feed_hold_into(&mut self.exec, &mut |_| {});
     }
 
     /// Leave a feed hold: once at rest, the speed is planned again from there.
@@ -1079,9 +1149,10 @@ impl<const Q: usize> Interpolator<Q> {
         self.driver.resume_into(&mut self.exec, &mut |_| {});
     }
 
-    /// Abort (see [`Executor::abort`]); the planner follows once the machine is idle.
+    /// Abort (see [`Driver::abort_into`]); the planner follows once the
+    /// machine is idle.
     pub fn abort(&mut self) {
-        self.exec.abort();
+        self.driver.abort_into(&mut self.exec, &mut |_| {});
     }
 
     /// Set the feed override (see [`Driver::set_feed_override`]); the speed
@@ -1091,8 +1162,8 @@ impl<const Q: usize> Interpolator<Q> {
             .set_feed_override_into(&mut self.exec, value, &mut |_| {})
     }
 
-    /// Arc length at which the machine would come to rest if a feed hold
-    /// were given now (the run's arc length, mm).
+    /// Arc length at which a feed hold comes to rest (see
+    /// [`Executor::hold_stop_position`]).
     pub fn hold_stop_position(&self) -> f64 {
         self.exec.hold_stop_position()
     }

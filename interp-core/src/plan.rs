@@ -417,6 +417,14 @@ pub struct PlanTotals {
     pub ungraded: u64,
     /// The last solver failure (a fallback or crawl followed).
     pub last_failure: Option<LpError>,
+    /// Feed holds planned through the look-ahead (`BlockPlanner::hold`).
+    pub holds: u64,
+    /// Of those, holds that braked more gently than the tangential limits
+    /// allow (the linear program could not follow the fastest stop).
+    pub holds_softened: u64,
+    /// Holds the linear program could not plan at any softening: the
+    /// executor's closed-form stop ran.
+    pub holds_unplanned: u64,
 }
 
 impl PlanTotals {
@@ -1960,6 +1968,36 @@ impl Window {
             }
         };
         self.data.drop_before(x.min(keep_from));
+    }
+
+    /// Add a rest point at `x` among those held (in order), where a feed
+    /// hold's plan is to come to rest ([`crate::BlockPlanner::hold`]).
+    /// False when full.
+    pub fn insert_rest_point(&mut self, x: f64) -> bool {
+        self.insert_stop(x)
+    }
+
+    /// Forget the rest point at `x` (one a hold's plan could not reach).
+    pub fn remove_rest_point(&mut self, x: f64) {
+        let d = &mut self.data;
+        let k = d.rests().partition_point(|&s| s < x);
+        if k < d.n_stops && d.stops[k] == x {
+            d.stops.copy_within(k + 1..d.n_stops, k);
+            d.n_stops -= 1;
+        }
+    }
+
+    /// The first rest point of the plan at or after `x`: a held one, or the
+    /// plan's end (where it rests), mm.
+    pub fn next_rest(&self, x: f64) -> f64 {
+        let d = &self.data;
+        let end = if d.n_pieces == 0 {
+            d.origin
+        } else {
+            d.pieces[d.n_pieces - 1].x1
+        };
+        let k = d.rests().partition_point(|&s| s < x);
+        d.rests().get(k).map_or(end, |&s| s.min(end))
     }
 
     /// Insert a rest point at `x` (in order).

@@ -106,6 +106,10 @@ pub struct PlannedBlock {
     /// The program ends with this plan: reaching the end of the queue then
     /// means `Done` ([`crate::driver::Driver::finish`]).
     pub(crate) finish: bool,
+    /// A feed hold's plan ([`BlockPlanner::hold`]): the executor leaves the
+    /// closed-form stop it began for the hold (if it has not moved on it)
+    /// and follows this plan to its rest point.
+    pub(crate) hold: bool,
 }
 
 impl Default for PlannedBlock {
@@ -133,6 +137,7 @@ impl PlannedBlock {
             rests: [false; WINDOW],
             n_pieces: 0,
             finish: false,
+            hold: false,
         }
     }
     /// Id of the planned block (0: a re-plan of the speed only).
@@ -371,6 +376,7 @@ impl BlockPlanner {
         out.n_segments = 0;
         out.stop_at_join = false;
         out.n_pieces = 0;
+        out.hold = false;
     }
 
     /// Plan `block` (or, if it is longer than a part, its first part) into
@@ -506,6 +512,74 @@ impl BlockPlanner {
                 break;
             }
         }
+        r
+    }
+
+    /// Plan a feed hold from where the machine may be (see
+    /// [`Self::set_machine`]): the speed comes to rest at a new rest point,
+    /// planned with every row of the look-ahead, the per-axis jerk ones
+    /// included. (The executor's closed-form stop brakes with the
+    /// tangential limits alone: on a tight turn where an axis's jerk binds
+    /// at a steady speed, braking adds to it and passes its limit.) The
+    /// rest point is where the tangential stop from the state at the end of
+    /// the kept freeze piece ends, braking more gently (the hold takes a
+    /// little longer) where the linear program cannot follow that stop. The
+    /// plan past it starts from rest there: a resume goes on from it, as
+    /// from a corner. No segments.
+    ///
+    /// Returns where the machine will rest. `out` has no pieces when it
+    /// rests already, or its plan rests before a hold could stop it (at a
+    /// corner, or at the plan's end: it holds there). On error nothing
+    /// changed: the executor's closed-form stop stays.
+    pub fn hold(&mut self, out: &mut PlannedBlock) -> Result<f64, PushError> {
+        self.speed_only(out);
+        let freeze = self.window.freeze_after(self.machine, self.machine_at_rest);
+        let f = match freeze {
+            Freeze::At(f) => f,
+            Freeze::Rest(x) => {
+                out.hold = true;
+                return Ok(if self.machine_at_rest {
+                    self.machine
+                } else {
+                    x
+                });
+            }
+        };
+        let p = self.window.piece(f);
+        // As for a lowered override (see `replan`): from the fastest and most
+        // accelerating state the kept piece allows at its end.
+        let v0 = libm::sqrt(p.e0.max(p.d).max(p.e1).max(0.0));
+        let a0 = p.accel_max().max(0.0);
+        let (a, j) = (self.cfg.planned_accel(), self.cfg.planned_jerk());
+        let end = self.planned_to;
+        let mut r = Err(PushError::Schedule);
+        for (k, gentle) in LIFT_SOFTENING.into_iter().enumerate() {
+            let stop = Stop::new(v0, a0, (a * gentle).max(a0), j * gentle);
+            let x = p.x1() + stop.distance();
+            let rest = self.window.next_rest(self.machine);
+            if x >= rest {
+                self.window.totals.holds += 1;
+                out.hold = true;
+                return Ok(rest);
+            }
+            if !self.window.insert_rest_point(x) {
+                return Err(PushError::ProfileFull);
+            }
+            r = self.solve_into(freeze, end, None, false, out).map(|()| x);
+            if r.is_ok() {
+                self.window.totals.holds += 1;
+                self.window.totals.holds_softened += u64::from(k > 0);
+                break;
+            }
+            self.window.remove_rest_point(x);
+            if !matches!(r, Err(PushError::Schedule)) {
+                break;
+            }
+        }
+        if r.is_err() {
+            self.window.totals.holds_unplanned += 1;
+        }
+        out.hold = r.is_ok();
         r
     }
 

@@ -37,7 +37,7 @@ use interp_core::interp::{DEFAULT_QUEUE, OverrideError, PushError, Stats};
 use interp_core::{Block, Driver, Executor, InterpConfig, PlannedBlock, RunState, Setpoint, Vec3};
 
 /// What the planning side gives an executor before a tick.
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub enum Op {
     /// [`Executor::commit`]: a plan the driver made.
     Commit(Box<PlannedBlock>),
@@ -65,7 +65,7 @@ impl Op {
 }
 
 /// An [`Op`] and the tick it precedes.
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub struct Step {
     /// Ticks the executor has done when it is given this step.
     pub at: u64,
@@ -101,7 +101,9 @@ pub enum Pushed {
 
 /// The planning side: an [`Executor`] and the [`Driver`] that plans for it
 /// (see the crate docs). About 3 MiB with the default queue: boxed inside.
-#[derive(Debug)]
+/// A clone goes on exactly as the original would (to try what an operator's
+/// command would do at this tick).
+#[derive(Clone, Debug)]
 pub struct Run<const Q: usize = DEFAULT_QUEUE> {
     exec: Box<Executor<Q>>,
     driver: Box<Driver>,
@@ -224,10 +226,11 @@ impl<const Q: usize> Run<Q> {
         self.planning(|d, e, sink| d.finish_into(e, sink));
     }
 
-    /// Feed hold (see [`Executor::feed_hold`]).
+    /// Feed hold, planned through the look-ahead (see
+    /// [`Driver::feed_hold_into`]).
     pub fn feed_hold(&mut self) {
         self.record(Op::Hold);
-        self.exec.feed_hold();
+        self.planning(|d, e, sink| d.feed_hold_into(e, sink));
     }
 
     /// Leaves a feed hold: once at rest, the speed is planned again from there.
@@ -237,11 +240,11 @@ impl<const Q: usize> Run<Q> {
         self.planning(|d, e, sink| d.drive(e, sink));
     }
 
-    /// Abort (see [`Executor::abort`]); the driver follows once the machine
-    /// is idle.
+    /// Abort, planned through the look-ahead (see [`Driver::abort_into`]);
+    /// the driver follows once the machine is idle.
     pub fn abort(&mut self) {
         self.record(Op::Abort);
-        self.exec.abort();
+        self.planning(|d, e, sink| d.abort_into(e, sink));
     }
 
     /// Sets the feed override (see [`Driver::set_feed_override_into`]).
@@ -570,7 +573,8 @@ mod tests {
         for b in &blocks[..3] {
             run.push(b).unwrap();
         }
-        for t in 0..400 {
+        // (The abort brakes from about 100 mm/s: 0.1 s and more.)
+        for t in 0..500 {
             match t {
                 50 => run.feed_hold(),
                 150 => run.resume(),

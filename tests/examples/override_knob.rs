@@ -16,8 +16,10 @@
 //! the knob turned and at 100 %, the turns, the look-ahead's solves, its
 //! retries (solves tried again with other rows) and the stops it added (a
 //! rest kept at the old end of the queue, or a crawl: a stop the program
-//! does not ask for), the checks that failed, and the largest path or
-//! axis jerk as a share of its limit.
+//! does not ask for), the checks that failed, the largest path or axis
+//! jerk as a share of its limit, and the feed holds the look-ahead planned,
+//! those of them braking more gently than the tangential limits allow, and
+//! those it could not plan (the closed-form stop ran).
 
 use std::path::PathBuf;
 
@@ -55,7 +57,7 @@ fn main() {
     let ticks = |ms: f64| (ms * 1e-3 / cfg.period).round() as u64;
     let (every, hold_every, resume_after) = (ticks(every), ticks(hold_every), ticks(60.0));
     println!(
-        "program | knob s | 100 % s | turns | solves | retries | added stops | failed checks | jerk use"
+        "program | knob s | 100 % s | turns | solves | retries | added stops | failed checks | jerk use | holds | softened | unplanned"
     );
     for file in &args {
         let blocks = match load_program(&PathBuf::from(file), feed, g64) {
@@ -101,15 +103,19 @@ fn main() {
                 let name = name
                     .file_name()
                     .map_or(file.clone(), |n| n.to_string_lossy().into());
+                let t = run.plan;
                 println!(
-                    "{name} | {:.3} | {:.3} | {done} | {} | {} | {} | {} | {:.3}",
+                    "{name} | {:.3} | {:.3} | {done} | {} | {} | {} | {} | {:.3} | {} | {} | {}",
                     run.time,
                     plain.time,
-                    run.plan.solves,
-                    run.plan.retries(),
-                    run.plan.added_stops(),
+                    t.solves,
+                    t.retries(),
+                    t.added_stops(),
                     run.violations.total(),
-                    run.jerk_use(&cfg)
+                    run.jerk_use(&cfg),
+                    t.holds,
+                    t.holds_softened,
+                    t.holds_unplanned,
                 );
             }
             Err(e) => eprintln!("{file}: {e}"),

@@ -128,10 +128,15 @@ pub struct InterpolatedRun {
 impl InterpolatedRun {
     /// The largest path or axis jerk measured, as a share of its limit.
     pub fn jerk_use(&self, cfg: &InterpConfig) -> f64 {
-        (0..3)
-            .map(|i| self.measured.axis_jerk_mm_s3[i] / cfg.axis_max_jerk[i])
-            .fold(self.measured.path_jerk_mm_s3 / cfg.max_path_jerk, f64::max)
+        jerk_use(&self.measured, cfg)
     }
+}
+
+/// The largest path or axis jerk in `m`, as a share of its limit.
+pub fn jerk_use(m: &Measured, cfg: &InterpConfig) -> f64 {
+    (0..3)
+        .map(|i| m.axis_jerk_mm_s3[i] / cfg.axis_max_jerk[i])
+        .fold(m.path_jerk_mm_s3 / cfg.max_path_jerk, f64::max)
 }
 
 /// [`interpolated_time`] with the setpoints checked and, with `keep`, kept.
@@ -189,6 +194,106 @@ pub fn interpolated_run_with_overrides(
         .collect();
     interpolated_run_with_commands(blocks, cfg, &commands)
 }
+
+/// One abort of [`abort_scan`]: the tick it was given before, what its
+/// stop measured (the run up to it included), the checks that failed.
+#[derive(Clone, Copy, Debug)]
+pub struct AbortTried {
+    /// Ticks done when the abort was given.
+    pub at: u64,
+    /// Ticks from the abort to idle.
+    pub ticks: u64,
+    /// The largest jerks and accelerations of the run to idle.
+    pub measured: Measured,
+    /// Its failed checks (not counting "not done": it was aborted).
+    pub violations: Violations,
+    /// What the look-ahead's solves did, the abort's included.
+    pub plan: PlanTotals,
+}
+
+/// The program run to its end, and an abort given to a copy of the run
+/// before every `every`-th tick (each braked to idle on its own, every
+/// setpoint checked): an abort's stop at every stage of the program.
+pub fn abort_scan(
+    blocks: &[Block],
+    cfg: &InterpConfig,
+    every: u64,
+) -> Result<Vec<AbortTried>, String> {
+    let (blocks, cfg) = (blocks.to_vec(), *cfg);
+    // (A copy of the run takes another interpolator's stack.)
+    std::thread::Builder::new()
+        .stack_size(4 * INTERPOLATOR_STACK)
+        .spawn(move || abort_scan_here(&blocks, &cfg, every))
+        .map_err(|e| e.to_string())?
+        .join()
+        .map_err(|_| "the scan panicked".to_string())?
+}
+
+fn abort_scan_here(
+    blocks: &[Block],
+    cfg: &InterpConfig,
+    every: u64,
+) -> Result<Vec<AbortTried>, String> {
+    let p = blocks[0].path.start_point();
+    let mut run: Run<1024> =
+        Run::new(*cfg, [p.x, p.y, p.z, 0.0, 0.0, 0.0]).map_err(|e| format!("{e:?}"))?;
+    let fastest = blocks.iter().map(|b| b.feed).fold(0.0, f64::max);
+    let mut check = Checker::new(cfg.period, Limits::new(cfg, fastest), [p.x, p.y, p.z]);
+    let (mut next, mut tried) = (0, Vec::new());
+    loop {
+        while next < blocks.len() {
+            match run.push(&blocks[next]) {
+                Ok(()) => next += 1,
+                Err(e) if e.is_wait() => break,
+                Err(e) => return Err(format!("block {next}: {e}")),
+            }
+        }
+        if next == blocks.len() {
+            run.finish();
+        }
+        let at = run.ticks();
+        if at % every == every - 1 {
+            let (mut a, mut c) = (run.clone(), check.clone());
+            a.abort();
+            let mut last = a.tick();
+            c.check(&last);
+            while last.state != RunState::Idle {
+                if a.ticks() > at + MAX_STOP_TICKS {
+                    return Err(format!("the abort before tick {at} never came to rest"));
+                }
+                last = a.tick();
+                c.check(&last);
+            }
+            // Idle, it stays where it stopped.
+            let after = a.tick();
+            c.check(&after);
+            if (after.feed, after.axes) != (0.0, last.axes) {
+                return Err(format!("moved after the abort before tick {at}"));
+            }
+            tried.push(AbortTried {
+                at,
+                ticks: a.ticks() - at,
+                measured: c.measured,
+                violations: Violations {
+                    not_done: 0,
+                    ..c.finish(None)
+                },
+                plan: a.driver_mut().window_mut().totals,
+            });
+        }
+        let sp = run.tick();
+        check.check(&sp);
+        match sp.state {
+            RunState::Done => return Ok(tried),
+            RunState::Fault => return Err(format!("faulted at tick {at}")),
+            _ if at > MAX_TICKS => return Err("the run did not end".into()),
+            _ => {}
+        }
+    }
+}
+
+/// An abort's stop is abandoned after this many ticks.
+const MAX_STOP_TICKS: u64 = 100_000;
 
 /// [`interpolated_run`] with an operator's commands: each given before its
 /// tick `at`, for each `(at, command)` (in order).

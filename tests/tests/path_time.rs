@@ -7,9 +7,9 @@ use interp_core::path::{Block, Path};
 use interp_core::samples::butterfly;
 use interp_core::{InterpConfig, nurbs::split_program_curve};
 use interpd_tests::path_time::{
-    OVERRIDE_KNOB, PathTimes, accel_only_optimum, first_curve, interpolated_run,
-    interpolated_run_with_overrides, jerk_aware_bound, load_program, path_times, rest_to_rest,
-    step_cap,
+    Command, OVERRIDE_KNOB, PathTimes, abort_scan, accel_only_optimum, first_curve,
+    interpolated_run, interpolated_run_with_commands, interpolated_run_with_overrides,
+    jerk_aware_bound, load_program, path_times, rest_to_rest, step_cap,
 };
 
 /// The target: total path time ≤ 1.10 × the acceleration-only optimum.
@@ -379,5 +379,67 @@ fn turning_the_override_knob_never_stops_the_machine() {
             "{program}: the knob was turned over 50 times in {} s",
             run.time
         );
+    }
+}
+
+/// A feed hold brakes within every limit, an axis's jerk included: on the
+/// gear's tight teeth at F6000 an axis's jerk binds at a steady speed, and
+/// the closed-form tangential stop passed it (1.44× with a hold every 97
+/// ms); the hold is planned through the look-ahead now.
+#[test]
+fn a_feed_hold_on_a_tight_turn_keeps_every_axis_jerk_limit() {
+    let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../gcode/tests/programs/ruota_dentata-q1.ngc");
+    let blocks = load_program(&file, Some(6000.0), None).unwrap();
+    let cfg = InterpConfig::default();
+    // A hold every 97 ms to the end, each resumed 60 ms later.
+    let commands: Vec<(u64, Command)> = (1..=300u64)
+        .flat_map(|k| [(97 * k, Command::Hold), (97 * k + 60, Command::Resume)])
+        .collect();
+    let plain = interpolated_run(&blocks, &cfg, false).unwrap();
+    let run = interpolated_run_with_commands(&blocks, &cfg, &commands).unwrap();
+    eprintln!(
+        "ruota_dentata-q1 F6000, a hold every 97 ms: {:.3} s (without {:.3} s), jerk use {:.3}, {:?}",
+        run.time,
+        plain.time,
+        run.jerk_use(&cfg),
+        run.plan
+    );
+    assert_eq!(
+        run.violations.total(),
+        0,
+        "{:?} {:?}",
+        run.violations,
+        run.measured
+    );
+    assert_eq!(run.plan.added_stops(), 0, "{:?}", run.plan);
+    // The holds came to rest and waited: 60 ms each, less for a hold
+    // given while the machine still brakes for the last one.
+    let holds = commands
+        .iter()
+        .filter(|(at, c)| matches!(c, Command::Hold) && *at as f64 * cfg.period < run.time)
+        .count();
+    assert!(
+        run.time > plain.time + 0.75 * holds as f64 * 0.060,
+        "{} s against {} s without holds",
+        run.time,
+        plain.time
+    );
+}
+
+/// An abort brakes within every limit too: an abort every 149 ms through
+/// the gear at F6000, each on a copy of the run. The closed-form stop
+/// passed an axis's jerk limit (first before tick 2383); the abort is
+/// planned as a hold now, and the queue flushed at its rest.
+#[test]
+fn an_abort_on_a_tight_turn_keeps_every_axis_jerk_limit() {
+    let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../gcode/tests/programs/ruota_dentata-q1.ngc");
+    let blocks = load_program(&file, Some(6000.0), None).unwrap();
+    let cfg = InterpConfig::default();
+    let tried = abort_scan(&blocks, &cfg, 149).unwrap();
+    assert!(tried.len() > 60, "{} aborts tried", tried.len());
+    for a in &tried {
+        assert_eq!(a.violations.total(), 0, "{a:?}");
     }
 }

@@ -1,0 +1,68 @@
+//! An abort at every stage of a program: the program runs to its end (as
+//! the drivers run it: the `G64 P` stage, then the interpolator), and
+//! before every `--every`-th tick (default 7) a copy of the run is aborted
+//! and braked to idle, every setpoint checked against every limit.
+//!
+//! ```text
+//! cargo run --release -p interpd-tests --example abort_scan -- [--feed MM_PER_MIN] [--every TICKS] FILE.ngc...
+//! ```
+//!
+//! Prints per program: the aborts tried, those with a failed check, the
+//! largest path or axis jerk over all the stops as a share of its limit
+//! (and the tick of the abort it came with), and the longest stop in ticks.
+
+use std::path::PathBuf;
+
+use interp_core::InterpConfig;
+use interp_core::smooth::Policy;
+use interpd_tests::path_time::{abort_scan, jerk_use, load_program, smoothed};
+
+fn main() {
+    let mut args: Vec<String> = std::env::args().skip(1).collect();
+    let mut flag = |name: &str| -> Option<f64> {
+        let i = args.iter().position(|a| a == name)?;
+        let v = args.get(i + 1).and_then(|v| v.parse().ok());
+        args.drain(i..(i + 2).min(args.len()));
+        v
+    };
+    let feed = flag("--feed");
+    let every = flag("--every").unwrap_or(7.0);
+    assert!(
+        every >= 1.0 && every.fract() == 0.0,
+        "--every: a whole number of ticks, at least 1"
+    );
+    let cfg = InterpConfig::default();
+    println!("program | aborts | failed | jerk use | at tick | longest stop (ticks)");
+    for file in &args {
+        let blocks = match load_program(&PathBuf::from(file), feed, None) {
+            Ok(b) => b,
+            Err(e) => {
+                eprintln!("{e}");
+                continue;
+            }
+        };
+        // (As the drivers run it: the `G64 P` stage first.)
+        let (blocks, _) = smoothed(&blocks, &cfg, Policy::Auto);
+        match abort_scan(&blocks, &cfg, every as u64) {
+            Ok(tried) => {
+                let worst = tried
+                    .iter()
+                    .map(|a| (jerk_use(&a.measured, &cfg), a.at))
+                    .fold((0.0, 0), |m, x| if x.0 > m.0 { x } else { m });
+                let name = PathBuf::from(file);
+                let name = name
+                    .file_name()
+                    .map_or(file.clone(), |n| n.to_string_lossy().into());
+                println!(
+                    "{name} | {} | {} | {:.3} | {} | {}",
+                    tried.len(),
+                    tried.iter().filter(|a| a.violations.total() > 0).count(),
+                    worst.0,
+                    worst.1,
+                    tried.iter().map(|a| a.ticks).max().unwrap_or(0)
+                );
+            }
+            Err(e) => eprintln!("{file}: {e}"),
+        }
+    }
+}
