@@ -767,15 +767,11 @@ impl<const Q: usize> Executor<Q> {
                 return p.x0 + self.x;
             }
         }
-        if (self.hold || self.abort)
-            && self.x == 0.0
-            && self.v == 0.0
-            && self.len > 0
-            && self.rest[self.head]
-        {
-            // Held at a rest point of the plan (where a hold's plan brought
-            // the machine, or before it starts): stay until resumed.
-            return self.ring[self.head].x0;
+        if (self.hold || self.abort) && self.resting_on_plan() {
+            // Held where the plan rests (where a hold's plan brought the
+            // machine, before it starts, or with no plan yet): stay until
+            // resumed.
+            return self.current().map_or(self.s, |p| p.x0 + self.x);
         }
         loop {
             let Some(p) = self.current().copied() else {

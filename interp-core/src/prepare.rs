@@ -490,17 +490,9 @@ impl BlockPlanner {
         // linear program cannot, brake more gently (the override takes a
         // little longer to take effect) rather than keep the old plan.
         let p = self.window.piece(f);
-        let v0 = libm::sqrt(p.e0.max(p.d).max(p.e1).max(0.0));
-        let a0 = p.accel_max().max(0.0);
-        let (a, j) = (self.cfg.planned_accel(), self.cfg.planned_jerk());
         let mut r = Ok(());
         for (k, gentle) in LIFT_SOFTENING.iter().enumerate() {
-            // (Gentler in jerk, but from the acceleration the machine has:
-            // clamped to a softened limit, the curve's speed rose less than
-            // the machine's must while its acceleration ramps down, and
-            // every level failed to a crawl when the override fell as the
-            // machine accelerated.)
-            let stop = Stop::new(v0, a0, (a * gentle).max(a0), j * gentle);
+            let stop = self.braking(&p, *gentle);
             let last = k + 1 == LIFT_SOFTENING.len();
             let lift = Lift {
                 at: p.x1(),
@@ -513,6 +505,21 @@ impl BlockPlanner {
             }
         }
         r
+    }
+
+    /// The braking from the end of the kept freeze piece `p`, from the
+    /// fastest and most accelerating state `p` allows there (the knot's
+    /// value also depends on the next unknown), with the planned jerk and
+    /// acceleration times `gentle`: gentler in jerk, but from the
+    /// acceleration the machine has (clamped to a softened limit, the
+    /// curve's speed rose less than the machine's must while its
+    /// acceleration ramps down, and every level failed to a crawl when the
+    /// override fell as the machine accelerated).
+    fn braking(&self, p: &Piece, gentle: f64) -> Stop {
+        let v0 = libm::sqrt(p.e0.max(p.d).max(p.e1).max(0.0));
+        let a0 = p.accel_max().max(0.0);
+        let (a, j) = (self.cfg.planned_accel(), self.cfg.planned_jerk());
+        Stop::new(v0, a0, (a * gentle).max(a0), j * gentle)
     }
 
     /// Plan a feed hold from where the machine may be (see
@@ -546,17 +553,11 @@ impl BlockPlanner {
             }
         };
         let p = self.window.piece(f);
-        // As for a lowered override (see `replan`): from the fastest and most
-        // accelerating state the kept piece allows at its end.
-        let v0 = libm::sqrt(p.e0.max(p.d).max(p.e1).max(0.0));
-        let a0 = p.accel_max().max(0.0);
-        let (a, j) = (self.cfg.planned_accel(), self.cfg.planned_jerk());
         let end = self.planned_to;
+        let rest = self.window.next_rest(self.machine);
         let mut r = Err(PushError::Schedule);
         for (k, gentle) in LIFT_SOFTENING.into_iter().enumerate() {
-            let stop = Stop::new(v0, a0, (a * gentle).max(a0), j * gentle);
-            let x = p.x1() + stop.distance();
-            let rest = self.window.next_rest(self.machine);
+            let x = p.x1() + self.braking(&p, gentle).distance();
             if x >= rest {
                 self.window.totals.holds += 1;
                 out.hold = true;
@@ -1772,7 +1773,8 @@ const STAIR_CHECKS: usize = 4;
 const MAX_STAIRS: usize = 16;
 
 /// Braking rates (fractions of the planned acceleration and jerk) a new
-/// override's braking curve is tried with, steepest first. Down to 1 %: in
+/// override's braking curve, and a feed hold's stop, are tried with,
+/// steepest first. Down to 1 %: in
 /// a tight turn whose axes' jerk binds at a steady speed the machine cannot
 /// slow down at all, and a braking curve at 10 % still asked it to (the
 /// override at 30 % inside a turn of `trident`, which crawled).
