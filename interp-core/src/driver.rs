@@ -299,6 +299,25 @@ impl Driver {
         if self.in_flight(st) || st.aborting {
             return None;
         }
+        // A hold's plan ends at its rest: nothing is planned while the
+        // machine brakes to it (so the hold's tick plans nothing big), the
+        // rest of the look-ahead once it is there.
+        if let Some(rest) = self.planner.hold_rest() {
+            // (At the plan's end, `x0 + h` may fall an ulp short of it.)
+            let at_end = st.v == 0.0 && st.planned_ahead <= 0.0;
+            if st.plan_position < rest && !at_end {
+                return None;
+            }
+            self.sync(st);
+            self.plan.finish = false;
+            return match self.planner.plan_after_hold(&mut self.plan) {
+                Ok(()) => Some(self.emit()),
+                Err(e) => {
+                    self.last_error = Some(e);
+                    None
+                }
+            };
+        }
         self.plan.finish = false;
         let pending = self.planner.has_pending();
         // Room for the rest of the block's segments (a queue shorter than

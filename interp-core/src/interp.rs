@@ -432,9 +432,10 @@ impl<const Q: usize> Executor<Q> {
     }
 
     /// Leave a feed hold; a hold still braking brakes to rest first. After
-    /// a hold's plan, motion goes on along it from its rest point; after the
-    /// closed-form stop, once a plan from the rest point is committed
-    /// ([`BlockPlanner::replan`] with the machine at rest).
+    /// a hold's plan, motion goes on along the plan made from its rest point
+    /// ([`BlockPlanner::plan_after_hold`]); after the closed-form stop, once
+    /// a plan from the rest point is committed ([`BlockPlanner::replan`]
+    /// with the machine at rest).
     pub fn resume(&mut self) {
         if self.hold && !self.abort {
             self.hold = false;
@@ -792,7 +793,8 @@ impl<const Q: usize> Executor<Q> {
                         // The end of the plan: rest there.
                         self.x = p.h;
                         self.v = 0.0;
-                        if !self.finished {
+                        // (A hold's or abort's plan ends where it rests.)
+                        if !self.finished && !self.hold && !self.abort {
                             self.stats.starved_ticks += 1;
                         }
                         return p.x1();

@@ -194,6 +194,10 @@ pub struct BlockPlanner {
     /// the next block's solve found the kept state above the new feed limit
     /// and failed to a crawl; past that point the new feed holds).
     lift: Option<Lift>,
+    /// A hold's rest, and where the plan ended before the hold's plan ended
+    /// it there ([`Self::hold`]): the rest is planned once the machine is
+    /// there ([`Self::plan_after_hold`]).
+    after_hold: Option<(f64, f64)>,
     /// Where the current plan of the speed ends (a rest point): the end of
     /// the queue once the program is finished, else the last chunk mark the
     /// queue has passed (see [`Self::plan`]).
@@ -239,6 +243,7 @@ impl BlockPlanner {
             machine_at_rest: true,
             ovr: 1.0,
             lift: None,
+            after_hold: None,
             planned_to: tail_s,
             finished: false,
             length_memo: None,
@@ -326,6 +331,7 @@ impl BlockPlanner {
         self.finished = false;
         self.refused = None;
         self.lift = None;
+        self.after_hold = None;
         self.window.reset(tail_s);
         let abc = [
             self.five.joints[3],
@@ -531,8 +537,8 @@ impl BlockPlanner {
     /// rest point is where the tangential stop from the state at the end of
     /// the kept freeze piece ends, braking more gently (the hold takes a
     /// little longer) where the linear program cannot follow that stop. The
-    /// plan past it starts from rest there: a resume goes on from it, as
-    /// from a corner. No segments.
+    /// plan ends there; the next plans (the guard's) start from rest there,
+    /// as from a corner, and a resume goes on along them. No segments.
     ///
     /// Returns where the machine will rest. `out` has no pieces when it
     /// rests already, or its plan rests before a hold could stop it (at a
@@ -553,7 +559,6 @@ impl BlockPlanner {
             }
         };
         let p = self.window.piece(f);
-        let end = self.planned_to;
         let rest = self.window.next_rest(self.machine);
         let mut r = Err(PushError::Schedule);
         for (k, gentle) in LIFT_SOFTENING.into_iter().enumerate() {
@@ -566,8 +571,15 @@ impl BlockPlanner {
             if !self.window.insert_rest_point(x) {
                 return Err(PushError::ProfileFull);
             }
-            r = self.solve_into(freeze, end, None, false, out).map(|()| x);
+            // Solved to the rest point only: a small program (even when
+            // softened, tried up to six times), so a hold is planned within
+            // the service's lead. The rest of the look-ahead is planned once
+            // the machine rests there ([`Self::plan_after_hold`]).
+            r = self.solve_into(freeze, x, None, false, out).map(|()| x);
             if r.is_ok() {
+                let was = self.after_hold.map_or(self.planned_to, |(_, e)| e);
+                self.after_hold = Some((x, was.max(self.planned_to)));
+                self.planned_to = x;
                 self.window.totals.holds += 1;
                 self.window.totals.holds_softened += u64::from(k > 0);
                 break;
@@ -582,6 +594,27 @@ impl BlockPlanner {
         }
         out.hold = r.is_ok();
         r
+    }
+
+    /// Where a hold's plan ended the plan, short of where it ended before
+    /// ([`Self::plan_after_hold`] is due once the machine is there).
+    pub fn hold_rest(&self) -> Option<f64> {
+        self.after_hold.map(|(x, _)| x)
+    }
+
+    /// Plan the speed from a hold's rest point on, to where the plan ended
+    /// before the hold (no pieces when a later plan reached it already).
+    pub fn plan_after_hold(&mut self, out: &mut PlannedBlock) -> Result<(), PushError> {
+        self.speed_only(out);
+        let Some((_, end)) = self.after_hold.take() else {
+            return Ok(());
+        };
+        if end > self.planned_to + SLIVER * self.h {
+            let freeze = self.freeze();
+            self.solve_into(freeze, end, None, true, out)?;
+            self.planned_to = end;
+        }
+        Ok(())
     }
 
     /// The braking curve of the last lowered override while the machine may

@@ -9,7 +9,9 @@
 //!
 //! Prints per program: the aborts tried, those with a failed check, the
 //! largest path or axis jerk over all the stops as a share of its limit
-//! (and the tick of the abort it came with), and the longest stop in ticks.
+//! (and the tick of the abort it came with), the longest stop in ticks, and
+//! the longest an abort took to plan (wall time: in the service it must fit
+//! in the planning thread's lead, 40 ms by default).
 
 use std::path::PathBuf;
 
@@ -32,7 +34,9 @@ fn main() {
         "--every: a whole number of ticks, at least 1"
     );
     let cfg = InterpConfig::default();
-    println!("program | aborts | failed | jerk use | at tick | longest stop (ticks)");
+    println!(
+        "program | aborts | failed | jerk use | at tick | longest stop (ticks) | longest plan ms"
+    );
     for file in &args {
         let blocks = match load_program(&PathBuf::from(file), feed, None) {
             Ok(b) => b,
@@ -54,12 +58,13 @@ fn main() {
                     .file_name()
                     .map_or(file.clone(), |n| n.to_string_lossy().into());
                 println!(
-                    "{name} | {} | {} | {:.3} | {} | {}",
+                    "{name} | {} | {} | {:.3} | {} | {} | {:.1}",
                     tried.len(),
                     tried.iter().filter(|a| a.violations.total() > 0).count(),
                     worst.0,
                     worst.1,
-                    tried.iter().map(|a| a.ticks).max().unwrap_or(0)
+                    tried.iter().map(|a| a.ticks).max().unwrap_or(0),
+                    tried.iter().map(|a| a.planning_s).fold(0.0, f64::max) * 1e3
                 );
             }
             Err(e) => eprintln!("{file}: {e}"),

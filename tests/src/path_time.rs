@@ -123,6 +123,9 @@ pub struct InterpolatedRun {
     pub measured: Measured,
     /// What the look-ahead's solves did (how many failed and fell back).
     pub plan: PlanTotals,
+    /// The longest an operator's command took to plan (wall time, s): in
+    /// the service, what must fit in the planning thread's lead.
+    pub longest_command_s: f64,
 }
 
 impl InterpolatedRun {
@@ -209,6 +212,8 @@ pub struct AbortTried {
     pub violations: Violations,
     /// What the look-ahead's solves did, the abort's included.
     pub plan: PlanTotals,
+    /// The abort's planning (wall time, s).
+    pub planning_s: f64,
 }
 
 /// The program run to its end, and an abort given to a copy of the run
@@ -254,7 +259,9 @@ fn abort_scan_here(
         let at = run.ticks();
         if at % every == every - 1 {
             let (mut a, mut c) = (run.clone(), check.clone());
+            let t0 = std::time::Instant::now();
             a.abort();
+            let planning_s = t0.elapsed().as_secs_f64();
             let mut last = a.tick();
             c.check(&last);
             while last.state != RunState::Idle {
@@ -279,6 +286,7 @@ fn abort_scan_here(
                     ..c.finish(None)
                 },
                 plan: a.driver_mut().window_mut().totals,
+                planning_s,
             });
         }
         let sp = run.tick();
@@ -487,6 +495,7 @@ fn run_to_done(
     let mut check = Checker::new(cfg.period, Limits::new(cfg, fastest), [p.x, p.y, p.z]);
     // Each command before its tick (in order).
     let mut next = 0;
+    let mut longest_command_s: f64 = 0.0;
     let commands = commands.unwrap_or(&[]);
     let end = run
         .run_program_with::<OverrideError>(
@@ -495,11 +504,13 @@ fn run_to_done(
                 while let Some(&(at, command)) = commands.get(next)
                     && at <= run.ticks()
                 {
+                    let t0 = std::time::Instant::now();
                     match command {
                         Command::Override(v) => run.set_feed_override(v)?,
                         Command::Hold => run.feed_hold(),
                         Command::Resume => run.resume(),
                     }
+                    longest_command_s = longest_command_s.max(t0.elapsed().as_secs_f64());
                     next += 1;
                 }
                 Ok(())
@@ -526,6 +537,7 @@ fn run_to_done(
         violations: check.finish(Some([end.x, end.y, end.z])),
         measured: check.measured,
         plan: run.driver_mut().window_mut().totals,
+        longest_command_s,
     })
 }
 
