@@ -950,3 +950,52 @@ fn rows_that_do_not_fit_are_aggregated_on_the_farthest_pieces_only() {
         "{ticks} ticks against {every_row} with every row"
     );
 }
+
+/// A hold given before the program starts holds it at its start until the
+/// resume, and a hold given on the way holds the machine where the hold's
+/// plan rests through a later override (re-planned from the rest point),
+/// until the resume.
+#[test]
+fn a_held_machine_stays_at_rest_until_resumed() {
+    let cfg = InterpConfig::default();
+    let line = Block::new(
+        1,
+        Path::Line(Line::new(Vec3::zeros(), Vec3::new(50.0, 0.0, 0.0)).unwrap()),
+        100.0,
+    );
+    let mut ip = Box::new(Interpolator::<256>::new(cfg, [0.0; 6]).unwrap());
+    ip.feed_hold();
+    ip.push(&line).unwrap();
+    ip.finish();
+    for _ in 0..200 {
+        let sp = ip.tick();
+        assert_eq!((sp.state, sp.feed, sp.s), (RunState::Holding, 0.0, 0.0));
+    }
+    ip.resume();
+    let mut sp = ip.tick();
+    for _ in 0..100 {
+        sp = ip.tick();
+    }
+    assert!(sp.state == RunState::Running && sp.feed > 0.0, "{sp:?}");
+    ip.feed_hold();
+    let rest = ip.hold_stop_position();
+    for _ in 0..300 {
+        sp = ip.tick();
+    }
+    assert_eq!((sp.state, sp.feed), (RunState::Holding, 0.0));
+    assert!((sp.s - rest).abs() < 1e-6, "rests at {} for {rest}", sp.s);
+    ip.set_feed_override(0.5).unwrap();
+    for _ in 0..100 {
+        let held = ip.tick();
+        assert_eq!((held.feed, held.s), (0.0, sp.s));
+    }
+    ip.resume();
+    loop {
+        sp = ip.tick();
+        if sp.state == RunState::Done {
+            break;
+        }
+        assert!(sp.seq < 100_000);
+    }
+    assert_eq!(v3(&sp.axes), Vec3::new(50.0, 0.0, 0.0));
+}
