@@ -176,11 +176,7 @@ impl Driver {
             return Err(PushError::Pending);
         }
         if st.idle_empty {
-            // After an abort the planner starts again where the machine stands.
-            let p = Vec3::new(st.point[0], st.point[1], st.point[2]);
-            if self.planner.tail_s() != st.s || self.planner.tail() != p {
-                self.planner.resync(p, st.s);
-            }
+            self.resync_to(st);
             // The rotary axes stand where the machine has them (at the
             // start, after an abort): the next block's joints start there.
             self.planner.set_rotary(st.rotary);
@@ -200,6 +196,16 @@ impl Driver {
         self.plan.finish = false;
         self.planner.plan(block, &mut self.plan)?;
         Ok(self.emit())
+    }
+
+    /// After an abort (the executor idle with nothing queued), the planner
+    /// starts again where the machine stands: the old queue's long block,
+    /// hold's rest and plans are forgotten.
+    fn resync_to(&mut self, st: &ExecStatus) {
+        let p = Vec3::new(st.point[0], st.point[1], st.point[2]);
+        if self.planner.tail_s() != st.s || self.planner.tail() != p {
+            self.planner.resync(p, st.s);
+        }
     }
 
     /// How many queue segments `block` takes (memoised: a block refused for
@@ -302,6 +308,10 @@ impl Driver {
         // A hold's plan ends at its rest: nothing is planned while the
         // machine brakes to it (so the hold's tick plans nothing big), the
         // rest of the look-ahead once it is there.
+        if st.idle_empty {
+            // After an abort: nothing of the old queue is to be planned.
+            self.resync_to(st);
+        }
         if let Some(rest) = self.planner.hold_rest() {
             // (At the plan's end, `x0 + h` may fall an ulp short of it.)
             let at_end = st.v == 0.0 && st.planned_ahead <= 0.0;

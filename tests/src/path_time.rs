@@ -277,6 +277,11 @@ fn abort_scan_here(
             if (after.feed, after.axes) != (0.0, last.axes) {
                 return Err(format!("moved after the abort before tick {at}"));
             }
+            // (And the planner made nothing the flushed executor refused.)
+            let stale = |r: &Run<1024>| r.executor().stats().stale_plans;
+            if stale(&a) != stale(&run) {
+                return Err(format!("a plan refused after the abort before tick {at}"));
+            }
             tried.push(AbortTried {
                 at,
                 ticks: a.ticks() - at,
