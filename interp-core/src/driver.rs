@@ -142,16 +142,28 @@ impl Driver {
         st.commits < self.emitted
     }
 
-    /// Before each plan: where the machine is. (A plan is a hold's only
-    /// when [`Self::plan_to_rest`] makes it.)
+    /// Before each plan: where the machine is. (A plan is the program's
+    /// end only when the caller marks it so.)
     fn sync(&mut self, st: &ExecStatus) {
         self.planner.set_machine(st.plan_position, st.at_rest);
-        self.plan.hold = false;
+        self.plan.finish = false;
     }
 
     fn emit(&mut self) -> &PlannedBlock {
         self.emitted += 1;
         &self.plan
+    }
+
+    /// The plan just made, to hand out; or, if planning failed, none (the
+    /// error kept as [`Self::last_error`]).
+    fn emit_planned<T>(&mut self, r: Result<T, PushError>) -> Option<&PlannedBlock> {
+        match r {
+            Ok(_) => Some(self.emit()),
+            Err(e) => {
+                self.last_error = Some(e);
+                None
+            }
+        }
     }
 
     /// Plan a block to commit next. All or nothing: on error nothing was
@@ -193,7 +205,6 @@ impl Driver {
             });
         }
         self.sync(st);
-        self.plan.finish = false;
         self.planner.plan(block, &mut self.plan)?;
         Ok(self.emit())
     }
@@ -254,14 +265,8 @@ impl Driver {
             return Ok(None);
         }
         self.sync(st);
-        self.plan.finish = false;
-        match self.planner.replan(value, &mut self.plan) {
-            Ok(()) => Ok(Some(self.emit())),
-            Err(e) => {
-                self.last_error = Some(e);
-                Ok(None)
-            }
-        }
+        let r = self.planner.replan(value, &mut self.plan);
+        Ok(self.emit_planned(r))
     }
 
     /// Plan a feed hold or an abort given to the executor whose status is
@@ -275,14 +280,8 @@ impl Driver {
             return None;
         }
         self.sync(st);
-        self.plan.finish = false;
-        match self.planner.hold(&mut self.plan) {
-            Ok(_) => Some(self.emit()),
-            Err(e) => {
-                self.last_error = Some(e);
-                None
-            }
-        }
+        let r = self.planner.hold(&mut self.plan);
+        self.emit_planned(r)
     }
 
     /// The next plan due on the planning side's own account, if any (call
@@ -305,13 +304,13 @@ impl Driver {
         if self.in_flight(st) || st.aborting {
             return None;
         }
-        // A hold's plan ends at its rest: nothing is planned while the
-        // machine brakes to it (so the hold's tick plans nothing big), the
-        // rest of the look-ahead once it is there.
         if st.idle_empty {
             // After an abort: nothing of the old queue is to be planned.
             self.resync_to(st);
         }
+        // A hold's plan ends at its rest: nothing is planned while the
+        // machine brakes to it (so the hold's tick plans nothing big), the
+        // rest of the look-ahead once it is there.
         if let Some(rest) = self.planner.hold_rest() {
             // (At the plan's end, `x0 + h` may fall an ulp short of it.)
             let at_end = st.v == 0.0 && st.planned_ahead <= 0.0;
@@ -319,16 +318,9 @@ impl Driver {
                 return None;
             }
             self.sync(st);
-            self.plan.finish = false;
-            return match self.planner.plan_after_hold(&mut self.plan) {
-                Ok(()) => Some(self.emit()),
-                Err(e) => {
-                    self.last_error = Some(e);
-                    None
-                }
-            };
+            let r = self.planner.plan_after_hold(&mut self.plan);
+            return self.emit_planned(r);
         }
-        self.plan.finish = false;
         let pending = self.planner.has_pending();
         // Room for the rest of the block's segments (a queue shorter than
         // the most a block can have still takes a line's next part).
@@ -353,25 +345,15 @@ impl Driver {
         // planned again.
         if st.needs_plan {
             self.sync(st);
-            return match self.planner.replan(self.ovr, &mut self.plan) {
-                Ok(()) => Some(self.emit()),
-                Err(e) => {
-                    self.last_error = Some(e);
-                    None
-                }
-            };
+            let r = self.planner.replan(self.ovr, &mut self.plan);
+            return self.emit_planned(r);
         }
         // A crawl, the look-ahead's last resort after a failed solve, is
         // planned again once the machine gets to it.
         if self.planner.take_crawl_retry(st.plan_position) {
             self.sync(st);
-            return match self.planner.replan(self.ovr, &mut self.plan) {
-                Ok(()) => Some(self.emit()),
-                Err(e) => {
-                    self.last_error = Some(e);
-                    None
-                }
-            };
+            let r = self.planner.replan(self.ovr, &mut self.plan);
+            return self.emit_planned(r);
         }
         // The end and the guard wait for the rest of a long block.
         if pending {
@@ -394,13 +376,8 @@ impl Driver {
             && st.planned_ahead < guard_distance(self.planner.config(), st.v)
         {
             self.sync(st);
-            return match self.planner.plan_ahead(&mut self.plan) {
-                Ok(()) => Some(self.emit()),
-                Err(e) => {
-                    self.last_error = Some(e);
-                    None
-                }
-            };
+            let r = self.planner.plan_ahead(&mut self.plan);
+            return self.emit_planned(r);
         }
         None
     }

@@ -772,7 +772,7 @@ impl<const Q: usize> Executor<Q> {
             // Held where the plan rests (where a hold's plan brought the
             // machine, before it starts, or with no plan yet): stay until
             // resumed.
-            return self.current().map_or(self.s, |p| p.x0 + self.x);
+            return self.plan_position().0;
         }
         loop {
             let Some(p) = self.current().copied() else {

@@ -589,6 +589,16 @@ impl Data {
         &self.stops[..self.n_stops]
     }
 
+    /// Where the plan ends (at rest): its last piece's end, or where it
+    /// starts with no piece.
+    fn plan_end(&self) -> f64 {
+        if self.n_pieces == 0 {
+            self.origin
+        } else {
+            self.pieces[self.n_pieces - 1].x1
+        }
+    }
+
     #[inline]
     fn slot(&self, g: i64) -> usize {
         debug_assert!(g >= self.g_base && g < self.g_base + self.n_int as i64);
@@ -1777,14 +1787,7 @@ impl Window {
         self.scratch.backup[..backup_n].copy_from_slice(&self.data.pieces[..backup_n]);
         self.scratch.backup_n = backup_n;
         let backup_prev = self.data.prev;
-        let old_end = {
-            let d = &self.data;
-            if d.n_pieces == 0 {
-                d.origin
-            } else {
-                d.pieces[d.n_pieces - 1].x1
-            }
-        };
+        let old_end = self.data.plan_end();
         let (first, changed, from_x, rest) = match freeze {
             Freeze::At(f) => {
                 // Keep pieces f−1 (as is) and f (its coefficient), and the
@@ -1925,7 +1928,7 @@ impl Window {
                 Err(e @ PlanError::Solver(_)) if !fallback => return Err(e),
                 Err(PlanError::Solver(e)) if !fell_back && old_end > from_x => {
                     self.totals.last_failure = Some(e);
-                    if !self.insert_stop(old_end) {
+                    if !self.insert_rest_point(old_end) {
                         return Err(PlanError::Full);
                     }
                     fell_back = true;
@@ -1970,13 +1973,6 @@ impl Window {
         self.data.drop_before(x.min(keep_from));
     }
 
-    /// Add a rest point at `x` among those held (in order), where a feed
-    /// hold's plan is to come to rest ([`crate::BlockPlanner::hold`]).
-    /// False when full.
-    pub fn insert_rest_point(&mut self, x: f64) -> bool {
-        self.insert_stop(x)
-    }
-
     /// Forget the rest point at `x` (one a hold's plan could not reach).
     pub fn remove_rest_point(&mut self, x: f64) {
         let d = &mut self.data;
@@ -1991,17 +1987,15 @@ impl Window {
     /// plan's end (where it rests), mm.
     pub fn next_rest(&self, x: f64) -> f64 {
         let d = &self.data;
-        let end = if d.n_pieces == 0 {
-            d.origin
-        } else {
-            d.pieces[d.n_pieces - 1].x1
-        };
+        let end = d.plan_end();
         let k = d.rests().partition_point(|&s| s < x);
         d.rests().get(k).map_or(end, |&s| s.min(end))
     }
 
-    /// Insert a rest point at `x` (in order).
-    fn insert_stop(&mut self, x: f64) -> bool {
+    /// Add a rest point at `x` among those held (in order): where the
+    /// current plan ends, kept on a failed solve, or where a feed hold's plan
+    /// is to come to rest ([`crate::BlockPlanner::hold`]). False when full.
+    pub fn insert_rest_point(&mut self, x: f64) -> bool {
         let d = &mut self.data;
         let k = d.rests().partition_point(|&s| s < x);
         if k < d.n_stops && d.stops[k] == x {

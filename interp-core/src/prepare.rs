@@ -768,6 +768,7 @@ impl BlockPlanner {
         out.id = block.id;
         out.tail = self.tail;
         out.s0 = self.tail_s;
+        out.hold = false;
         self.window.extend_to(g_last);
         // The junction with what is queued before.
         out.stop_at_join = false;
