@@ -17,16 +17,12 @@ use std::path::PathBuf;
 
 use interp_core::InterpConfig;
 use interp_core::smooth::Policy;
+use interpd_tests::cli::take_number;
 use interpd_tests::path_time::{abort_scan, jerk_use, load_program, smoothed};
 
 fn main() {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
-    let mut flag = |name: &str| -> Option<f64> {
-        let i = args.iter().position(|a| a == name)?;
-        let v = args.get(i + 1).and_then(|v| v.parse().ok());
-        args.drain(i..(i + 2).min(args.len()));
-        v
-    };
+    let mut flag = |name: &str| take_number(&mut args, name);
     let feed = flag("--feed");
     let every = flag("--every").unwrap_or(7.0);
     assert!(

@@ -27,6 +27,7 @@ use std::path::PathBuf;
 
 use interp_core::InterpConfig;
 use interp_core::smooth::Policy;
+use interpd_tests::cli::take_number;
 use interpd_tests::path_time::{
     Command, OVERRIDE_KNOB, interpolated_run, interpolated_run_with_commands, load_program,
     smoothed,
@@ -34,15 +35,7 @@ use interpd_tests::path_time::{
 
 fn main() {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
-    let mut flag = |name: &str| {
-        let i = args.iter().position(|a| a == name)?;
-        let v = args
-            .get(i + 1)
-            .and_then(|v| v.parse::<f64>().ok())
-            .unwrap_or_else(|| panic!("{name} takes a number"));
-        args.drain(i..=i + 1);
-        Some(v)
-    };
+    let mut flag = |name: &str| take_number(&mut args, name);
     let feed = flag("--feed");
     let g64 = flag("--g64");
     let every = flag("--every").unwrap_or(113.0);

@@ -48,6 +48,7 @@ use std::path::{Path, PathBuf};
 
 use interp_core::InterpConfig;
 use interp_core::smooth::Policy;
+use interpd_tests::cli::take_value;
 use interpd_tests::path_time::{
     BoundTerms, first_curve, jerk_aware_bound_with, load_program, program_run, smoothed,
 };
@@ -76,12 +77,7 @@ fn main() {
         }
         None => false,
     };
-    let mut flag = |name: &str| {
-        let i = args.iter().position(|a| a == name)?;
-        let v = args.get(i + 1).cloned();
-        args.drain(i..(i + 2).min(args.len()));
-        v
-    };
+    let mut flag = |name: &str| take_value(&mut args, name);
     let feed = flag("--feed").and_then(|v| v.parse::<f64>().ok());
     let g64 = flag("--g64").and_then(|v| v.parse::<f64>().ok());
     let policy = match flag("--policy").as_deref() {

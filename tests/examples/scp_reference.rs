@@ -17,6 +17,7 @@ use std::path::PathBuf;
 
 use interp_core::InterpConfig;
 use interp_core::smooth::Policy;
+use interpd_tests::cli::take_value;
 use interpd_tests::path_time::{
     accel_only_optimum, first_curve, interpolated_time, jerk_aware_bound, load_program, smoothed,
 };
@@ -24,12 +25,7 @@ use interpd_tests::scp::scp_reference;
 
 fn main() {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
-    let mut flag = |name: &str| {
-        let i = args.iter().position(|a| a == name)?;
-        let v = args.get(i + 1).cloned();
-        args.drain(i..(i + 2).min(args.len()));
-        v
-    };
+    let mut flag = |name: &str| take_value(&mut args, name);
     let feed = flag("--feed").and_then(|v| v.parse::<f64>().ok());
     let step = flag("--step")
         .and_then(|v| v.parse::<f64>().ok())

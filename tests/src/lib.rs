@@ -6,6 +6,7 @@
 //! (`daemon/tests/`), which builds the binary for them. This library holds
 //! the helpers the tests here share.
 
+pub mod cli;
 pub mod five_axis;
 pub mod path_time;
 pub mod polyline;

@@ -17,6 +17,8 @@
 //! joints. It is a lower bound of any jerk-limited schedule on the same
 //! laws, so `ours / bound` is the part of our time the planner could win.
 
+use std::cell::RefCell;
+
 use interp_core::feed::{ArcLengthDerivs, junction_speed, speed_limit};
 use interp_core::geom::{Curve, Derivs};
 use interp_core::interp::OverrideError;
@@ -240,69 +242,81 @@ fn abort_scan_here(
     every: u64,
 ) -> Result<Vec<AbortTried>, String> {
     let p = blocks[0].path.start_point();
-    let mut run: Run<1024> =
-        Run::new(*cfg, [p.x, p.y, p.z, 0.0, 0.0, 0.0]).map_err(|e| format!("{e:?}"))?;
+    let mut run: Run<1024> = Run::new(*cfg, [p.x, p.y, p.z, 0.0, 0.0, 0.0])
+        .map_err(|e| format!("{e:?}"))?
+        .with_tick_limit(MAX_TICKS);
     let fastest = blocks.iter().map(|b| b.feed).fold(0.0, f64::max);
-    let mut check = Checker::new(cfg.period, Limits::new(cfg, fastest), [p.x, p.y, p.z]);
-    let (mut next, mut tried) = (0, Vec::new());
-    loop {
-        while next < blocks.len() {
-            match run.push(&blocks[next]) {
-                Ok(()) => next += 1,
-                Err(e) if e.is_wait() => break,
-                Err(e) => return Err(format!("block {next}: {e}")),
-            }
-        }
-        if next == blocks.len() {
-            run.finish();
-        }
-        let at = run.ticks();
-        if at % every == every - 1 {
-            let (mut a, mut c) = (run.clone(), check.clone());
-            let t0 = std::time::Instant::now();
-            a.abort();
-            let planning_s = t0.elapsed().as_secs_f64();
-            let mut last = a.tick();
-            c.check(&last);
-            while last.state != RunState::Idle {
-                if a.ticks() > at + MAX_STOP_TICKS {
-                    return Err(format!("the abort before tick {at} never came to rest"));
+    // (The run's checker, copied for each abort.)
+    let check = RefCell::new(Checker::new(
+        cfg.period,
+        Limits::new(cfg, fastest),
+        [p.x, p.y, p.z],
+    ));
+    let mut tried = Vec::new();
+    let end = run
+        .run_program_with::<String>(
+            blocks,
+            |run| {
+                let at = run.ticks();
+                if at % every == every - 1 {
+                    tried.push(abort_copy(run, check.borrow().clone())?);
                 }
-                last = a.tick();
-                c.check(&last);
-            }
-            // Idle, it stays where it stopped.
-            let after = a.tick();
-            c.check(&after);
-            if (after.feed, after.axes) != (0.0, last.axes) {
-                return Err(format!("moved after the abort before tick {at}"));
-            }
-            // (And the planner made nothing the flushed executor refused.)
-            let stale = |r: &Run<1024>| r.executor().stats().stale_plans;
-            if stale(&a) != stale(&run) {
-                return Err(format!("a plan refused after the abort before tick {at}"));
-            }
-            tried.push(AbortTried {
-                at,
-                ticks: a.ticks() - at,
-                measured: c.measured,
-                violations: Violations {
-                    not_done: 0,
-                    ..c.finish(None)
-                },
-                plan: a.driver_mut().window_mut().totals,
-                planning_s,
-            });
-        }
-        let sp = run.tick();
-        check.check(&sp);
-        match sp.state {
-            RunState::Done => return Ok(tried),
-            RunState::Fault => return Err(format!("faulted at tick {at}")),
-            _ if at > MAX_TICKS => return Err("the run did not end".into()),
-            _ => {}
-        }
+                Ok(())
+            },
+            |sp, _| {
+                check.borrow_mut().check(sp);
+                Ok(())
+            },
+        )
+        .map_err(|(k, e)| match k {
+            Some(k) => format!("block {k} of {}: {e}", blocks.len()),
+            None => format!("after the last block: {e}"),
+        })?;
+    match end {
+        RunState::Done => Ok(tried),
+        other => Err(format!("the run ended {other:?}")),
     }
+}
+
+/// An abort given to a copy of `run`, braked to idle, every setpoint
+/// checked by `check` (the run's checker so far).
+fn abort_copy(run: &Run<1024>, mut check: Checker) -> Result<AbortTried, String> {
+    let at = run.ticks();
+    let mut a = run.clone();
+    let t0 = std::time::Instant::now();
+    a.abort();
+    let planning_s = t0.elapsed().as_secs_f64();
+    let mut last = a.tick();
+    check.check(&last);
+    while last.state != RunState::Idle {
+        if a.ticks() > at + MAX_STOP_TICKS {
+            return Err(format!("the abort before tick {at} never came to rest"));
+        }
+        last = a.tick();
+        check.check(&last);
+    }
+    // Idle, it stays where it stopped.
+    let after = a.tick();
+    check.check(&after);
+    if (after.feed, after.axes) != (0.0, last.axes) {
+        return Err(format!("moved after the abort before tick {at}"));
+    }
+    // (And the planner made nothing the flushed executor refused.)
+    let stale = |r: &Run<1024>| r.executor().stats().stale_plans;
+    if stale(&a) != stale(run) {
+        return Err(format!("a plan refused after the abort before tick {at}"));
+    }
+    Ok(AbortTried {
+        at,
+        ticks: a.ticks() - at,
+        measured: check.measured,
+        violations: Violations {
+            not_done: 0,
+            ..check.finish(None)
+        },
+        plan: a.driver_mut().window_mut().totals,
+        planning_s,
+    })
 }
 
 /// An abort's stop is abandoned after this many ticks.
