@@ -1069,15 +1069,19 @@ fn sample_laws(
     // Around a curvature peak of radius below the sample spacing, the
     // curvature terms of the axis jerk (`3·C″·v·a`) change over the radius,
     // and a ramp's speed and acceleration over a few µm: per-axis samples
-    // half a radius and a radius each way of the peak at `s_pk` (searched
-    // from `ua` at arc length `xa`). An 8 µm turn at the end of a fitted
-    // piece, sampled at its peak only, reached 1.12× an axis's jerk as the
-    // run stopped there.
+    // every quarter radius up to a radius each way of the peak at `s_pk`
+    // (searched from `ua` at arc length `xa`), a peak of the curvature or
+    // of an axis's `C‴`. An 8 µm turn at the end of a fitted piece, sampled
+    // at its peak only, reached 1.12× an axis's jerk as the run stopped
+    // there; a 13 µm cusp of `homer-q1`, sampled at its axes' `C‴` peaks
+    // only (its curvature's was no sampled minimum of the law), 1.046× as
+    // an abort braked through it: the rows at the samples held, not a knot
+    // of the plan between them, where the path jerk turned.
     let around_peak = |w: &mut Window, xa: f64, ua: f64, s_pk: f64, d_pk: &Derivs| {
         let r = 1.0 / d_pk.curvature();
         let v_pk = law(d_pk, 0).min(law(d_pk, 1));
         if r < 0.5 * hs && r > 2.0 * v_pk * cfg.period {
-            for f in [-1.0, -0.5, 0.5, 1.0] {
+            for f in [-1.0, -0.75, -0.5, -0.25, 0.25, 0.5, 0.75, 1.0] {
                 let st = s_pk + f * r;
                 if st >= xa && st <= seg.s1() {
                     let ut = path.param_at_arc_length(ua, st - xa).clamp(u_lo, u_hi);
@@ -1294,7 +1298,7 @@ fn sample_laws(
             if which == 0 && (term == 0 || term >= 4) {
                 sample(w, s_min, &d_min);
             }
-            if term == 0 {
+            if term == 0 || term >= 4 {
                 around_peak(w, xa, ua, s_min, &d_min);
             }
         }

@@ -18,17 +18,18 @@ use std::path::PathBuf;
 use interp_core::InterpConfig;
 use interp_core::smooth::Policy;
 use interpd_tests::cli::take_number;
-use interpd_tests::path_time::{abort_scan, jerk_use, load_program, smoothed};
+use interpd_tests::path_time::{abort_scan, every, jerk_use, load_program, smoothed};
 
 fn main() {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
     let mut flag = |name: &str| take_number(&mut args, name);
     let feed = flag("--feed");
-    let every = flag("--every").unwrap_or(7.0);
+    let n = flag("--every").unwrap_or(7.0);
     assert!(
-        every >= 1.0 && every.fract() == 0.0,
+        n >= 1.0 && n.fract() == 0.0,
         "--every: a whole number of ticks, at least 1"
     );
+    let n = n as u64;
     let cfg = InterpConfig::default();
     println!(
         "program | aborts | failed | jerk use | at tick | longest stop (ticks) | longest plan ms"
@@ -43,7 +44,7 @@ fn main() {
         };
         // (As the drivers run it: the `G64 P` stage first.)
         let (blocks, _) = smoothed(&blocks, &cfg, Policy::Auto);
-        match abort_scan(&blocks, &cfg, every as u64) {
+        match abort_scan(&blocks, &cfg, every(n)) {
             Ok(tried) => {
                 let worst = tried
                     .iter()

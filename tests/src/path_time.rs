@@ -219,27 +219,33 @@ pub struct AbortTried {
 }
 
 /// The program run to its end, and an abort given to a copy of the run
-/// before every `every`-th tick (each braked to idle on its own, every
-/// setpoint checked): an abort's stop at every stage of the program.
+/// before every tick `at` (ticks done) for which `abort_at(at)` (each
+/// braked to idle on its own, every setpoint checked): an abort's stop at
+/// every stage of the program ([`every`]), or around one place.
 pub fn abort_scan(
     blocks: &[Block],
     cfg: &InterpConfig,
-    every: u64,
+    abort_at: impl Fn(u64) -> bool + Send + 'static,
 ) -> Result<Vec<AbortTried>, String> {
     let (blocks, cfg) = (blocks.to_vec(), *cfg);
     // (A copy of the run takes another interpolator's stack.)
     std::thread::Builder::new()
         .stack_size(4 * INTERPOLATOR_STACK)
-        .spawn(move || abort_scan_here(&blocks, &cfg, every))
+        .spawn(move || abort_scan_here(&blocks, &cfg, abort_at))
         .map_err(|e| e.to_string())?
         .join()
         .map_err(|_| "the scan panicked".to_string())?
 }
 
+/// Every `n`-th tick, for [`abort_scan`]: before ticks `n`, `2n`, …
+pub fn every(n: u64) -> impl Fn(u64) -> bool + Send + 'static {
+    move |at| at % n == n - 1
+}
+
 fn abort_scan_here(
     blocks: &[Block],
     cfg: &InterpConfig,
-    every: u64,
+    abort_at: impl Fn(u64) -> bool,
 ) -> Result<Vec<AbortTried>, String> {
     let p = blocks[0].path.start_point();
     let mut run: Run<1024> = Run::new(*cfg, [p.x, p.y, p.z, 0.0, 0.0, 0.0])
@@ -257,8 +263,7 @@ fn abort_scan_here(
         .run_program_with::<String>(
             blocks,
             |run| {
-                let at = run.ticks();
-                if at % every == every - 1 {
+                if abort_at(run.ticks()) {
                     tried.push(abort_copy(run, check.borrow().clone())?);
                 }
                 Ok(())
