@@ -141,6 +141,9 @@ pub struct LpWork<const N: usize, const M: usize> {
     rscale: [f64; M],
     ru: [Bound; M],
     rl: [Bound; M],
+    /// Each row's value `a·x` at the current iterate (computed once per
+    /// iteration, read by both Newton directions).
+    rv: [f64; M],
     /// Scaled primal and dual residuals and mean complementarity at the last iteration.
     pub residuals: (f64, f64, f64),
 }
@@ -178,6 +181,7 @@ impl<const N: usize, const M: usize> LpWork<N, M> {
             rscale: [1.0; M],
             ru: [b; M],
             rl: [b; M],
+            rv: [0.0; M],
             residuals: (0.0, 0.0, 0.0),
         }
     }
@@ -219,17 +223,17 @@ impl<const N: usize, const M: usize> LpWork<N, M> {
         )
     }
 
-    /// The row value `a·x` of row `r` (scaled units).
+    /// The row value `a·x` of row `r` (scaled units). Every row spans
+    /// three variables (see [`solve_traced`]'s shift), zeros included: a
+    /// zero coefficient adds `±0`, which changes no sum.
     #[inline]
     fn row_value(&self, r: usize) -> f64 {
         let k = self.rk[r] as usize;
-        let a = &self.ra[r];
+        let (a, x) = (&self.ra[r], &self.x[k..k + 3]);
         let mut v = 0.0;
-        for i in 0..3 {
-            if a[i] != 0.0 {
-                v += a[i] * self.x[k + i];
-            }
-        }
+        v += a[0] * x[0];
+        v += a[1] * x[1];
+        v += a[2] * x[2];
         v
     }
 }
@@ -350,6 +354,23 @@ pub fn solve_traced<const N: usize, const M: usize>(
     }
     w.m = mm;
     let m = mm;
+    // Every row spans three variables `k..k + 3` with its zeros, so the
+    // loops over rows need no branch on a coefficient: a row whose last
+    // coefficients are zero and lie past the last variable is moved back
+    // (its nonzero ones lie before `n`). With fewer than three variables
+    // the span reaches past them: those slots are held at zero.
+    const { assert!(N >= 3, "an LpWork holds at least three variables") };
+    for r in 0..m {
+        while w.rk[r] as usize + 2 >= n && w.rk[r] > 0 {
+            let a = w.ra[r];
+            debug_assert_eq!(a[2], 0.0);
+            w.ra[r] = [0.0, a[0], a[1]];
+            w.rk[r] -= 1;
+        }
+    }
+    for j in n..3 {
+        (w.x[j], w.dx[j], w.rd[j], w.rhs[j]) = (0.0, 0.0, 0.0, 0.0);
+    }
     // Start: inside the variable bounds, slacks and duals of unit size.
     for j in 0..n {
         let (lo, hi) = (w.vlo[j], w.vhi[j]);
@@ -427,12 +448,12 @@ pub fn solve_traced<const N: usize, const M: usize>(
         for r in 0..m {
             let k = w.rk[r] as usize;
             let dz = w.ru[r].z - w.rl[r].z;
-            for i in 0..3 {
-                if w.ra[r][i] != 0.0 {
-                    w.rd[k + i] += w.ra[r][i] * dz;
-                }
+            let a = &w.ra[r];
+            for (rd, ai) in w.rd[k..k + 3].iter_mut().zip(a) {
+                *rd += ai * dz;
             }
             let v = w.row_value(r);
+            w.rv[r] = v;
             if w.rhi[r].is_finite() {
                 rp_max = rp_max.max(libm::fabs(v + w.ru[r].s - w.rhi[r]));
                 sz += w.ru[r].s * w.ru[r].z;
@@ -667,20 +688,16 @@ fn normal_matrix<const N: usize, const M: usize>(w: &mut LpWork<N, M>, n: usize,
         if w.rlo[r].is_finite() {
             d += w.rl[r].z / w.rl[r].s;
         }
+        // (The span's zeros add `±0`; past the last variable, slots no
+        // one reads.)
         let k = w.rk[r] as usize;
         let a = w.ra[r];
-        for i in 0..3 {
-            if a[i] == 0.0 {
-                continue;
-            }
-            w.h0[k + i] += d * a[i] * a[i];
-            if i + 1 < 3 && a[i + 1] != 0.0 {
-                w.h1[k + i] += d * a[i] * a[i + 1];
-            }
-            if i + 2 < 3 && a[i + 2] != 0.0 {
-                w.h2[k + i] += d * a[i] * a[i + 2];
-            }
-        }
+        w.h0[k] += d * a[0] * a[0];
+        w.h0[k + 1] += d * a[1] * a[1];
+        w.h0[k + 2] += d * a[2] * a[2];
+        w.h1[k] += d * a[0] * a[1];
+        w.h1[k + 1] += d * a[1] * a[2];
+        w.h2[k] += d * a[0] * a[2];
     }
 }
 
@@ -767,7 +784,7 @@ fn newton_direction<const N: usize, const M: usize>(
     }
     for r in 0..m {
         let mut t = 0.0;
-        let rv = w.row_value(r);
+        let rv = w.rv[r];
         if w.rhi[r].is_finite() {
             let b = &w.ru[r];
             let res = rv + b.s - w.rhi[r];
@@ -779,10 +796,8 @@ fn newton_direction<const N: usize, const M: usize>(
             t += (rc(b) + b.z * res) / b.s;
         }
         let k = w.rk[r] as usize;
-        for i in 0..3 {
-            if w.ra[r][i] != 0.0 {
-                w.rhs[k + i] += w.ra[r][i] * t;
-            }
+        for (rhs, ai) in w.rhs[k..k + 3].iter_mut().zip(&w.ra[r]) {
+            *rhs += ai * t;
         }
     }
     back_substitute(w, n);
@@ -805,13 +820,12 @@ fn newton_direction<const N: usize, const M: usize>(
     }
     for r in 0..m {
         let k = w.rk[r] as usize;
+        let (a, dx) = (&w.ra[r], &w.dx[k..k + 3]);
         let mut adx = 0.0;
-        for i in 0..3 {
-            if w.ra[r][i] != 0.0 {
-                adx += w.ra[r][i] * w.dx[k + i];
-            }
-        }
-        let rv = w.row_value(r);
+        adx += a[0] * dx[0];
+        adx += a[1] * dx[1];
+        adx += a[2] * dx[2];
+        let rv = w.rv[r];
         if w.rhi[r].is_finite() {
             let res = rv + w.ru[r].s - w.rhi[r];
             let c = rc(&w.ru[r]);
@@ -1032,5 +1046,54 @@ mod tests {
             solve(&p, &LpOptions::default(), &mut w, &mut big),
             Err(LpError::Capacity)
         );
+    }
+
+    /// Rows at the last variables (their three-wide span moved back inside
+    /// the problem) and problems of one and two variables (the span's slots
+    /// past them held at zero, whatever the scratch held) solve to their
+    /// optimum.
+    #[test]
+    fn rows_at_the_last_variables_and_tiny_problems_solve() {
+        let mut w: Box<LpWork<8, 8>> = Box::default();
+        for n in 1..=5usize {
+            (w.x, w.dx, w.rd, w.rhs) = ([f64::NAN; 8], [f64::NAN; 8], [f64::NAN; 8], [f64::NAN; 8]);
+            w.clear_rows();
+            // Maximise Σ c·x, x in [0, 10], the last x ≤ 2 and the last two ≤ 7 together.
+            let free = f64::NEG_INFINITY;
+            assert!(w.push_row(Row {
+                k: n as u32 - 1,
+                a: [1.0, 0.0, 0.0],
+                lo: free,
+                hi: 2.0
+            }));
+            if n >= 2 {
+                assert!(w.push_row(Row {
+                    k: n as u32 - 2,
+                    a: [1.0, 1.0, 0.0],
+                    lo: free,
+                    hi: 7.0
+                }));
+            }
+            // (The last one counts twice: one optimum.)
+            let (mut c, lo, hi) = ([1.0; 5], [0.0; 5], [10.0; 5]);
+            c[n - 1] = 2.0;
+            let p = Problem {
+                c: &c[..n],
+                lo: &lo[..n],
+                hi: &hi[..n],
+            };
+            let mut x = [0.0; 5];
+            let st = solve(&p, &LpOptions::default(), &mut w, &mut x[..n]).unwrap();
+            let best = if n == 1 {
+                4.0
+            } else {
+                9.0 + 10.0 * (n - 2) as f64
+            };
+            assert!(
+                (st.objective - best).abs() < 1e-6,
+                "{n} variables: {st:?} {x:?}"
+            );
+            assert!((x[n - 1] - 2.0).abs() < 1e-6, "{n} variables: {x:?}");
+        }
     }
 }
