@@ -63,6 +63,8 @@ pub struct ExecStatus {
     /// A feed hold's or abort's closed-form stop has not moved the machine
     /// yet: a plan to rest may replace it ([`Driver::plan_to_rest`]).
     pub stop_unplanned: bool,
+    /// A feed hold is in force: given and not resumed.
+    pub held: bool,
     /// The program's end was committed.
     pub finished: bool,
     /// An abort is braking.
@@ -310,12 +312,24 @@ impl Driver {
         }
         // A hold's plan ends at its rest: nothing is planned while the
         // machine brakes to it (so the hold's tick plans nothing big), the
-        // rest of the look-ahead once it is there.
+        // rest of the look-ahead once it is there. Resumed while it brakes,
+        // the speed is planned again through the rest point (once).
         if let Some(rest) = self.planner.hold_rest() {
             // (At the plan's end, `x0 + h` may fall an ulp short of it.)
             let at_end = st.v == 0.0 && st.planned_ahead <= 0.0;
             if st.plan_position < rest && !at_end {
-                return None;
+                if st.held {
+                    return None;
+                }
+                self.sync(st);
+                return match self.planner.resume_hold(&mut self.plan) {
+                    Ok(true) => Some(self.emit()),
+                    Ok(false) => None,
+                    Err(e) => {
+                        self.last_error = Some(e);
+                        None
+                    }
+                };
             }
             self.sync(st);
             let r = self.planner.plan_after_hold(&mut self.plan);
@@ -410,8 +424,9 @@ impl Driver {
         self.drive_due(exec, false, sink);
     }
 
-    /// Leave a feed hold in `exec`: once at rest, the speed is planned
-    /// again from there.
+    /// Leave a feed hold in `exec`: the speed is planned again, through the
+    /// hold's rest point while the machine still brakes fast
+    /// ([`BlockPlanner::resume_hold`]), else from where it rests.
     pub fn resume_into<const Q: usize>(&mut self, exec: &mut Executor<Q>, sink: PlanSink<'_>) {
         exec.resume();
         self.drive_due(exec, false, sink);
@@ -495,6 +510,7 @@ impl<const Q: usize> Executor<Q> {
             stopping: self.is_stopping(),
             needs_plan: self.needs_plan(),
             stop_unplanned: self.stop_unplanned(),
+            held: self.is_held(),
             finished: self.is_finished(),
             aborting: self.is_aborting(),
             idle_empty: self.state() == RunState::Idle && self.queued_segments() == 0,

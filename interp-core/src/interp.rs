@@ -431,11 +431,12 @@ impl<const Q: usize> Executor<Q> {
         }
     }
 
-    /// Leave a feed hold; a hold still braking brakes to rest first. After
-    /// a hold's plan, motion goes on along the plan made from its rest point
-    /// ([`BlockPlanner::plan_after_hold`]); after the closed-form stop, once
-    /// a plan from the rest point is committed ([`BlockPlanner::replan`]
-    /// with the machine at rest).
+    /// Leave a feed hold. On a hold's plan, motion goes on along the plan
+    /// made through its rest point while the machine still brakes fast
+    /// ([`BlockPlanner::resume_hold`]), else along the one made from its
+    /// rest point once there ([`BlockPlanner::plan_after_hold`]); after the
+    /// closed-form stop, at rest, once a plan from there is committed
+    /// ([`BlockPlanner::replan`] with the machine at rest).
     pub fn resume(&mut self) {
         if self.hold && !self.abort {
             self.hold = false;
@@ -443,6 +444,12 @@ impl<const Q: usize> Executor<Q> {
                 self.state = RunState::Running;
             }
         }
+    }
+
+    /// A feed hold is in force: given and not resumed (the machine brakes,
+    /// or rests, on it).
+    pub fn is_held(&self) -> bool {
+        self.hold
     }
 
     /// Does the machine wait at rest, off its plan, for a plan from where it

@@ -32,7 +32,7 @@ use crate::plan::{
     AxisSample, CHUNK, Freeze, JumpReserve, Lift, MachinePlace, PlanError, SLIVER, WINDOW, Window,
     index_of, sample_interval,
 };
-use crate::spline::Piece;
+use crate::spline::{Form, Piece};
 use crate::stop::Stop;
 
 /// A piece of a block in the real-time queue.
@@ -196,8 +196,9 @@ pub struct BlockPlanner {
     lift: Option<Lift>,
     /// A hold's rest, and where the plan ended before the hold's plan ended
     /// it there ([`Self::hold`]): the rest is planned once the machine is
-    /// there ([`Self::plan_after_hold`]).
-    after_hold: Option<(f64, f64)>,
+    /// there ([`Self::plan_after_hold`]), or through it when the hold is
+    /// resumed while the machine brakes ([`Self::resume_hold`]).
+    after_hold: Option<AfterHold>,
     /// Where the current plan of the speed ends (a rest point): the end of
     /// the queue once the program is finished, else the last chunk mark the
     /// queue has passed (see [`Self::plan`]).
@@ -577,8 +578,12 @@ impl BlockPlanner {
             // the machine rests there ([`Self::plan_after_hold`]).
             r = self.solve_into(freeze, x, None, false, out).map(|()| x);
             if r.is_ok() {
-                let was = self.after_hold.map_or(self.planned_to, |(_, e)| e);
-                self.after_hold = Some((x, was.max(self.planned_to)));
+                let was = self.after_hold.map_or(self.planned_to, |a| a.end);
+                self.after_hold = Some(AfterHold {
+                    rest: x,
+                    end: was.max(self.planned_to),
+                    resume_tried: false,
+                });
                 self.planned_to = x;
                 self.window.totals.holds += 1;
                 self.window.totals.holds_softened += u64::from(k > 0);
@@ -599,14 +604,70 @@ impl BlockPlanner {
     /// Where a hold's plan ended the plan, short of where it ended before
     /// ([`Self::plan_after_hold`] is due once the machine is there).
     pub fn hold_rest(&self) -> Option<f64> {
-        self.after_hold.map(|(x, _)| x)
+        self.after_hold.map(|a| a.rest)
+    }
+
+    /// A hold whose plan ends at its rest point was resumed while the
+    /// machine brakes to it: the rest point goes, and the speed is planned
+    /// again from the first piece after the machine on (as for a new feed
+    /// override, [`Self::replan`]) through it, to where the plan ended
+    /// before the hold. Tried once per hold: `Ok(false)` when not tried, as
+    /// when the machine brakes too near rest to turn its braking around
+    /// before the rest point (it rests there first, then
+    /// [`Self::plan_after_hold`]). On error nothing changed (it rests there
+    /// too).
+    pub fn resume_hold(&mut self, out: &mut PlannedBlock) -> Result<bool, PushError> {
+        self.speed_only(out);
+        let Some(after) = self.after_hold.filter(|a| !a.resume_tried) else {
+            return Ok(false);
+        };
+        self.after_hold = Some(AfterHold {
+            resume_tried: true,
+            ..after
+        });
+        // Only where the machine can turn its braking around well above
+        // rest, before the rest point: at the end of the kept pieces, the
+        // speed the jerk takes to bring its deceleration to zero is at most
+        // half its speed. (Nearer the rest, the linear program without the
+        // rest point often fails or crawls, and a crawl is slower than the
+        // stop.)
+        let freeze = self.window.freeze_after(self.machine, self.machine_at_rest);
+        let turns = match freeze {
+            Freeze::At(f) => {
+                let p = self.window.piece(f);
+                let (v, a) = (libm::sqrt(p.e1.max(0.0)), p.accel(p.h).min(0.0));
+                p.form == Form::Quadratic
+                    && p.x1() < after.rest
+                    && a * a <= self.cfg.planned_jerk() * v
+            }
+            Freeze::Rest(_) => false,
+        };
+        if !turns {
+            return Ok(false);
+        }
+        let planned_to = self.planned_to;
+        let end = after.end.max(planned_to);
+        self.window.remove_rest_point(after.rest);
+        // (No crawl as a last resort: the hold's stop is the fallback.)
+        match self.solve_into(freeze, end, None, false, out) {
+            Ok(()) => {
+                self.planned_to = end;
+                self.after_hold = None;
+                Ok(true)
+            }
+            Err(e) => {
+                // (Where it was: removed, so there is room.)
+                self.window.insert_rest_point(after.rest);
+                Err(e)
+            }
+        }
     }
 
     /// Plan the speed from a hold's rest point on, to where the plan ended
     /// before the hold (no pieces when a later plan reached it already).
     pub fn plan_after_hold(&mut self, out: &mut PlannedBlock) -> Result<(), PushError> {
         self.speed_only(out);
-        let Some((_, end)) = self.after_hold.take() else {
+        let Some(AfterHold { end, .. }) = self.after_hold.take() else {
             return Ok(());
         };
         if end > self.planned_to + SLIVER * self.h {
@@ -1809,6 +1870,18 @@ const STAIR_EDGE: f64 = 1.01;
 const STAIR_CHECKS: usize = 4;
 /// Sharp dips described by nested spans in one segment, at most.
 const MAX_STAIRS: usize = 16;
+
+/// A hold planned to a rest point short of where the plan ended
+/// ([`BlockPlanner::hold`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct AfterHold {
+    /// Where the hold rests.
+    rest: f64,
+    /// Where the plan ended before the hold.
+    end: f64,
+    /// A resume while braking was planned for ([`BlockPlanner::resume_hold`]).
+    resume_tried: bool,
+}
 
 /// Braking rates (fractions of the planned acceleration and jerk) a new
 /// override's braking curve, and a feed hold's stop, are tried with,

@@ -999,3 +999,52 @@ fn a_held_machine_stays_at_rest_until_resumed() {
     }
     assert_eq!(v3(&sp.axes), Vec3::new(50.0, 0.0, 0.0));
 }
+
+/// A hold resumed while the machine still brakes fast goes on from its
+/// braking, without coming to rest at the hold's point (at `1beb3bf` it
+/// braked to rest there first, then started again): the speed turns above
+/// half of what it was, and every limit holds. Resumed as it nears rest,
+/// it rests first, as before.
+#[test]
+fn a_hold_resumed_while_braking_goes_on_without_resting() {
+    let cfg = InterpConfig::default();
+    let line = Block::new(
+        1,
+        Path::Line(Line::new(Vec3::zeros(), Vec3::new(200.0, 0.0, 0.0)).unwrap()),
+        100.0,
+    );
+    for (resume_after, rests) in [(15, false), (90, true)] {
+        let mut ip = Box::new(Interpolator::<256>::new(cfg, [0.0; 6]).unwrap());
+        ip.push(&line).unwrap();
+        ip.finish();
+        let mut sps: Vec<Setpoint> = (0..1000).map(|_| ip.tick()).collect();
+        let cruise = sps.last().unwrap().feed;
+        assert!(cruise > 99.0, "{cruise} mm/s");
+        ip.feed_hold();
+        sps.extend((0..resume_after).map(|_| ip.tick()));
+        ip.resume();
+        loop {
+            let sp = ip.tick();
+            sps.push(sp);
+            if sp.state == RunState::Done {
+                break;
+            }
+            assert!(sp.seq < 100_000);
+        }
+        check_kinematics(&cfg, Vec3::zeros(), &sps);
+        assert_eq!(v3(&sps.last().unwrap().axes), Vec3::new(200.0, 0.0, 0.0));
+        // (The line's end is 1,000 ticks after the hold.)
+        let slowest = sps[1000..1400]
+            .iter()
+            .map(|sp| sp.feed)
+            .fold(f64::INFINITY, f64::min);
+        if rests {
+            assert_eq!(slowest, 0.0, "resumed after {resume_after} ticks");
+        } else {
+            assert!(
+                slowest > 0.5 * cruise,
+                "resumed after {resume_after} ticks: down to {slowest} mm/s"
+            );
+        }
+    }
+}

@@ -233,7 +233,9 @@ impl<const Q: usize> Run<Q> {
         self.planning(|d, e, sink| d.feed_hold_into(e, sink));
     }
 
-    /// Leaves a feed hold: once at rest, the speed is planned again from there.
+    /// Leaves a feed hold: the speed is planned again, through the hold's
+    /// rest point while the machine still brakes fast, else from where it
+    /// rests (see [`Driver::resume_into`]).
     pub fn resume(&mut self) {
         self.record(Op::Resume);
         self.exec.resume();

@@ -3,12 +3,12 @@
 //! 30–200 % (1.0, 0.6, 1.2, 0.8, 1.5, 0.3, 1.0, 0.9, 1.1, 0.5, 2.0, 0.7).
 //!
 //! ```text
-//! cargo run --release -p interpd-tests --example override_knob -- [--feed MM_PER_MIN] [--g64 P] [--every MS] [--hold-every MS] FILE.ngc...
+//! cargo run --release -p interpd-tests --example override_knob -- [--feed MM_PER_MIN] [--g64 P] [--every MS] [--hold-every MS] [--resume-after MS] FILE.ngc...
 //! ```
 //!
 //! `--every 0` leaves the knob alone; `--hold-every H` also gives a feed
-//! hold every `H` ms and resumes 60 ms after it (before rest, when the
-//! machine was fast).
+//! hold every `H` ms and resumes `--resume-after` ms after it (default 60:
+//! before rest, when the machine was fast).
 //!
 //! Each program runs as the drivers run it (the `G64 P` stage, then the
 //! interpolator; `--feed` and `--g64` as in the `path_time` example), every setpoint checked against every limit (the feed
@@ -40,17 +40,19 @@ fn main() {
     let g64 = flag("--g64");
     let every = flag("--every").unwrap_or(113.0);
     let hold_every = flag("--hold-every").unwrap_or(0.0);
+    let resume_after = flag("--resume-after").unwrap_or(60.0);
     assert!(
         every == 0.0 || every >= 1.0,
         "--every is 0 (no knob) or at least 1 ms"
     );
+    assert!(resume_after >= 1.0, "--resume-after is at least 1 ms");
     assert!(
-        hold_every == 0.0 || hold_every > 60.0,
-        "--hold-every is 0 (no hold) or over 60 ms"
+        hold_every == 0.0 || hold_every > resume_after,
+        "--hold-every is 0 (no hold) or over --resume-after"
     );
     let cfg = InterpConfig::default();
     let ticks = |ms: f64| (ms * 1e-3 / cfg.period).round() as u64;
-    let (every, hold_every, resume_after) = (ticks(every), ticks(hold_every), ticks(60.0));
+    let (every, hold_every, resume_after) = (ticks(every), ticks(hold_every), ticks(resume_after));
     println!(
         "program | knob s | 100 % s | turns | solves | retries | added stops | failed checks | jerk use | holds | softened | unplanned | longest command ms"
     );
