@@ -478,6 +478,10 @@ impl BlockPlanner {
     /// override that drops faster than the machine can brake). No segments.
     pub fn replan(&mut self, ovr: f64, out: &mut PlannedBlock) -> Result<(), PushError> {
         self.speed_only(out);
+        // A raised override leaves the current plan within the new feed
+        // limits: if no re-solve finds a faster one, it stays (the later
+        // solves, from near its end, take the new feed), rather than crawl.
+        let raised = ovr > self.ovr;
         self.ovr = ovr;
         // From the machine on (not only the plan's end): the new feed counts everywhere ahead.
         let freeze = self.window.freeze_after(self.machine, self.machine_at_rest);
@@ -500,7 +504,7 @@ impl BlockPlanner {
         let mut r = Ok(());
         for (k, gentle) in LIFT_SOFTENING.iter().enumerate() {
             let stop = self.braking(&p, *gentle);
-            let last = k + 1 == LIFT_SOFTENING.len();
+            let last = k + 1 == LIFT_SOFTENING.len() && !raised;
             let lift = Lift {
                 at: p.x1(),
                 stop,

@@ -383,6 +383,44 @@ fn turning_the_override_knob_never_stops_the_machine() {
     }
 }
 
+/// The knob turned while the operator holds and resumes: no stop the
+/// program does not ask for either. `homer-q2` at F6000, the override
+/// stepped every 113 ms, a hold every 97 ms resumed 30 ms later: an
+/// override raised while a hold braked found no plan and crawled, once; a
+/// raised override leaves the plan within the new feed, so it now keeps
+/// the plan it has when no faster one is found.
+#[test]
+fn the_knob_turned_while_holding_never_stops_the_machine() {
+    let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../gcode/tests/programs/homer-q2.ngc");
+    let blocks = load_program(&file, Some(6000.0), None).unwrap();
+    let cfg = InterpConfig::default();
+    let mut commands: Vec<(u64, Command)> = (1..1000u64)
+        .map(|k| {
+            (
+                113 * k,
+                Command::Override(OVERRIDE_KNOB[k as usize % OVERRIDE_KNOB.len()]),
+            )
+        })
+        .collect();
+    commands.extend(
+        (1..1000u64).flat_map(|k| [(97 * k, Command::Hold), (97 * k + 30, Command::Resume)]),
+    );
+    commands.sort_by_key(|&(at, _)| at);
+    let run = interpolated_run_with_commands(&blocks, &cfg, &commands).unwrap();
+    let t = run.plan;
+    eprintln!("homer-q2 F6000, knob and holds: {:.3} s, {t:?}", run.time);
+    assert_eq!(
+        run.violations.total(),
+        0,
+        "{:?} {:?}",
+        run.violations,
+        run.measured
+    );
+    assert_eq!(t.added_stops(), 0, "{t:?}");
+    assert!(t.holds > 100, "{t:?}");
+}
+
 /// A feed hold brakes within every limit, an axis's jerk included: on the
 /// gear's tight teeth at F6000 an axis's jerk binds at a steady speed, and
 /// the closed-form tangential stop passed it (1.44× with a hold every 97
