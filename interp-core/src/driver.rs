@@ -322,13 +322,12 @@ impl Driver {
                     return None;
                 }
                 self.sync(st);
-                return match self.planner.resume_hold(&mut self.plan) {
-                    Ok(true) => Some(self.emit()),
-                    Ok(false) => None,
-                    Err(e) => {
-                        self.last_error = Some(e);
-                        None
-                    }
+                let r = self.planner.resume_hold(&mut self.plan);
+                // (`Ok(false)`: not planned through; it brakes on.)
+                return if r == Ok(false) {
+                    None
+                } else {
+                    self.emit_planned(r)
                 };
             }
             self.sync(st);

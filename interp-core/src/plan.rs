@@ -589,6 +589,12 @@ impl Data {
         &self.stops[..self.n_stops]
     }
 
+    /// Where `x` is or would go among the rest points: the first at or
+    /// after it.
+    fn rest_slot(&self, x: f64) -> usize {
+        self.rests().partition_point(|&s| s < x)
+    }
+
     /// Where the plan ends (at rest): its last piece's end, or where it
     /// starts with no piece.
     fn plan_end(&self) -> f64 {
@@ -762,10 +768,7 @@ impl Data {
 
     /// Whether a rest point lies in `[a, b]`.
     fn stop_within(&self, a: f64, b: f64) -> bool {
-        let stops = self.rests();
-        stops
-            .get(stops.partition_point(|&x| x < a))
-            .is_some_and(|&x| x <= b)
+        self.rests().get(self.rest_slot(a)).is_some_and(|&x| x <= b)
     }
 
     /// The squared speed limit of piece `i` at override `ovr`.
@@ -805,7 +808,7 @@ impl Data {
     /// Drop the rest points before arc length `x`, remembering the last
     /// one ([`Data::rest_behind`]).
     fn drop_rests_before(&mut self, x: f64) {
-        let k = self.rests().partition_point(|&s| s < x);
+        let k = self.rest_slot(x);
         if k > 0 {
             self.rest_behind = self.rest_behind.max(self.stops[k - 1]);
             self.stops.copy_within(k..self.n_stops, 0);
@@ -1597,7 +1600,7 @@ impl Window {
             started: p.partition_point(|q| q.x0 <= machine),
             ended: p.partition_point(|q| q.x1 <= machine),
             g: index_of(machine, d.h),
-            rests_behind: d.rests().partition_point(|&s| s < machine),
+            rests_behind: d.rest_slot(machine),
             g_base: d.g_base,
             n_pieces: d.n_pieces,
         }
@@ -1973,10 +1976,11 @@ impl Window {
         self.data.drop_before(x.min(keep_from));
     }
 
-    /// Forget the rest point at `x` (one a hold's plan could not reach).
+    /// Forget the rest point at `x` (a hold's, which its plan could not
+    /// reach, or which a resume plans through).
     pub fn remove_rest_point(&mut self, x: f64) {
         let d = &mut self.data;
-        let k = d.rests().partition_point(|&s| s < x);
+        let k = d.rest_slot(x);
         if k < d.n_stops && d.stops[k] == x {
             d.stops.copy_within(k + 1..d.n_stops, k);
             d.n_stops -= 1;
@@ -1988,8 +1992,7 @@ impl Window {
     pub fn next_rest(&self, x: f64) -> f64 {
         let d = &self.data;
         let end = d.plan_end();
-        let k = d.rests().partition_point(|&s| s < x);
-        d.rests().get(k).map_or(end, |&s| s.min(end))
+        d.rests().get(d.rest_slot(x)).map_or(end, |&s| s.min(end))
     }
 
     /// Add a rest point at `x` among those held (in order): where the
@@ -1997,7 +2000,7 @@ impl Window {
     /// is to come to rest ([`crate::BlockPlanner::hold`]). False when full.
     pub fn insert_rest_point(&mut self, x: f64) -> bool {
         let d = &mut self.data;
-        let k = d.rests().partition_point(|&s| s < x);
+        let k = d.rest_slot(x);
         if k < d.n_stops && d.stops[k] == x {
             return true;
         }

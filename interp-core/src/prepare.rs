@@ -1360,10 +1360,14 @@ fn sample_laws(
                 let top = staircase(w, xa, ua, ub, u_min, v);
                 lower(w, s_min, s_min, which, top.unwrap_or(v));
             }
-            if which == 0 && (term == 0 || term >= 4) {
+            // The curvature's term and the axes' `C‴` terms dip at their
+            // peaks; so does the feed law (its chord-error term dips where
+            // the curvature peaks): samples around a tight one.
+            let peak = term == 0 || term >= 4;
+            if which == 0 && peak {
                 sample(w, s_min, &d_min);
             }
-            if term == 0 || term >= 4 {
+            if peak {
                 around_peak(w, xa, ua, s_min, &d_min);
             }
         }

@@ -238,8 +238,7 @@ impl<const Q: usize> Run<Q> {
     /// rests (see [`Driver::resume_into`]).
     pub fn resume(&mut self) {
         self.record(Op::Resume);
-        self.exec.resume();
-        self.planning(|d, e, sink| d.drive(e, sink));
+        self.planning(|d, e, sink| d.resume_into(e, sink));
     }
 
     /// Abort, planned through the look-ahead (see [`Driver::abort_into`]);
