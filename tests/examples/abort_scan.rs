@@ -16,9 +16,8 @@
 use std::path::PathBuf;
 
 use interp_core::InterpConfig;
-use interp_core::smooth::Policy;
 use interpd_tests::cli::take_number;
-use interpd_tests::path_time::{abort_scan, every, jerk_use, load_program, smoothed};
+use interpd_tests::path_time::{abort_scan, every, jerk_use, load_as_run};
 
 fn main() {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
@@ -35,15 +34,13 @@ fn main() {
         "program | aborts | failed | jerk use | at tick | longest stop (ticks) | longest plan ms"
     );
     for file in &args {
-        let blocks = match load_program(&PathBuf::from(file), feed, None) {
+        let blocks = match load_as_run(&PathBuf::from(file), feed, None, &cfg) {
             Ok(b) => b,
             Err(e) => {
                 eprintln!("{e}");
                 continue;
             }
         };
-        // (As the drivers run it: the `G64 P` stage first.)
-        let (blocks, _) = smoothed(&blocks, &cfg, Policy::Auto);
         match abort_scan(&blocks, &cfg, every(n)) {
             Ok(tried) => {
                 let worst = tried

@@ -26,11 +26,9 @@
 use std::path::PathBuf;
 
 use interp_core::InterpConfig;
-use interp_core::smooth::Policy;
 use interpd_tests::cli::take_number;
 use interpd_tests::path_time::{
-    Command, OVERRIDE_KNOB, interpolated_run, interpolated_run_with_commands, load_program,
-    smoothed,
+    Command, OVERRIDE_KNOB, interpolated_run, interpolated_run_with_commands, load_as_run,
 };
 
 fn main() {
@@ -57,14 +55,13 @@ fn main() {
         "program | knob s | 100 % s | turns | solves | retries | added stops | failed checks | jerk use | holds | softened | unplanned | longest command ms"
     );
     for file in &args {
-        let blocks = match load_program(&PathBuf::from(file), feed, g64) {
+        let blocks = match load_as_run(&PathBuf::from(file), feed, g64, &cfg) {
             Ok(b) => b,
             Err(e) => {
                 eprintln!("{e}");
                 continue;
             }
         };
-        let (blocks, _) = smoothed(&blocks, &cfg, Policy::Auto);
         let plain = match interpolated_run(&blocks, &cfg, false) {
             Ok(r) => r,
             Err(e) => {

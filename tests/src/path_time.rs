@@ -472,6 +472,17 @@ pub fn load_program(
     Ok(blocks)
 }
 
+/// [`load_program`] as the drivers run it: through the `G64 P` stage
+/// ([`smoothed`], `Within` honoured).
+pub fn load_as_run(
+    path: &std::path::Path,
+    feed: Option<f64>,
+    g64: Option<f64>,
+    cfg: &InterpConfig,
+) -> Result<Vec<Block>, String> {
+    Ok(smoothed(&load_program(path, feed, g64)?, cfg, Policy::Auto).0)
+}
+
 /// A program's first NURBS curve: its contiguous run of NURBS blocks (empty
 /// without one).
 pub fn first_curve(blocks: &[Block]) -> Vec<Block> {

@@ -5,12 +5,11 @@
 use interp_core::Curve;
 use interp_core::path::{Block, Path};
 use interp_core::samples::butterfly;
-use interp_core::smooth::Policy;
 use interp_core::{InterpConfig, nurbs::split_program_curve};
 use interpd_tests::path_time::{
     Command, OVERRIDE_KNOB, PathTimes, abort_scan, accel_only_optimum, every, first_curve,
     interpolated_run, interpolated_run_with_commands, interpolated_run_with_overrides,
-    jerk_aware_bound, load_program, path_times, rest_to_rest, smoothed, step_cap,
+    jerk_aware_bound, load_as_run, load_program, path_times, rest_to_rest, step_cap,
 };
 
 /// The target: total path time ≤ 1.10 × the acceleration-only optimum.
@@ -495,9 +494,7 @@ fn an_abort_in_a_cusp_keeps_every_axis_jerk_limit() {
     let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../gcode/tests/programs/homer-q1.ngc");
     let cfg = InterpConfig::default();
-    let blocks = load_program(&file, Some(6000.0), None).unwrap();
-    // (As the drivers run it: the `G64 P` stage first.)
-    let (blocks, _) = smoothed(&blocks, &cfg, Policy::Auto);
+    let blocks = load_as_run(&file, Some(6000.0), None, &cfg).unwrap();
     let tried = abort_scan(&blocks, &cfg, |at| (12_260..12_300).contains(&at)).unwrap();
     assert_eq!(tried.len(), 40);
     for a in &tried {
