@@ -686,6 +686,40 @@ fn a_slow_fillet_between_exact_stops_slows_only_itself() {
     );
 }
 
+/// Two arcs joined on a common tangent (radius 1 mm, then 1.1 mm, turning
+/// the same way): the join steps only the curvature, so the tangent takes
+/// none of the centripetal or axis acceleration there and the arcs' own
+/// curvature may use all of it. The join is then passed at its curvature
+/// step's speed (37.9 mm/s with the defaults), not at half the centripetal
+/// law (31.3 mm/s, what the junction allowed while a tangent step's half
+/// was kept whether there was one or not), with every limit held.
+#[test]
+fn a_join_on_a_common_tangent_keeps_the_whole_curvature_budget() {
+    let cfg = InterpConfig::default();
+    let arc = |a: [f64; 2], b: [f64; 2], c: [f64; 2]| {
+        let v = |p: [f64; 2]| Vec3::new(p[0], p[1], 0.0);
+        Path::Arc(Arc::from_centre(v(a), v(b), v(c), Vec3::z(), 0).unwrap())
+    };
+    let blocks = [
+        Block::new(1, arc([0.0, -1.0], [0.0, 1.0], [0.0, 0.0]), 100.0),
+        Block::new(2, arc([0.0, 1.0], [0.0, -1.2], [0.0, -0.1]), 100.0),
+    ];
+    let run = run_with(cfg, &blocks, |_, _| {});
+    assert_program_properties(&cfg, &blocks, &run);
+    let join = run
+        .sps
+        .windows(2)
+        .find(|w| w[0].block_id == 1 && w[1].block_id == 2)
+        .expect("the join is crossed");
+    let keep = 1.0 - cfg.planning_margin;
+    let half_law = (0.5 * keep * cfg.max_centripetal_accel / 1.0).sqrt();
+    let v = join[0].feed.min(join[1].feed);
+    assert!(
+        v > 1.1 * half_law,
+        "{v} mm/s at the join (half the centripetal law {half_law})"
+    );
+}
+
 /// A block refused after it was sampled (the look-ahead full, the caller
 /// retries) leaves the window as it was: its samples appended again at
 /// every retry would fill their interval, which then lowers the speed.
