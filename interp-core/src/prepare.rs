@@ -478,10 +478,13 @@ impl BlockPlanner {
     /// override that drops faster than the machine can brake). No segments.
     pub fn replan(&mut self, ovr: f64, out: &mut PlannedBlock) -> Result<(), PushError> {
         self.speed_only(out);
-        // A raised override leaves the current plan within the new feed
-        // limits: if no re-solve finds a faster one, it stays (the later
-        // solves, from near its end, take the new feed), rather than crawl.
-        let raised = ovr > self.ovr;
+        // If no re-solve finds a plan, the current one stays (rather than
+        // crawl) where it is good enough: under a raised override it is
+        // within the new feed limits (the later solves, from near its end,
+        // take the new feed); braking to a hold's rest point, the machine
+        // slows to rest anyway, and what follows the rest point (from rest,
+        // or through it on a resume) is solved with the new feed.
+        let keep_plan = ovr > self.ovr || self.after_hold.is_some();
         self.ovr = ovr;
         // From the machine on (not only the plan's end): the new feed counts everywhere ahead.
         let freeze = self.window.freeze_after(self.machine, self.machine_at_rest);
@@ -504,7 +507,7 @@ impl BlockPlanner {
         let mut r = Ok(());
         for (k, gentle) in LIFT_SOFTENING.iter().enumerate() {
             let stop = self.braking(&p, *gentle);
-            let last = k + 1 == LIFT_SOFTENING.len() && !raised;
+            let last = k + 1 == LIFT_SOFTENING.len() && !keep_plan;
             let lift = Lift {
                 at: p.x1(),
                 stop,

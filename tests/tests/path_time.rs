@@ -383,41 +383,53 @@ fn turning_the_override_knob_never_stops_the_machine() {
 }
 
 /// The knob turned while the operator holds and resumes: no stop the
-/// program does not ask for either. `homer-q2` at F6000, the override
-/// stepped every 113 ms, a hold every 97 ms resumed 30 ms later: an
-/// override raised while a hold braked found no plan and crawled, once; a
-/// raised override leaves the plan within the new feed, so it now keeps
-/// the plan it has when no faster one is found.
+/// program does not ask for either. At F6000, the override stepped every
+/// 113 ms, a hold every 97 ms resumed `R` ms later:
+///
+/// - `homer-q2`, resumed after 30 ms: an override raised while a hold
+///   braked found no plan and crawled, once; a raised override leaves the
+///   plan within the new feed, so it now keeps the plan it has when no
+///   faster one is found.
+/// - `ruota_dentata-q1`, resumed after 20 ms: the override lowered to 90 %
+///   three ticks after a hold found no plan through the hold's braking and
+///   crawled, once; a plan braking to a hold's rest point is kept as well
+///   (the machine slows to rest anyway; what follows the rest point is
+///   solved with the new feed).
 #[test]
 fn the_knob_turned_while_holding_never_stops_the_machine() {
-    let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../gcode/tests/programs/homer-q2.ngc");
-    let blocks = load_program(&file, Some(6000.0), None).unwrap();
-    let cfg = InterpConfig::default();
-    let mut commands: Vec<(u64, Command)> = (1..1000u64)
-        .map(|k| {
-            (
-                113 * k,
-                Command::Override(OVERRIDE_KNOB[k as usize % OVERRIDE_KNOB.len()]),
-            )
-        })
-        .collect();
-    commands.extend(
-        (1..1000u64).flat_map(|k| [(97 * k, Command::Hold), (97 * k + 30, Command::Resume)]),
-    );
-    commands.sort_by_key(|&(at, _)| at);
-    let run = interpolated_run_with_commands(&blocks, &cfg, &commands).unwrap();
-    let t = run.plan;
-    eprintln!("homer-q2 F6000, knob and holds: {:.3} s, {t:?}", run.time);
-    assert_eq!(
-        run.violations.total(),
-        0,
-        "{:?} {:?}",
-        run.violations,
-        run.measured
-    );
-    assert_eq!(t.added_stops(), 0, "{t:?}");
-    assert!(t.holds > 100, "{t:?}");
+    for (program, resume_after) in [("homer-q2", 30), ("ruota_dentata-q1", 20)] {
+        let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join(format!("../gcode/tests/programs/{program}.ngc"));
+        let blocks = load_program(&file, Some(6000.0), None).unwrap();
+        let cfg = InterpConfig::default();
+        let mut commands: Vec<(u64, Command)> = (1..1000u64)
+            .map(|k| {
+                (
+                    113 * k,
+                    Command::Override(OVERRIDE_KNOB[k as usize % OVERRIDE_KNOB.len()]),
+                )
+            })
+            .collect();
+        commands.extend((1..1000u64).flat_map(|k| {
+            [
+                (97 * k, Command::Hold),
+                (97 * k + resume_after, Command::Resume),
+            ]
+        }));
+        commands.sort_by_key(|&(at, _)| at);
+        let run = interpolated_run_with_commands(&blocks, &cfg, &commands).unwrap();
+        let t = run.plan;
+        eprintln!("{program} F6000, knob and holds: {:.3} s, {t:?}", run.time);
+        assert_eq!(
+            run.violations.total(),
+            0,
+            "{program}: {:?} {:?}",
+            run.violations,
+            run.measured
+        );
+        assert_eq!(t.added_stops(), 0, "{program}: {t:?}");
+        assert!(t.holds > 100, "{program}: {t:?}");
+    }
 }
 
 /// A feed hold brakes within every limit, an axis's jerk included: on the
