@@ -7,8 +7,8 @@ use interp_core::path::{Block, Path};
 use interp_core::samples::butterfly;
 use interp_core::{InterpConfig, nurbs::split_program_curve};
 use interpd_tests::path_time::{
-    Command, OVERRIDE_KNOB, PathTimes, abort_scan, accel_only_optimum, every, first_curve,
-    interpolated_run, interpolated_run_with_commands, interpolated_run_with_overrides,
+    Command, InterpolatedRun, OVERRIDE_KNOB, PathTimes, abort_scan, accel_only_optimum, every,
+    first_curve, interpolated_run, interpolated_run_with_commands, interpolated_run_with_overrides,
     jerk_aware_bound, load_as_run, load_program, path_times, rest_to_rest, step_cap,
 };
 
@@ -334,6 +334,19 @@ fn an_override_raised_after_queueing_keeps_every_axis_jerk_limit() {
     );
 }
 
+/// Every limit held on every tick of `run`, and the look-ahead added no
+/// stop (no fall-back to a rest point, no crawl).
+fn assert_held_every_limit_and_never_stopped(program: &str, run: &InterpolatedRun) {
+    assert_eq!(
+        run.violations.total(),
+        0,
+        "{program}: {:?} {:?}",
+        run.violations,
+        run.measured
+    );
+    assert_eq!(run.plan.added_stops(), 0, "{program}: {:?}", run.plan);
+}
+
 /// An operator turning the feed override knob mid-run never stops the
 /// machine: with the override stepped through 30–200 % every few tenths of
 /// a second the program ends at its end, every limit held on every tick,
@@ -366,14 +379,7 @@ fn turning_the_override_knob_never_stops_the_machine() {
             "{program} F{feed}, override turned every {every} ms: {:.3} s, {t:?}",
             run.time
         );
-        assert_eq!(
-            run.violations.total(),
-            0,
-            "{program}: {:?} {:?}",
-            run.violations,
-            run.measured
-        );
-        assert_eq!(t.added_stops(), 0, "{program}: {t:?}");
+        assert_held_every_limit_and_never_stopped(program, &run);
         assert!(
             run.time > every as f64 * cfg.period * 50.0,
             "{program}: the knob was turned over 50 times in {} s",
@@ -420,14 +426,7 @@ fn the_knob_turned_while_holding_never_stops_the_machine() {
         let run = interpolated_run_with_commands(&blocks, &cfg, &commands).unwrap();
         let t = run.plan;
         eprintln!("{program} F6000, knob and holds: {:.3} s, {t:?}", run.time);
-        assert_eq!(
-            run.violations.total(),
-            0,
-            "{program}: {:?} {:?}",
-            run.violations,
-            run.measured
-        );
-        assert_eq!(t.added_stops(), 0, "{program}: {t:?}");
+        assert_held_every_limit_and_never_stopped(program, &run);
         assert!(t.holds > 100, "{program}: {t:?}");
     }
 }
@@ -455,14 +454,7 @@ fn a_feed_hold_on_a_tight_turn_keeps_every_axis_jerk_limit() {
         run.jerk_use(&cfg),
         run.plan
     );
-    assert_eq!(
-        run.violations.total(),
-        0,
-        "{:?} {:?}",
-        run.violations,
-        run.measured
-    );
-    assert_eq!(run.plan.added_stops(), 0, "{:?}", run.plan);
+    assert_held_every_limit_and_never_stopped("ruota_dentata-q1", &run);
     // The holds came to rest and waited: 60 ms each, less for a hold
     // given while the machine still brakes for the last one.
     let holds = commands
