@@ -5,13 +5,19 @@
 //!
 //! ```text
 //! cargo run --release -p interpd-tests --features scp --example scp_reference -- \
-//!     [--feed MM_PER_MIN] [--g64 P] [--step MM] [--iterations N] FILE.ngc...
+//!     [--feed MM_PER_MIN] [--g64 P] [--step MM] [--iterations N] [--scale F] FILE.ngc...
 //! ```
 //!
 //! `--step` is the reference's grid (0.1 mm), `--iterations` the most
-//! linear programs (30; it stops once one gains under 1e-5). Prints, times
-//! in s: ours, optimum, bound, the first and the last iterate of the
-//! reference, the number of programs and grid nodes, and ours over each.
+//! linear programs (30; it stops once one gains under 1e-5), `--scale F`
+//! scales the reference's acceleration and jerk limits (not ours). Prints,
+//! times in s: ours, optimum, bound, the first and the last iterate of the
+//! reference, the number of programs and grid nodes, ours over each, and
+//! the reference sampled every servo period as the loop samples a plan
+//! (`scp::sampled_jerk_use`, the real limits, the first and last mm of the
+//! curve left out): its largest path or axis jerk over the limit, where,
+//! and how many ticks were over. The reference holds its limits on its own
+//! grid in continuous time; a drive sees the samples.
 
 use std::path::PathBuf;
 
@@ -21,7 +27,11 @@ use interpd_tests::cli::take_value;
 use interpd_tests::path_time::{
     accel_only_optimum, first_curve, interpolated_time, jerk_aware_bound, load_program, smoothed,
 };
-use interpd_tests::scp::scp_reference;
+use interpd_tests::scp::{sampled_jerk_use, scp_reference};
+
+/// Ticks this near either end of a curve are left out of the sampled
+/// check, mm ([`sampled_jerk_use`]).
+const SAMPLED_EDGE: f64 = 1.0;
 
 fn main() {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
@@ -34,9 +44,23 @@ fn main() {
     let iterations = flag("--iterations")
         .and_then(|v| v.parse::<usize>().ok())
         .unwrap_or(30);
+    // `--scale F`: the reference's acceleration and jerk limits times F
+    // (ours keep theirs), to find the fastest reference whose setpoints
+    // hold the real limits.
+    let scale = flag("--scale")
+        .and_then(|v| v.parse::<f64>().ok())
+        .unwrap_or(1.0);
     let cfg = InterpConfig::default();
+    let mut ref_cfg = cfg;
+    ref_cfg.max_path_accel *= scale;
+    ref_cfg.max_path_jerk *= scale;
+    ref_cfg.max_centripetal_accel *= scale;
+    for i in 0..3 {
+        ref_cfg.axis_max_accel[i] *= scale;
+        ref_cfg.axis_max_jerk[i] *= scale;
+    }
     println!(
-        "program | ours s | optimum s | bound s | scp first s | scp s | programs | nodes | ours/opt | ours/bound | ours/scp | scp/opt"
+        "program | ours s | optimum s | bound s | scp first s | scp s | programs | nodes | ours/opt | ours/bound | ours/scp | scp/opt | scp sampled jerk use | at mm | ticks over"
     );
     for f in args.iter().map(PathBuf::from) {
         let name = f
@@ -60,16 +84,21 @@ fn main() {
             let ours = interpolated_time(&out, &cfg)?;
             let opt = accel_only_optimum(&out, &cfg);
             let bound = jerk_aware_bound(&out, &cfg);
-            let r = scp_reference(&out, &cfg, step, iterations)?;
+            let r = scp_reference(&out, &ref_cfg, step, iterations)?;
             let (first, last) = (r.times[0], *r.times.last().unwrap_or(&f64::NAN));
+            let used = sampled_jerk_use(&out, &cfg, &r, SAMPLED_EDGE);
             Ok(format!(
-                "{name} | {ours:.3} | {opt:.3} | {bound:.3} | {first:.3} | {last:.3} | {} | {} | {:.4} | {:.4} | {:.4} | {:.4}",
+                "{name} | {ours:.3} | {opt:.3} | {bound:.3} | {first:.3} | {last:.3} | {} | {} | {:.4} | {:.4} | {:.4} | {:.4} | {:.3} | {:.3} | {} of {}",
                 r.times.len(),
                 r.nodes,
                 ours / opt,
                 ours / bound,
                 ours / last,
                 last / opt,
+                used.largest,
+                used.at,
+                used.over,
+                used.ticks,
             ))
         };
         match run() {

@@ -48,6 +48,10 @@ pub struct ScpReference {
     pub times: Vec<f64>,
     /// Grid nodes.
     pub nodes: usize,
+    /// The grid's step, mm.
+    pub step: f64,
+    /// The last iterate's speed at each node, mm/s.
+    pub speeds: Vec<f64>,
 }
 
 /// The speed below which a node's jerk rows are linearised as at this
@@ -187,7 +191,126 @@ pub fn scp_reference(
             break;
         }
     }
-    Ok(ScpReference { times, nodes: n })
+    Ok(ScpReference {
+        times,
+        nodes: n,
+        step: h,
+        speeds: prev.iter().map(|x| x.max(0.0).sqrt()).collect(),
+    })
+}
+
+/// How the reference's setpoints would use the jerk limits
+/// ([`sampled_jerk_use`]).
+#[derive(Debug, Clone, Copy)]
+pub struct SampledUse {
+    /// The largest path or axis jerk (third difference of the setpoints)
+    /// as a share of its limit.
+    pub largest: f64,
+    /// Where, mm along the path.
+    pub at: f64,
+    /// Ticks over the limit, and ticks looked at.
+    pub over: usize,
+    pub ticks: usize,
+}
+
+/// The reference sampled as the loop samples a plan: its speed profile
+/// timed node to node, `s(t)` a natural cubic spline through the nodes'
+/// times (C²: its jerk is piecewise constant, as a continuous schedule's
+/// may be), a setpoint on `blocks` every period of `cfg`, and each
+/// setpoint's third difference (the path's, each axis's) over its limit
+/// in `cfg`. The reference holds its limits on its grid, in continuous
+/// time; this is what a drive would see. Ticks within `edge` mm of either
+/// end are left out: there the spline's natural ends are not the
+/// reference's ramps from rest.
+pub fn sampled_jerk_use(
+    blocks: &[Block],
+    cfg: &InterpConfig,
+    r: &ScpReference,
+    edge: f64,
+) -> SampledUse {
+    let (v, h) = (&r.speeds, r.step);
+    let n = v.len();
+    let node_s = |k: usize| k as f64 * h;
+    // Node times, as `path_time` counts them.
+    let mut t = vec![0.0; n];
+    for k in 1..n {
+        let (a, b) = (v[k - 1], v[k]);
+        let dt = if a == 0.0 || b == 0.0 {
+            3.0 * h / (a + b).max(1e-12)
+        } else {
+            2.0 * h / (a + b)
+        };
+        t[k] = t[k - 1] + dt;
+    }
+    // Second derivatives of the natural spline (tridiagonal, Thomas).
+    let mut m = vec![0.0; n];
+    let (mut c, mut d) = (vec![0.0; n], vec![0.0; n]);
+    for i in 1..n - 1 {
+        let (h0, h1) = (t[i] - t[i - 1], t[i + 1] - t[i]);
+        let rhs = (node_s(i + 1) - node_s(i)) / h1 - (node_s(i) - node_s(i - 1)) / h0;
+        let den = (h0 + h1) / 3.0 - h0 / 6.0 * c[i - 1];
+        c[i] = h1 / 6.0 / den;
+        d[i] = (rhs - h0 / 6.0 * d[i - 1]) / den;
+    }
+    for i in (1..n - 1).rev() {
+        m[i] = d[i] - c[i] * m[i + 1];
+    }
+    let total = node_s(n - 1);
+    let mut starts = vec![0.0];
+    for b in blocks {
+        starts.push(starts[starts.len() - 1] + b.path.length());
+    }
+    let position = |s: f64| {
+        let i = starts[1..]
+            .partition_point(|&x| x < s)
+            .min(blocks.len() - 1);
+        let path = &blocks[i].path;
+        let along = (s - starts[i]).clamp(0.0, path.length());
+        path.eval(path.param_at_arc_length(path.u_start(), along), 0)
+            .p
+    };
+    let ts = cfg.period;
+    let mut out = SampledUse {
+        largest: 0.0,
+        at: 0.0,
+        over: 0,
+        ticks: 0,
+    };
+    let mut last: Vec<(f64, interp_core::Vec3)> = Vec::with_capacity(4);
+    let mut k = 0;
+    let ticks = (t[n - 1] / ts).ceil() as usize;
+    for i in 0..=ticks {
+        let at = (i as f64 * ts).min(t[n - 1]);
+        while k + 2 < n && t[k + 1] < at {
+            k += 1;
+        }
+        let hk = t[k + 1] - t[k];
+        let (a, b) = ((t[k + 1] - at) / hk, (at - t[k]) / hk);
+        let s = a * node_s(k)
+            + b * node_s(k + 1)
+            + ((a * a * a - a) * m[k] + (b * b * b - b) * m[k + 1]) * hk * hk / 6.0;
+        if last.len() == 4 {
+            last.remove(0);
+        }
+        last.push((s, position(s)));
+        if last.len() < 4 || s < edge || s > total - edge {
+            continue;
+        }
+        let third = |f: &dyn Fn(usize) -> f64| {
+            (f(3) - 3.0 * f(2) + 3.0 * f(1) - f(0)).abs() / (ts * ts * ts)
+        };
+        let mut used = third(&|j| last[j].0) / cfg.max_path_jerk;
+        for ax in 0..3 {
+            used = used.max(third(&|j| last[j].1[ax]) / cfg.axis_max_jerk[ax]);
+        }
+        out.ticks += 1;
+        out.over += usize::from(used > 1.0);
+        if used > out.largest {
+            out.largest = used;
+            out.at = s;
+        }
+    }
+    out
 }
 
 /// Time of the profile `S` on a grid of step `h`: `Σ 2h/(v_k + v_{k+1})`,
@@ -463,5 +586,20 @@ mod tests {
             assert!(r.times.windows(2).all(|w| w[1] <= w[0]), "{:?}", r.times);
             assert!(jerk_aware_bound(&line(l, f), &cfg) <= t);
         }
+    }
+
+    #[test]
+    fn sampled_every_tick_a_line_s_reference_uses_its_path_jerk() {
+        // On a line the reference is near the seven-phase profile, which
+        // runs at the path's jerk limit in its ramps: sampled as the loop
+        // samples a plan, its third differences see that limit, and not
+        // much more (the spline through the node times adds little).
+        let cfg = InterpConfig::default();
+        let blocks = line(20.0, 100.0);
+        let r = scp_reference(&blocks, &cfg, 0.02, 20).unwrap();
+        let used = sampled_jerk_use(&blocks, &cfg, &r, 1.0);
+        eprintln!("{used:?}");
+        assert!(used.ticks > 150, "{used:?}");
+        assert!(used.largest > 0.9 && used.largest < 1.05, "{used:?}");
     }
 }
