@@ -344,19 +344,22 @@ pub fn junction_speed_with(
 /// The share of the centripetal and axis acceleration budgets the
 /// curvature of both sides may use at a junction passed at most at `v`:
 /// what the tangent's step leaves there. A tick across the joint sees the
-/// velocity step `v·|Δtᵢ|/Ts` on top of the curvature's acceleration
-/// (eq. of [`junction_speed`]); the step caps hold it to half the centripetal
-/// budget and [`JUMP_SHARE`]'s half of an axis's curvature budget, so the
-/// share is at least one half, and where the tangent is continuous (a C1
-/// knot, a curvature step alone) the whole budget.
+/// velocity step `v·|Δtᵢ|/Ts` on top of the curvature's acceleration (see
+/// [`junction_speed`]); the junction's caps hold that step to half the
+/// centripetal budget and to half of what an axis's acceleration leaves
+/// past its tangential share, so the share is at least one half, and where
+/// the tangent is continuous (a C1 knot, a curvature step alone) the whole
+/// budget.
 fn curvature_budget(l: &ArcLengthDerivs, r: &ArcLengthDerivs, v: f64, cfg: &InterpConfig) -> f64 {
     let keep = 1.0 - cfg.planning_margin;
     let ts = cfg.period;
     let dt = r.t - l.t;
+    // The share a step takes (an undefined one, all it may).
+    let share = |x: f64| if x.is_nan() { 0.5 } else { x.clamp(0.0, 0.5) };
     let mut used: f64 = 0.0;
     let dtn = dt.norm();
     if dtn > 0.0 {
-        used = used.max(v * dtn / (ts * keep * cfg.max_centripetal_accel));
+        used = used.max(share(v * dtn / (ts * keep * cfg.max_centripetal_accel)));
     }
     let pa = cfg.planned_accel();
     for i in 0..3 {
@@ -364,11 +367,10 @@ fn curvature_budget(l: &ArcLengthDerivs, r: &ArcLengthDerivs, v: f64, cfg: &Inte
         if a > 0.0 {
             let t = libm::fabs(l.t[i]).max(libm::fabs(r.t[i]));
             let room = keep * cfg.axis_max_accel[i] - t * pa;
-            used = used.max(v * a / (ts * room.max(0.0)));
+            used = used.max(share(v * a / (ts * room.max(0.0))));
         }
     }
-    // (NaN-safe: an unbounded `v` only comes with no step at all.)
-    1.0 - used.clamp(0.0, 0.5)
+    1.0 - used
 }
 
 /// The share of an axis's jerk a curvature step at a junction may take
