@@ -711,8 +711,9 @@ fn a_join_on_a_common_tangent_keeps_the_whole_curvature_budget() {
         .windows(2)
         .find(|w| w[0].block_id == 1 && w[1].block_id == 2)
         .expect("the join is crossed");
+    // (The first arc's curvature is 1/mm.)
     let keep = 1.0 - cfg.planning_margin;
-    let half_law = (0.5 * keep * cfg.max_centripetal_accel / 1.0).sqrt();
+    let half_law = (0.5 * keep * cfg.max_centripetal_accel).sqrt();
     let v = join[0].feed.min(join[1].feed);
     assert!(
         v > 1.1 * half_law,

@@ -234,13 +234,7 @@ pub fn sampled_jerk_use(
     // Node times, as `path_time` counts them.
     let mut t = vec![0.0; n];
     for k in 1..n {
-        let (a, b) = (v[k - 1], v[k]);
-        let dt = if a == 0.0 || b == 0.0 {
-            3.0 * h / (a + b).max(1e-12)
-        } else {
-            2.0 * h / (a + b)
-        };
-        t[k] = t[k - 1] + dt;
+        t[k] = t[k - 1] + step_time(v[k - 1], v[k], h);
     }
     // Second derivatives of the natural spline (tridiagonal, Thomas).
     let mut m = vec![0.0; n];
@@ -313,20 +307,23 @@ pub fn sampled_jerk_use(
     out
 }
 
-/// Time of the profile `S` on a grid of step `h`: `Σ 2h/(v_k + v_{k+1})`,
-/// but `3h/v` next to a rest (from rest the speed grows like `s^⅔` at
-/// most, and the trapezoid would count a third less).
+/// Time of the profile `S` on a grid of step `h`: the sum of its steps'
+/// [`step_time`].
 fn path_time(s: &[f64], h: f64) -> f64 {
     s.windows(2)
-        .map(|w| {
-            let (a, b) = (w[0].max(0.0).sqrt(), w[1].max(0.0).sqrt());
-            if a == 0.0 || b == 0.0 {
-                if a + b > 0.0 { 3.0 * h / (a + b) } else { 0.0 }
-            } else {
-                2.0 * h / (a + b)
-            }
-        })
+        .map(|w| step_time(w[0].max(0.0).sqrt(), w[1].max(0.0).sqrt(), h))
         .sum()
+}
+
+/// Time of a step `h` of the grid between nodes at speeds `a` and `b`:
+/// `2h/(a + b)`, but `3h/v` next to a rest (from rest the speed grows like
+/// `s^⅔` at most, and the trapezoid would count a third less).
+fn step_time(a: f64, b: f64, h: f64) -> f64 {
+    if a == 0.0 || b == 0.0 {
+        if a + b > 0.0 { 3.0 * h / (a + b) } else { 0.0 }
+    } else {
+        2.0 * h / (a + b)
+    }
 }
 
 /// The laws on the optimum's 5 µm grid, with the planner's junctions.
