@@ -2438,7 +2438,8 @@ fn assemble_and_solve(
 /// Per piece `lo..n`, the squared speed limit the rows use: the pointwise
 /// limit, capped where the machine cannot reach it, being too close to a
 /// rest point or to a slower stretch (acceleration `A` from the limits
-/// around, both ways, and the jerk from rest points, [`reach_speed`]).
+/// around, both ways, and the jerk from rest points and slower knots,
+/// [`reach_from`]).
 /// The jerk rows hold `|S''|·v ≤ 2J` through `v ≤ √cap` (and the hull keeps
 /// `S ≤ cap`), so a cap near the real speed lets the plan accelerate as
 /// fast as the jerk allows, where the pointwise limit alone makes it creep
@@ -2464,21 +2465,22 @@ fn reach_caps(
     if n <= first {
         return;
     }
-    // Forward: `knot` bounds S at the start of piece i.
-    let mut rest: Option<f64> = None;
+    // Forward: `knot` bounds S at the start of piece i; the jerk's reach
+    // runs from `anchor` (where, how fast at most): a rest point, or a
+    // knot whose bound gives a lower reach than the last anchor's.
+    let mut anchor: Option<(f64, f64)> = None;
     let mut knot = f64::INFINITY;
     for i in first..n {
         let p = &d.pieces[i];
         let h = p.x1 - p.x0;
         if p.rest_start {
-            rest = Some(p.x0);
+            anchor = Some((p.x0, 0.0));
             knot = 0.0;
         } else if i > first {
             knot = knot.min(cap2[i - 1]);
         }
         let mut c = (knot + two_a * h) * m2;
-        if let Some(r) = rest {
-            let v = REACH_MARGIN * reach_speed(p.x1 - r, a0, cfg);
+        if let Some(v) = jerk_reach(&mut anchor, p.x0, knot, h, a0, cfg) {
             c = c.min(v * v);
         }
         let l2 = cap2[i];
@@ -2486,22 +2488,56 @@ fn reach_caps(
         knot = (knot + two_a * h).min(l2);
     }
     // Backward, to the rest point at the end.
-    let mut r = d.pieces[n - 1].x1;
+    let mut anchor = Some((-d.pieces[n - 1].x1, 0.0));
     let mut knot = 0.0;
     for i in (first..n).rev() {
         let p = &d.pieces[i];
         let h = p.x1 - p.x0;
-        let v = REACH_MARGIN * reach_speed(r - p.x0, a0, cfg);
         let l2 = d.limit2(i, ovr, lift);
-        cap2[i] = cap2[i].min(v * v).min((knot + two_a * h) * m2);
+        let mut c = cap2[i].min((knot + two_a * h) * m2);
+        // (Mirrored: the sweep runs towards smaller x.)
+        if let Some(v) = jerk_reach(&mut anchor, -p.x1, knot, h, a0, cfg) {
+            c = c.min(v * v);
+        }
+        cap2[i] = c;
         knot = (knot + two_a * h).min(l2);
         if p.rest_start {
-            r = p.x0;
+            anchor = Some((-p.x0, 0.0));
             knot = 0.0;
         } else if i > 0 {
             knot = knot.min(d.limit2(i - 1, ovr, lift));
         }
     }
+}
+
+/// The jerk's reach (with [`REACH_MARGIN`]) at the far end of a piece
+/// `h` long that a sweep enters at `x` with `S ≤ knot`: from `anchor`
+/// (position along the sweep, speed at most), or from the entry itself,
+/// whichever is lower; the entry becomes the anchor where it is. `None`
+/// with no bound (no rest point before, and an unbounded entry).
+fn jerk_reach(
+    anchor: &mut Option<(f64, f64)>,
+    x: f64,
+    knot: f64,
+    h: f64,
+    a0: f64,
+    cfg: &InterpConfig,
+) -> Option<f64> {
+    let old = anchor.map(|(xa, va)| reach_from(va, x + h - xa, a0, cfg));
+    let new = (knot < f64::INFINITY).then(|| reach_from(libm::sqrt(knot.max(0.0)), h, a0, cfg));
+    let v = match (old, new) {
+        (Some(o), Some(nw)) if nw < o => {
+            *anchor = Some((x, libm::sqrt(knot.max(0.0))));
+            nw
+        }
+        (Some(o), _) => o,
+        (None, Some(nw)) => {
+            *anchor = Some((x, libm::sqrt(knot.max(0.0))));
+            nw
+        }
+        (None, None) => return None,
+    };
+    Some(REACH_MARGIN * v)
 }
 
 /// A re-solve continues the kept plan (pieces before `first`), which was
@@ -2696,19 +2732,27 @@ const REFINE_TRUST: f64 = 1.44;
 /// Slack on the reach speed (a bound, not a target).
 const REACH_MARGIN: f64 = 1.1;
 
-/// The highest speed the machine can reach within distance `s` of a rest
-/// point: leaving it with acceleration `a0` and jerk `J` (the fastest way
-/// there), never faster than `√(2·A·s)`. An upper bound of the speed of any
-/// plan whose jerk, acceleration and acceleration at rest points are within
-/// the configured limits.
-fn reach_speed(s: f64, a0: f64, cfg: &InterpConfig) -> f64 {
+/// The highest speed the machine can reach within distance `s` of a point
+/// it passes at `v0` at most (`0` at a rest point), never faster than
+/// `√(v0² + 2·A·s)`: an upper bound of the speed of any plan within the
+/// configured limits. Every
+/// plan leaves its rests with acceleration `a0` at most and its jerk is at
+/// most `J`, so while it accelerates `s̈² − a0² ≤ 2J·v` (the quantity
+/// `v − (s̈² − a0²)/(2J)` does not fall): at the point the acceleration is
+/// at most `√(a0² + 2J·v0)`.
+fn reach_from(v0: f64, s: f64, a0: f64, cfg: &InterpConfig) -> f64 {
     let s = s.max(0.0);
     let j = cfg.max_path_jerk;
-    // Time to cover s with jerk J alone from rest is (6s/J)^⅓; with a0 > 0
-    // it is shorter, so this speed is an upper bound.
+    // Time to cover s with jerk J alone from rest is (6s/J)^⅓; from `v0`
+    // with an acceleration it is shorter, so this speed is an upper bound.
     let t = libm::cbrt(6.0 * s / j);
-    let by_jerk = a0 * t + 0.5 * j * t * t;
-    by_jerk.min(libm::sqrt(2.0 * cfg.max_path_accel * s))
+    let a = if v0 > 0.0 {
+        libm::sqrt(a0 * a0 + 2.0 * j * v0)
+    } else {
+        a0
+    };
+    let by_jerk = v0 + a * t + 0.5 * j * t * t;
+    by_jerk.min(libm::sqrt(v0 * v0 + 2.0 * cfg.max_path_accel * s))
 }
 
 /// The acceleration step allowed next to a rest point on a piece of

@@ -298,6 +298,17 @@ fn a_gear_wheel_at_production_feed_uses_the_jerk_limit() {
     assert_first_curve_at_f6000("ruota_dentata-q1.ngc", 1.235);
 }
 
+/// A stationary point near a curve's end: `curva_delfino-q1` turns back
+/// 17 µm before its end, and the stretch on each side of the point is
+/// shorter than a law sub-range (31 µm). Held whole by its lowest law (the
+/// point's, 0.18 mm/s) the run crawled over 15 µm each way, 0.2 s of its
+/// 2.47 s (1.157× the optimum); described in steps towards the point it
+/// takes 2.26 s (1.062×).
+#[test]
+fn a_stationary_point_near_a_curves_end_is_passed_without_a_crawl() {
+    assert_first_curve_at_f6000("curva_delfino-q1.ngc", 1.1);
+}
+
 /// A feed override raised after the blocks were queued keeps every limit.
 /// `homer-q2` at F6000 is queued at 100 %; at 150 % its curves run at up to
 /// 150 mm/s, where an axis's jerk `C‴·v³` binds at points where it could
