@@ -1234,30 +1234,90 @@ fn sample_laws(
         let width_max = h / crate::plan::SUB as f64;
         // Around the law's own minimum in the bracket (the term's may lie
         // beside it: the curvature's and an axis's `C‴` peak apart).
-        let (u_law, v_law) = golden_section_argmin(law_u, ua, ub, GOLDEN_ITERS, 0.0);
+        let (u_law, v_law) = argmin_by_knot_spans(path, law_u, ua, ub);
         let (u_min, v0) = if v_law < v0 {
             (u_law.clamp(u_lo, u_hi), v_law)
         } else {
             (u_min, v0)
         };
+        // A dip at a knot where the law jumps (the curvature steps there)
+        // rises on one side only: the levels go that way from the knot,
+        // whose junction prices the knot itself. `Some((knot, true))`
+        // where the left side is the knot's (its law jumps above the dip).
+        let at_knot = || -> Option<(f64, bool)> {
+            let Path::Nurbs(nb) = path else {
+                return None;
+            };
+            let tol = 1e-6 * (ub - ua);
+            let k = nb
+                .knots()
+                .iter()
+                .copied()
+                .find(|&k| k > ua && k < ub && libm::fabs(k - u_min) <= tol)?;
+            let (l, r) = (law_u(k - 1e-9 * (ub - ua)), law_u(k));
+            let jump = 2.0 * STAIR_EDGE * v0;
+            if l > jump && r <= STAIR_EDGE * v0 {
+                Some((k, true))
+            } else if r > jump && l <= STAIR_EDGE * v0 {
+                Some((k, false))
+            } else {
+                None
+            }
+        };
+        let one_sided = at_knot();
+        let u_min = one_sided.map_or(u_min, |(k, _)| k);
+        let (fixed_l, fixed_r) = match one_sided {
+            Some((_, left)) => (left, !left),
+            None => (false, false),
+        };
+        // The knot's own side bounds the levels: its law near the knot,
+        // across the sub-range that way.
+        let side_floor = match one_sided {
+            Some((k, left)) => (1..=STAIR_CHECKS)
+                .map(|j| {
+                    let f = j as f64 / STAIR_CHECKS as f64;
+                    let e = 1e-9 * (ub - ua);
+                    law_u(if left {
+                        k - e - f * (k - ua)
+                    } else {
+                        k + f * (ub - k)
+                    })
+                })
+                .fold(f64::INFINITY, f64::min),
+            None => f64::INFINITY,
+        };
         // (Only a sub-range or more inside the segment: a dip at a
         // junction is the junction's, priced with both sides.)
         let s_dip = xa + path.arc_length(ua, u_min);
-        if s_dip - seg.s0 < width_max || seg.s1() - s_dip < width_max {
+        if (!fixed_l && s_dip - seg.s0 < width_max) || (!fixed_r && seg.s1() - s_dip < width_max) {
             return None;
         }
-        let mut ext = [(0.0f64, 0.0f64, 0.0f64); STAIR_LEVELS];
+        let mut ext = [(0.0f64, 0.0f64, 0.0f64); ONE_SIDED_LEVELS];
+        let levels = if one_sided.is_some() {
+            ONE_SIDED_LEVELS
+        } else {
+            STAIR_LEVELS
+        };
         // The innermost level's edges, in `u`.
         let mut inner = (u_min, u_min);
         let mut n = 0;
         let (mut ul_prev, mut ur_prev) = (u_min, u_min);
-        while n < STAIR_LEVELS {
+        while n < levels {
             let tau = v0 * libm::exp2((n + 1) as f64);
+            if tau > side_floor {
+                break;
+            }
             // A point out of the level each way: from the last level's
             // edge, outwards by half the bracket, doubling the step (within
             // the segment and a sub-range of the dip).
             let out_of = |from: f64, limit: f64| {
-                let mut step = 0.5 * (ub - ua);
+                // (From a knot the law rises within µm: a bracket from a
+                // block's end is as long as a sample spacing.)
+                let mut step = if one_sided.is_some() {
+                    ONE_SIDED_STEP * (ub - ua)
+                } else {
+                    0.5 * (ub - ua)
+                };
                 let mut u = from;
                 loop {
                     u = if limit > from {
@@ -1276,7 +1336,16 @@ fn sample_laws(
                     step *= 2.0;
                 }
             };
-            let (Some(out_l), Some(out_r)) = (out_of(ul_prev, u_lo), out_of(ur_prev, u_hi)) else {
+            let side = |fixed: bool, from: f64, limit: f64| {
+                if fixed {
+                    Some(u_min)
+                } else {
+                    out_of(from, limit)
+                }
+            };
+            let (Some(out_l), Some(out_r)) =
+                (side(fixed_l, ul_prev, u_lo), side(fixed_r, ur_prev, u_hi))
+            else {
                 break;
             };
             // The level's edges, each between the last level's and the
@@ -1296,7 +1365,9 @@ fn sample_laws(
             // A law that jumps there is at a knot of the curvature, which
             // its junction prices (spans up to one planned a scroll's knot
             // at 1.2 mm/s, not 5.4).
-            if law_u(ul) > STAIR_EDGE * tau || law_u(ur) > STAIR_EDGE * tau {
+            if (!fixed_l && law_u(ul) > STAIR_EDGE * tau)
+                || (!fixed_r && law_u(ur) > STAIR_EDGE * tau)
+            {
                 return None;
             }
             let (x0, x1) = (xa + path.arc_length(ua, ul), xa + path.arc_length(ua, ur));
@@ -1310,8 +1381,8 @@ fn sample_laws(
             let rises = n == 0
                 || (1..STAIR_CHECKS).all(|j| {
                     let f = j as f64 / STAIR_CHECKS as f64;
-                    law_u(ul + f * (ul_prev - ul)) >= floor
-                        && law_u(ur_prev + f * (ur - ur_prev)) >= floor
+                    (fixed_l || law_u(ul + f * (ul_prev - ul)) >= floor)
+                        && (fixed_r || law_u(ur_prev + f * (ur - ur_prev)) >= floor)
                 });
             if !rises {
                 return None;
@@ -1358,7 +1429,7 @@ fn sample_laws(
                      fallback: (f64, f64)| {
         let which = usize::from(term >= MACHINE_LAW_PARTS);
         let at = |uu: f64| term_of(&path.eval(uu.clamp(u_lo, u_hi), 3), term);
-        let (u_min, v_min) = golden_section_argmin(at, ua, ub, GOLDEN_ITERS, 0.0);
+        let (u_min, v_min) = argmin_by_knot_spans(path, at, ua, ub);
         if v_min.is_nan() {
             lower(w, xa, fallback.0, which, fallback.1);
         } else if v_min < below {
@@ -1680,6 +1751,33 @@ fn sample_laws(
     }
 }
 
+/// Where `f` (a law along `path`) is lowest on `[a, b]`, and its value:
+/// golden-section search in each knot span of a NURBS that the bracket
+/// overlaps. A law jumps at a C1 knot and may dip just past it (a near-cusp
+/// at a knot of the G5.2 guitar, 2.2 mm/s past a law of 15): one search
+/// over both sides found the bracket's end when the knot lay off its
+/// middle.
+fn argmin_by_knot_spans(path: &Path, f: impl Fn(f64) -> f64, a: f64, b: f64) -> (f64, f64) {
+    let mut best = (f64::NAN, f64::NAN);
+    let mut lo = a;
+    let mut search = |lo: f64, hi: f64| {
+        let (u, v) = golden_section_argmin(&f, lo, hi, GOLDEN_ITERS, 0.0);
+        if v < best.1 || best.1.is_nan() {
+            best = (u, v);
+        }
+    };
+    if let Path::Nurbs(n) = path {
+        for &k in n.knots() {
+            if k > lo && k < b {
+                search(lo, k);
+                lo = k;
+            }
+        }
+    }
+    search(lo, b);
+    best
+}
+
 /// Steps of [`stepped_laws`] towards each stationary end.
 const STATIONARY_STEPS: usize = 3;
 /// Each of those steps is this share of the next one's extent.
@@ -1966,6 +2064,12 @@ const GOLDEN_ITERS: usize = 40;
 /// Levels of the nested spans describing a sharp dip of the machine law
 /// (`sample_laws`' staircase), each at twice the speed of the one inside.
 const STAIR_LEVELS: usize = 4;
+/// Levels of a one-sided staircase (from a knot the law rises further
+/// within a sub-range: 0.6 to 42 mm/s over 15 µm on `curva_delfino`).
+const ONE_SIDED_LEVELS: usize = 6;
+/// The first step out of a level of a one-sided staircase, as a share of
+/// its bracket (doubled until out).
+const ONE_SIDED_STEP: f64 = 1.0 / 1024.0;
 /// Bisection steps finding a level's edges.
 const STAIR_BISECTIONS: usize = 40;
 /// A level's edge where the law is above this many times the level is a

@@ -309,6 +309,17 @@ fn a_stationary_point_near_a_curves_end_is_passed_without_a_crawl() {
     assert_first_curve_at_f6000("curva_delfino-q1.ngc", 1.1);
 }
 
+/// A dip of the machine law at a knot where the curvature jumps: the G5.2
+/// guitar's law falls from 20 to 2.2 mm/s at a knot 0.1 mm into the curve
+/// and rises to 17 mm/s within 25 µm after it. Charged to the knot's law
+/// sub-range (the staircase refused a dip whose law jumps at its edge), the
+/// run held 0.81 mm/s over 30 µm and took 1.171× the optimum; one-sided
+/// levels from the knot take 1.156×.
+#[test]
+fn a_dip_at_a_knot_where_the_law_jumps_is_held_only_on_its_own_side() {
+    assert_first_curve_at_f6000("curva_chitarra-q3.ngc", 1.165);
+}
+
 /// A feed override raised after the blocks were queued keeps every limit.
 /// `homer-q2` at F6000 is queued at 100 %; at 150 % its curves run at up to
 /// 150 mm/s, where an axis's jerk `C‴·v³` binds at points where it could
