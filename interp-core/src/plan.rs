@@ -2735,11 +2735,10 @@ const REACH_MARGIN: f64 = 1.1;
 /// The highest speed the machine can reach within distance `s` of a point
 /// it passes at `v0` at most (`0` at a rest point), never faster than
 /// `√(v0² + 2·A·s)`: an upper bound of the speed of any plan within the
-/// configured limits. Every
-/// plan leaves its rests with acceleration `a0` at most and its jerk is at
-/// most `J`, so while it accelerates `s̈² − a0² ≤ 2J·v` (the quantity
-/// `v − (s̈² − a0²)/(2J)` does not fall): at the point the acceleration is
-/// at most `√(a0² + 2J·v0)`.
+/// configured limits. Every plan leaves its rests with acceleration `a0`
+/// at most and its jerk is at most `J`, so while it accelerates
+/// `s̈² − a0² ≤ 2J·v` (the quantity `v − (s̈² − a0²)/(2J)` does not fall):
+/// at the point the acceleration is at most `√(a0² + 2J·v0)`.
 fn reach_from(v0: f64, s: f64, a0: f64, cfg: &InterpConfig) -> f64 {
     let s = s.max(0.0);
     let j = cfg.max_path_jerk;
