@@ -1834,6 +1834,21 @@ fn stepped_laws(
     push(len);
     let u_of = |x: f64| path.param_at_arc_length(path.u_start(), x);
     let eval = |u: f64| path.eval(u.clamp(u_lo, u_hi), 3);
+    // A span an interval has no room for would lower its whole sub-range
+    // (`Window::lower_exact`): then the stretch is held whole, as before.
+    let h = w.h();
+    let room = (1..n).all(|k| {
+        let x = seg.s0 + edges[k - 1];
+        let here = (1..n)
+            .filter(|&j| index_of(seg.s0 + edges[j - 1], h) == index_of(x, h))
+            .count();
+        w.interval_at(x)
+            .is_some_and(|it| it.n_spans as usize + here <= crate::plan::SPANS)
+    });
+    if !room {
+        edges[1] = len;
+        n = 2;
+    }
     let mut u_prev = u_of(0.0);
     for k in 1..n {
         let u = u_of(edges[k]);
