@@ -2524,15 +2524,13 @@ fn jerk_reach(
     cfg: &InterpConfig,
 ) -> Option<f64> {
     let old = anchor.map(|(xa, va)| reach_from(va, x + h - xa, a0, cfg));
-    let new = (knot < f64::INFINITY).then(|| reach_from(libm::sqrt(knot.max(0.0)), h, a0, cfg));
+    let entry = (knot < f64::INFINITY).then(|| libm::sqrt(knot.max(0.0)));
+    let new = entry.map(|ve| (ve, reach_from(ve, h, a0, cfg)));
     let v = match (old, new) {
-        (Some(o), Some(nw)) if nw < o => {
-            *anchor = Some((x, libm::sqrt(knot.max(0.0))));
-            nw
-        }
-        (Some(o), _) => o,
-        (None, Some(nw)) => {
-            *anchor = Some((x, libm::sqrt(knot.max(0.0))));
+        (Some(o), Some((_, nw))) if !(nw < o) => o,
+        (Some(o), None) => o,
+        (_, Some((ve, nw))) => {
+            *anchor = Some((x, ve));
             nw
         }
         (None, None) => return None,

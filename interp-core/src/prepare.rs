@@ -26,7 +26,7 @@ use crate::fiveaxis::{
 use crate::geom::{Curve, Derivs, Vec3, golden_section_argmin};
 use crate::interp::{JOIN_TOLERANCE, MAX_PIECES, PushError, grid_multiple};
 use crate::kinematics::Machine;
-use crate::nurbs::Side;
+use crate::nurbs::{Nurbs, Side};
 use crate::path::{Blending, Block, Path};
 use crate::plan::{
     AxisSample, CHUNK, Freeze, JumpReserve, Lift, MachinePlace, PlanError, SLIVER, WINDOW, Window,
@@ -1249,11 +1249,7 @@ fn sample_laws(
                 return None;
             };
             let tol = 1e-6 * (ub - ua);
-            let k = nb
-                .knots()
-                .iter()
-                .copied()
-                .find(|&k| k > ua && k < ub && libm::fabs(k - u_min) <= tol)?;
+            let k = knots_within(nb, ua, ub).find(|&k| libm::fabs(k - u_min) <= tol)?;
             let (l, r) = (law_u(k - 1e-9 * (ub - ua)), law_u(k));
             let jump = 2.0 * STAIR_EDGE * v0;
             if l > jump && r <= STAIR_EDGE * v0 {
@@ -1767,8 +1763,8 @@ fn argmin_by_knot_spans(path: &Path, f: impl Fn(f64) -> f64, a: f64, b: f64) -> 
         }
     };
     if let Path::Nurbs(n) = path {
-        for &k in n.knots() {
-            if k > lo && k < b {
+        for k in knots_within(n, a, b) {
+            if k > lo {
                 search(lo, k);
                 lo = k;
             }
@@ -1776,6 +1772,18 @@ fn argmin_by_knot_spans(path: &Path, f: impl Fn(f64) -> f64, a: f64, b: f64) -> 
     }
     search(lo, b);
     best
+}
+
+/// The knots of `n` strictly inside `(a, b)`, in order (repeated ones
+/// repeated), found from `a`'s span rather than scanned from the first
+/// knot: a bracket is a few µm of a curve that may hold thousands.
+fn knots_within(n: &Nurbs, a: f64, b: f64) -> impl Iterator<Item = f64> + '_ {
+    let knots = n.knots();
+    knots[n.find_span(a, 0) + 1..]
+        .iter()
+        .copied()
+        .skip_while(move |&k| k <= a)
+        .take_while(move |&k| k < b)
 }
 
 /// Steps of [`stepped_laws`] towards each stationary end.
