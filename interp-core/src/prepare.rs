@@ -182,6 +182,13 @@ pub struct BlockPlanner {
     window: Window,
     /// The rest of a block longer than a part.
     pending: Option<Block>,
+    /// The chunk mark the last cut moved off onto a knot of its curve (see
+    /// [`cut_at_mark`]): the next part is cut at the next mark, and the cut
+    /// part's plan reaches its end.
+    snapped_cut: Option<f64>,
+    /// The part being planned ends at a cut moved onto a knot: its plan
+    /// reaches its end (a hair off the mark).
+    part_snapped: bool,
     /// Where the machine may be when the next plan is committed, and whether
     /// it is at rest there ([`Self::set_machine`]).
     machine: f64,
@@ -240,6 +247,8 @@ impl BlockPlanner {
             tail_turn: None,
             window: Window::new(cfg, h, tail_s),
             pending: None,
+            snapped_cut: None,
+            part_snapped: false,
             machine: tail_s,
             machine_at_rest: true,
             ovr: 1.0,
@@ -326,6 +335,7 @@ impl BlockPlanner {
         self.tail_exact_stop = false;
         self.tail_turn = None;
         self.pending = None;
+        self.snapped_cut = None;
         self.machine = tail_s;
         self.machine_at_rest = true;
         self.planned_to = tail_s;
@@ -434,11 +444,23 @@ impl BlockPlanner {
             return Err(PushError::ProfileFull);
         }
         // (A part cut at a mark ends there only up to round-off: count it as reached.)
-        let mark = (libm::floor(self.tail_s / chunk + 1e-6) + 1.0) * chunk;
+        let mut mark = (libm::floor(self.tail_s / chunk + 1e-6) + 1.0) * chunk;
+        if self.snapped_cut == Some(mark) {
+            // (The last cut, at this mark, moved onto a knot just before it.)
+            mark += chunk;
+        }
+        let mut snapped = None;
         let (part, rest) = if self.tail_s + length > mark + self.h {
             let u = block
                 .path
                 .param_at_arc_length(block.path.u_start(), mark - self.tail_s);
+            let u = match cut_at_mark(&block.path, u, self.h) {
+                Some(k) => {
+                    snapped = Some(mark);
+                    k
+                }
+                None => u,
+            };
             match block.path.split_at(u) {
                 Ok((a, b)) => (
                     Block { path: a, ..*block },
@@ -449,7 +471,11 @@ impl BlockPlanner {
         } else {
             (*block, None)
         };
-        self.plan_part(&part, out)?;
+        self.part_snapped = snapped.is_some();
+        let r = self.plan_part(&part, out);
+        self.part_snapped = false;
+        r?;
+        self.snapped_cut = snapped;
         out.continues = false;
         self.pending = rest;
         Ok(())
@@ -967,7 +993,11 @@ impl BlockPlanner {
         let chunk = CHUNK as f64 * self.h;
         let mark = libm::floor(s / chunk + 1e-9) * chunk;
         out.n_pieces = 0;
-        let end = if self.finished { s } else { mark.min(s) };
+        let end = if self.finished || self.part_snapped {
+            s
+        } else {
+            mark.min(s)
+        };
         let r = if end > self.planned_to + SLIVER * h {
             let freeze = self.freeze();
             self.solve_into(freeze, end, None, true, out).map(|()| {
@@ -2122,6 +2152,34 @@ struct AfterHold {
 /// slow down at all, and a braking curve at 10 % still asked it to (the
 /// override at 30 % inside a turn of `trident`, which crawled).
 const LIFT_SOFTENING: [f64; 6] = [1.0, 0.5, 0.25, 0.1, 0.03, 0.01];
+
+/// Where a long block whose chunk mark falls at parameter `u` is cut: on a
+/// knot of its curve instead, when one is so near that the cut would leave
+/// a sliver of the knot span, a thousandth of its width or less (and at
+/// most a quarter grid step of arc length away). The sliver's control
+/// points nearly coincide, and the part's derivatives in it lose their
+/// digits: the machine law sampled there fell to 8.7 mm/s over 60 µm
+/// around a cut 6·10⁻⁵ of a span past a knot of `curva_scrool_f` (order 6),
+/// where the curve allows 60–71 mm/s. `None`: cut at `u`.
+fn cut_at_mark(path: &Path, u: f64, h: f64) -> Option<f64> {
+    let Path::Nurbs(n) = path else {
+        return None;
+    };
+    let k = n.knots();
+    let span = n.find_span(u, 0);
+    let (a, b) = (k[span], k[span + 1]);
+    let near = |c: f64| {
+        let d = n.eval(u, 1).d1.norm() * (u - c).abs();
+        c > n.u_start()
+            && c < n.u_end()
+            && (u - c).abs() <= CUT_SNAP_SHARE * (b - a)
+            && d <= 0.25 * h
+    };
+    [a, b].into_iter().find(|&c| c != u && near(c))
+}
+
+/// See [`cut_at_mark`].
+const CUT_SNAP_SHARE: f64 = 1e-3;
 
 /// The parameters between which the laws of `path` (of length `len`, a piece
 /// of `block`) are evaluated: its whole range, narrowed by [`stationary_offset`]

@@ -19,9 +19,10 @@
 //! does not ask for), the checks that failed, the largest path or axis
 //! jerk as a share of its limit, and the feed holds the look-ahead planned,
 //! those of them braking more gently than the tangential limits allow, and
-//! those it could not plan (the closed-form stop ran), and the longest an
-//! override, hold or resume took to plan (wall time: in the service it
-//! must fit in the planning thread's lead, 40 ms by default).
+//! those it could not plan (the closed-form stop ran), the longest an
+//! override, hold or resume took to plan, and the longest from one setpoint
+//! to the next (pushes, commands, plans and the tick; wall time: in the
+//! service it must fit in the planning thread's lead, 40 ms by default).
 
 use std::path::PathBuf;
 
@@ -52,7 +53,7 @@ fn main() {
     let ticks = |ms: f64| (ms * 1e-3 / cfg.period).round() as u64;
     let (every, hold_every, resume_after) = (ticks(every), ticks(hold_every), ticks(resume_after));
     println!(
-        "program | knob s | 100 % s | turns | solves | retries | added stops | failed checks | jerk use | holds | softened | unplanned | longest command ms"
+        "program | knob s | 100 % s | turns | solves | retries | added stops | failed checks | jerk use | holds | softened | unplanned | longest command ms | longest step ms"
     );
     for file in &args {
         let blocks = match load_as_run(&PathBuf::from(file), feed, g64, &cfg) {
@@ -99,7 +100,7 @@ fn main() {
                     .map_or(file.clone(), |n| n.to_string_lossy().into());
                 let t = run.plan;
                 println!(
-                    "{name} | {:.3} | {:.3} | {done} | {} | {} | {} | {} | {:.3} | {} | {} | {} | {:.1}",
+                    "{name} | {:.3} | {:.3} | {done} | {} | {} | {} | {} | {:.3} | {} | {} | {} | {:.1} | {:.1}",
                     run.time,
                     plain.time,
                     t.solves,
@@ -111,6 +112,7 @@ fn main() {
                     t.holds_softened,
                     t.holds_unplanned,
                     run.longest_command_s * 1e3,
+                    run.longest_step_s * 1e3,
                 );
             }
             Err(e) => eprintln!("{file}: {e}"),

@@ -128,6 +128,10 @@ pub struct InterpolatedRun {
     /// The longest an operator's command took to plan (wall time, s): in
     /// the service, what must fit in the planning thread's lead.
     pub longest_command_s: f64,
+    /// The longest from one setpoint to the next (wall time, s): the blocks
+    /// pushed, the commands, every plan due, and the tick, as the service's
+    /// planning thread does them between two ticks. It must fit in the lead.
+    pub longest_step_s: f64,
 }
 
 impl InterpolatedRun {
@@ -531,6 +535,9 @@ fn run_to_done(
     // Each command before its tick (in order).
     let mut next = 0;
     let mut longest_command_s: f64 = 0.0;
+    let mut longest_step_s: f64 = 0.0;
+    // (From the end of one setpoint's check: the check is not planning.)
+    let mut checked = std::time::Instant::now();
     let commands = commands.unwrap_or(&[]);
     let end = run
         .run_program_with::<OverrideError>(
@@ -551,10 +558,12 @@ fn run_to_done(
                 Ok(())
             },
             |sp, _| {
+                longest_step_s = longest_step_s.max(checked.elapsed().as_secs_f64());
                 check.check(sp);
                 if keep {
                     points.push(Vec3::new(sp.axes[0], sp.axes[1], sp.axes[2]));
                 }
+                checked = std::time::Instant::now();
                 Ok(())
             },
         )
@@ -573,6 +582,7 @@ fn run_to_done(
         measured: check.measured,
         plan: run.driver_mut().window_mut().totals,
         longest_command_s,
+        longest_step_s,
     })
 }
 
