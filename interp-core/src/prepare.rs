@@ -182,13 +182,10 @@ pub struct BlockPlanner {
     window: Window,
     /// The rest of a block longer than a part.
     pending: Option<Block>,
-    /// The chunk mark the last cut moved off onto a knot of its curve (see
-    /// [`cut_at_mark`]): the next part is cut at the next mark, and the cut
-    /// part's plan reaches its end.
+    /// The chunk mark the part being (or last) planned was cut off, onto a
+    /// knot of its curve a hair away (see [`cut_at_mark`]): that part's
+    /// plan reaches its end, and the next part is cut at the next mark.
     snapped_cut: Option<f64>,
-    /// The part being planned ends at a cut moved onto a knot: its plan
-    /// reaches its end (a hair off the mark).
-    part_snapped: bool,
     /// Where the machine may be when the next plan is committed, and whether
     /// it is at rest there ([`Self::set_machine`]).
     machine: f64,
@@ -248,7 +245,6 @@ impl BlockPlanner {
             window: Window::new(cfg, h, tail_s),
             pending: None,
             snapped_cut: None,
-            part_snapped: false,
             machine: tail_s,
             machine_at_rest: true,
             ovr: 1.0,
@@ -471,11 +467,11 @@ impl BlockPlanner {
         } else {
             (*block, None)
         };
-        self.part_snapped = snapped.is_some();
-        let r = self.plan_part(&part, out);
-        self.part_snapped = false;
-        r?;
-        self.snapped_cut = snapped;
+        let last_cut = core::mem::replace(&mut self.snapped_cut, snapped);
+        if let Err(e) = self.plan_part(&part, out) {
+            self.snapped_cut = last_cut;
+            return Err(e);
+        }
         out.continues = false;
         self.pending = rest;
         Ok(())
@@ -993,7 +989,7 @@ impl BlockPlanner {
         let chunk = CHUNK as f64 * self.h;
         let mark = libm::floor(s / chunk + 1e-9) * chunk;
         out.n_pieces = 0;
-        let end = if self.finished || self.part_snapped {
+        let end = if self.finished || self.snapped_cut.is_some() {
             s
         } else {
             mark.min(s)
@@ -2168,12 +2164,12 @@ fn cut_at_mark(path: &Path, u: f64, h: f64) -> Option<f64> {
     let k = n.knots();
     let span = n.find_span(u, 0);
     let (a, b) = (k[span], k[span + 1]);
+    let speed = n.eval(u, 1).d1.norm();
     let near = |c: f64| {
-        let d = n.eval(u, 1).d1.norm() * (u - c).abs();
         c > n.u_start()
             && c < n.u_end()
             && (u - c).abs() <= CUT_SNAP_SHARE * (b - a)
-            && d <= 0.25 * h
+            && speed * (u - c).abs() <= 0.25 * h
     };
     [a, b].into_iter().find(|&c| c != u && near(c))
 }
