@@ -186,6 +186,14 @@ pub struct BlockPlanner {
     /// knot of its curve a hair away (see [`cut_at_mark`]): that part's
     /// plan reaches its end, and the next part is cut at the next mark.
     snapped_cut: Option<f64>,
+    /// The queue ends at a cut of a long block inside a smooth stretch of
+    /// its curve ([`cut_is_smooth`]): the next part, the block's rest, joins
+    /// it without a junction, as the uncut curve would. (Each part's own
+    /// derivatives at the cut differ by round-off: taken as a junction's
+    /// step they reserved axis jerk around every such cut, and next to a
+    /// knot's sliver limited the speed, to 86.3 mm/s where the scroll
+    /// `curva_scrool_f` allows 91.1.)
+    tail_cut_smooth: bool,
     /// Where the machine may be when the next plan is committed, and whether
     /// it is at rest there ([`Self::set_machine`]).
     machine: f64,
@@ -245,6 +253,7 @@ impl BlockPlanner {
             window: Window::new(cfg, h, tail_s),
             pending: None,
             snapped_cut: None,
+            tail_cut_smooth: false,
             machine: tail_s,
             machine_at_rest: true,
             ovr: 1.0,
@@ -332,6 +341,7 @@ impl BlockPlanner {
         self.tail_turn = None;
         self.pending = None;
         self.snapped_cut = None;
+        self.tail_cut_smooth = false;
         self.machine = tail_s;
         self.machine_at_rest = true;
         self.planned_to = tail_s;
@@ -441,11 +451,16 @@ impl BlockPlanner {
         }
         // (A part cut at a mark ends there only up to round-off: count it as reached.)
         let mut mark = (libm::floor(self.tail_s / chunk + 1e-6) + 1.0) * chunk;
-        if self.snapped_cut == Some(mark) {
-            // (The last cut, at this mark, moved onto a knot just before it.)
+        // The last cut, at this mark, moved onto a knot just before it; or
+        // the block starts a hair before the mark (a quarter grid step or
+        // less): cut at the next mark instead, for a part that short would
+        // be a sliver of its curve, whose derivatives lose their digits
+        // ([`cut_at_mark`]).
+        if self.snapped_cut == Some(mark) || mark - self.tail_s <= CUT_SNAP_STEPS * self.h {
             mark += chunk;
         }
         let mut snapped = None;
+        let mut cut = None;
         let (part, rest) = if self.tail_s + length > mark + self.h {
             let u = block
                 .path
@@ -458,10 +473,13 @@ impl BlockPlanner {
                 None => u,
             };
             match block.path.split_at(u) {
-                Ok((a, b)) => (
-                    Block { path: a, ..*block },
-                    Some(Block { path: b, ..*block }),
-                ),
+                Ok((a, b)) => {
+                    cut = Some(u);
+                    (
+                        Block { path: a, ..*block },
+                        Some(Block { path: b, ..*block }),
+                    )
+                }
                 Err(_) => (*block, None),
             }
         } else {
@@ -473,6 +491,7 @@ impl BlockPlanner {
             return Err(e);
         }
         out.continues = false;
+        self.tail_cut_smooth = cut.is_some_and(|u| cut_is_smooth(&block.path, u));
         self.pending = rest;
         Ok(())
     }
@@ -862,7 +881,7 @@ impl BlockPlanner {
         self.window.extend_to(g_last);
         // The junction with what is queued before.
         out.stop_at_join = false;
-        if let Some(left) = self.tail_derivs {
+        if let Some(left) = self.tail_derivs.filter(|_| !self.tail_cut_smooth) {
             let entry = block.path.eval(windows[0].0, 3);
             // A turn in place is entered and left at rest (its measure is
             // degrees, not the path's millimetres), but its parts (a long
@@ -2151,12 +2170,16 @@ const LIFT_SOFTENING: [f64; 6] = [1.0, 0.5, 0.25, 0.1, 0.03, 0.01];
 
 /// Where a long block whose chunk mark falls at parameter `u` is cut: on a
 /// knot of its curve instead, when one is so near that the cut would leave
-/// a sliver of the knot span, a thousandth of its width or less (and at
-/// most a quarter grid step of arc length away). The sliver's control
-/// points nearly coincide, and the part's derivatives in it lose their
-/// digits: the machine law sampled there fell to 8.7 mm/s over 60 µm
-/// around a cut 6·10⁻⁵ of a span past a knot of `curva_scrool_f` (order 6),
-/// where the curve allows 60–71 mm/s. `None`: cut at `u`.
+/// a sliver of the knot span, a tenth of its width or less (and at most a
+/// quarter grid step of arc length away). The sliver's control points
+/// nearly coincide, and the part's derivatives in it lose their digits:
+/// the machine law sampled there fell to 8.7 mm/s over 60 µm around a cut
+/// 6·10⁻⁵ of a span past a knot of `curva_scrool_f` (order 6), where the
+/// curve allows 60–71 mm/s. The part's law at a cut a sliver from a knot
+/// (the 20 corpus curves, cut at every knot's side at offsets from 10⁻⁵ to
+/// 10⁻¹ of the span) is off by up to 220 % within a thousandth of the
+/// span, 6 % within a hundredth, 5·10⁻⁵ within a twentieth and 7·10⁻⁸ past
+/// the cuts a tenth moves (all on the scroll). `None`: cut at `u`.
 fn cut_at_mark(path: &Path, u: f64, h: f64) -> Option<f64> {
     let Path::Nurbs(n) = path else {
         return None;
@@ -2169,13 +2192,29 @@ fn cut_at_mark(path: &Path, u: f64, h: f64) -> Option<f64> {
         c > n.u_start()
             && c < n.u_end()
             && (u - c).abs() <= CUT_SNAP_SHARE * (b - a)
-            && speed * (u - c).abs() <= 0.25 * h
+            && speed * (u - c).abs() <= CUT_SNAP_STEPS * h
     };
     [a, b].into_iter().find(|&c| c != u && near(c))
 }
 
 /// See [`cut_at_mark`].
-const CUT_SNAP_SHARE: f64 = 1e-3;
+const CUT_SNAP_SHARE: f64 = 0.1;
+
+/// How far (in grid steps of arc length) a cut may move from its chunk
+/// mark ([`cut_at_mark`], [`BlockPlanner::plan`]).
+const CUT_SNAP_STEPS: f64 = 0.25;
+
+/// Whether `path` is smooth at parameter `u`, as the uncut block is
+/// planned: inside a knot span, or on a knot where the curvature is
+/// continuous (only knots of continuity C1 or less are junctions,
+/// [`knot_junctions`]). Lines and arcs are smooth everywhere.
+fn cut_is_smooth(path: &Path, u: f64) -> bool {
+    let Path::Nurbs(n) = path else {
+        return true;
+    };
+    let mult = n.knots().iter().filter(|&&k| k == u).count();
+    mult == 0 || mult + 1 < n.degree()
+}
 
 /// The parameters between which the laws of `path` (of length `len`, a piece
 /// of `block`) are evaluated: its whole range, narrowed by [`stationary_offset`]
