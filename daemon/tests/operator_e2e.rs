@@ -297,6 +297,38 @@ fn hold_is_for_motion_and_every_refused_start_says_why() {
     assert_eq!(s["position"], serde_json::json!([30.0, 8.0, 0.0]));
 }
 
+/// A command acts a planning lead after it is sent (40 ms): an operator's
+/// resume right after a hold, or a hold right after a resume, is taken for
+/// what it is, not refused because the machine has not acted yet. (The
+/// resume was refused, "the machine is not holding (state running)", and
+/// the machine then stayed held.)
+#[test]
+fn a_resume_right_after_a_hold_resumes_and_a_hold_right_after_a_resume_holds() {
+    let srv = Server::start(&service_name("hold-resume"), &["--no-socket"]);
+    let mut c = srv.connect();
+    assert!(
+        c.ask(&line_to([60.0, 0.0, 0.0], 6000.0, 1))
+            .starts_with("ok")
+    );
+    assert_eq!(c.ask("end"), "ok end");
+    assert_eq!(c.ask("start"), "ok start");
+    c.wait_for("motion", |s| s["s"].as_f64().unwrap() > 1.0);
+    assert_eq!(c.ask("hold"), "ok hold");
+    let r = c.ask("hold");
+    assert!(r.contains("hold: the machine is already holding"), "{r}");
+    assert_eq!(c.ask("resume"), "ok resume");
+    let r = c.ask("resume");
+    assert!(r.contains("resume: the machine is not holding"), "{r}");
+    assert_eq!(c.ask("hold"), "ok hold");
+    c.wait_for("held", |s| s["state"] == "holding" && s["feed"] == 0.0);
+    assert_eq!(c.ask("resume"), "ok resume");
+    assert_eq!(c.ask("hold"), "ok hold");
+    assert_eq!(c.ask("resume"), "ok resume");
+    // Resumed last: it runs to its end.
+    let s = c.wait_for("done", |s| s["program_phase"] == "done");
+    assert_eq!(s["position"], serde_json::json!([60.0, 0.0, 0.0]));
+}
+
 #[test]
 fn serve_does_not_take_over_a_path_that_is_not_its_socket() {
     let dir = temp_dir("socket-path");

@@ -45,8 +45,9 @@ pub fn print_summary(s: &ServeSummary) {
     show("tick+publish", &s.tick_publish_us);
     show("commit+tick+publish", &s.tick_publish_with_push_us);
     println!(
-        "  overruns {}, recorder drops {}, recorded {}, publish failures {}, RT pool {} served / {} fallbacks",
+        "  overruns {}, planner late {}, recorder drops {}, recorded {}, publish failures {}, RT pool {} served / {} fallbacks",
         s.overruns,
+        s.planner_late,
         s.recorder_drops,
         s.recorded,
         s.publish_failures,

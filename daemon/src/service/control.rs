@@ -13,7 +13,7 @@
 //! moves, and its program can be taken over by the next connection that
 //! sends a block or `end`.
 
-use core::sync::atomic::{AtomicU64, Ordering};
+use core::sync::atomic::{AtomicU8, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -55,6 +55,11 @@ pub struct Control {
     pub token: Option<String>,
     /// Incremented by every abort: a stream waiting on a full queue drops its block.
     pub abort_epoch: AtomicU64,
+    /// The last hold or resume sent for the program that moves
+    /// ([`HOLD_SENT`], [`RESUME_SENT`], 0: neither since its start or an
+    /// abort): a command acts a planning lead after it is sent, and until
+    /// then the machine's state does not show it ([`Self::commanded_state`]).
+    pub motion_command: AtomicU8,
     /// Blocks (protocol lines) accepted.
     pub blocks_accepted: AtomicU64,
     /// Lines refused with an error.
@@ -66,6 +71,11 @@ pub struct Control {
     /// The trace recorder's queue, if recording (taken at shutdown).
     pub recorder: Mutex<Option<traces::RecordTx>>,
 }
+
+/// [`Control::motion_command`]: a hold was sent last.
+pub const HOLD_SENT: u8 = 1;
+/// [`Control::motion_command`]: a resume was sent last.
+pub const RESUME_SENT: u8 = 2;
 
 /// Where a program is in its life.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -324,6 +334,7 @@ impl Control {
     /// Aborts and waits until the machine is at rest with the queue flushed.
     pub async fn abort(&self) -> Result<(), String> {
         self.abort_epoch.fetch_add(1, Ordering::AcqRel);
+        self.motion_command.store(0, Ordering::Release);
         let before = self.status.aborts.load(Ordering::Acquire);
         self.command(Command::Abort).await;
         let deadline = tokio::time::Instant::now() + ABORT_WAIT;
@@ -597,7 +608,7 @@ impl Control {
     /// The program `start` starts, or why there is none to start.
     fn start_program(&self, s: &mut Programs) -> Result<u32, String> {
         let phase = self.phase(s);
-        let state = self.status.run_state();
+        let state = self.commanded_state();
         let p = s.program;
         match phase {
             Phase::None => return Err("start: no program (send its blocks first)".into()),
@@ -624,13 +635,31 @@ impl Control {
             return Err(format!("start: program {p} is already started"));
         }
         s.started = true;
+        // (A hold sent as the last program ended never acted.)
+        self.motion_command.store(0, Ordering::Release);
         Ok(p)
+    }
+
+    /// The machine's state as the holds and resumes sent so far leave it:
+    /// each acts a planning lead after it is sent (`--plan-lead-ms`), so a
+    /// hold sent while the machine still runs is a hold, and a resume sent
+    /// while it still holds is a resume. (Judged by the machine's state
+    /// alone, a resume sent within the lead of its hold was refused, and the
+    /// machine stayed held.)
+    fn commanded_state(&self) -> RunState {
+        let st = self.status.run_state();
+        match (self.motion_command.load(Ordering::Acquire), st) {
+            (HOLD_SENT, RunState::Running) => RunState::Holding,
+            (RESUME_SENT, RunState::Holding) => RunState::Running,
+            _ => st,
+        }
     }
 
     /// `hold`: only while the machine moves a program.
     async fn hold(&self) -> Result<Reply, String> {
-        match self.status.run_state() {
+        match self.commanded_state() {
             RunState::Running if self.status.started.load(Ordering::Acquire) => {
+                self.motion_command.store(HOLD_SENT, Ordering::Release);
                 self.command(Command::Hold).await;
                 Ok(Reply::Hold)
             }
@@ -649,8 +678,9 @@ impl Control {
 
     /// `resume`: only while holding.
     async fn resume(&self) -> Result<Reply, String> {
-        match self.status.run_state() {
+        match self.commanded_state() {
             RunState::Holding => {
+                self.motion_command.store(RESUME_SENT, Ordering::Release);
                 self.command(Command::Resume).await;
                 Ok(Reply::Resume)
             }

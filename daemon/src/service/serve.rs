@@ -2,7 +2,7 @@
 //! plane, wired together; graceful shutdown on SIGINT/SIGTERM (abort on the
 //! path within the limits, drain the recorder, release the iceoryx2 ports).
 
-use core::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use core::sync::atomic::{AtomicBool, AtomicU8, AtomicU64, Ordering};
 use std::net::{IpAddr, SocketAddr};
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
@@ -151,6 +151,10 @@ pub struct ServeSummary {
     pub overruns: u64,
     /// Ticks the recorder had no room for.
     pub recorder_drops: u64,
+    /// Periods the RT thread found the planning thread behind it and
+    /// published its last point again, unticked (0 expected: see
+    /// `--plan-lead-ms`).
+    pub planner_late: u64,
     /// Ticks the recorder took.
     pub recorded: u64,
     /// Failed publishes.
@@ -355,6 +359,7 @@ pub fn start(
         machine: cfg.machine,
         token: args.token.clone(),
         abort_epoch: AtomicU64::new(0),
+        motion_command: AtomicU8::new(0),
         blocks_accepted: AtomicU64::new(0),
         errors: AtomicU64::new(0),
         connections: AtomicU64::new(0),
@@ -481,6 +486,7 @@ pub fn start(
                 tick_publish_with_push_us: Percentiles::of(&report.compute_with_push),
                 overruns: report.overruns,
                 recorder_drops: status.recorder_drops.load(Ordering::Acquire),
+                planner_late: status.planner_late.load(Ordering::Acquire),
                 recorded,
                 publish_failures: status.publish_failures.load(Ordering::Acquire),
                 rt_pool_served: crate::service::rt_alloc::served(),

@@ -80,6 +80,9 @@ pub struct JitterReport {
     pub subscriber_violations: Option<Violations>,
     /// Ticks the recorder had no room for.
     pub recorder_drops: u64,
+    /// Periods the full pipeline's RT thread waited for its planning thread
+    /// (its last point published again, unticked).
+    pub planner_late: u64,
     /// Full-pipeline p99 lateness / bare-loop p99 lateness.
     pub p99_lateness_ratio: Option<f64>,
     /// Full-pipeline p99 lateness / p99 lateness of the bare loop alongside.
@@ -277,6 +280,7 @@ pub fn main(args: &JitterOptions) -> Result<()> {
             .ok()
             .flatten(),
         recorder_drops: summary.recorder_drops,
+        planner_late: summary.planner_late,
         p99_lateness_ratio,
         bare_alongside,
         p99_lateness_ratio_alongside,
@@ -325,9 +329,10 @@ fn print_report(r: &JitterReport) {
         &r.full.compute_with_push_us,
     );
     println!(
-        "  overruns: bare {}, full {}; recorder drops {}; subscriber {} samples, {} missing",
+        "  overruns: bare {}, full {}; planner late {}; recorder drops {}; subscriber {} samples, {} missing",
         r.bare.overruns,
         r.full.overruns,
+        r.planner_late,
         r.recorder_drops,
         r.subscriber_received,
         r.subscriber_gaps
