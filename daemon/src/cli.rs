@@ -175,7 +175,8 @@ pub struct RtArgs {
     #[arg(long, value_name = "US", default_value_t = DEFAULT_PERIOD_US,
           value_parser = clap::value_parser!(u32).range(250..=10_000))]
     pub period_us: u32,
-    /// SCHED_FIFO priority of the RT thread (1..=99).
+    /// SCHED_FIFO priority of the RT thread (1..=99); the planning thread
+    /// runs at half of it.
     #[arg(long, default_value_t = DEFAULT_PRIORITY,
           value_parser = clap::value_parser!(i32).range(1..=99))]
     pub priority: i32,
