@@ -522,8 +522,9 @@ pub fn spawn(cfg: InterpConfig, position: [f64; 6], opts: RtOptions) -> Result<R
 /// thread, which preempts it. Scheduled normally, it fell behind the RT
 /// thread (which then published its last point again): `ruota_dentata-q1`
 /// at F6000 with an override every 113 ms and a hold every 97 ms resumed
-/// after 20 ms, 57 periods on an idle 2-core machine and 1,244–1,293 with
-/// four busy loops beside it; at SCHED_FIFO 40, none in either.
+/// after 20 ms, with four busy loops beside it on a 2-core machine,
+/// 162–327 periods a run; at SCHED_FIFO 40, none. (Idle, bursts of such
+/// commands still outlast the lead now and then, either way.)
 pub fn planning_priority(rt: i32) -> i32 {
     (rt / 2).max(1)
 }
