@@ -1311,6 +1311,12 @@ impl Nurbs {
         (k * h, g * h)
     }
 
+    /// How many times the interior parameter `u` occurs in the knot vector
+    /// (0: inside a span).
+    pub fn knot_multiplicity(&self, u: f64) -> usize {
+        self.multiplicity(u, self.span_of(u))
+    }
+
     /// Multiplicity of the knot value `u` ending at index `k` (counting down).
     fn multiplicity(&self, u: f64, k: usize) -> usize {
         self.knots[..=k]

@@ -2232,7 +2232,7 @@ fn cut_is_smooth(path: &Path, u: f64) -> bool {
     let Path::Nurbs(n) = path else {
         return true;
     };
-    let mult = n.knots().iter().filter(|&&k| k == u).count();
+    let mult = n.knot_multiplicity(u);
     mult == 0 || mult + 1 < n.degree()
 }
 

@@ -533,23 +533,29 @@ pub fn planning_priority(rt: i32) -> i32 {
 /// warning (it plans with normal scheduling, as it did before).
 fn set_planning_scheduling(prio: i32) {
     #[cfg(target_os = "linux")]
-    {
-        let param = libc::sched_param {
-            sched_priority: prio,
-        };
-        // SAFETY: `param` is a valid sched_param; pthread_self is this thread.
-        let rc =
-            unsafe { libc::pthread_setschedparam(libc::pthread_self(), libc::SCHED_FIFO, &param) };
-        if rc != 0 {
-            eprintln!(
-                "interpd: warning: SCHED_FIFO priority {prio} refused for the planning thread ({}): \
-                 it plans with normal scheduling and may fall behind on a loaded machine",
-                std::io::Error::from_raw_os_error(rc)
-            );
-        }
+    if let Err(e) = set_fifo(prio) {
+        eprintln!(
+            "interpd: warning: SCHED_FIFO priority {prio} refused for the planning thread ({e}): \
+             it plans with normal scheduling and may fall behind on a loaded machine"
+        );
     }
     #[cfg(not(target_os = "linux"))]
     let _ = prio;
+}
+
+/// The calling thread to SCHED_FIFO `prio`.
+#[cfg(target_os = "linux")]
+fn set_fifo(prio: i32) -> std::io::Result<()> {
+    let param = libc::sched_param {
+        sched_priority: prio,
+    };
+    // SAFETY: `param` is a valid sched_param; pthread_self is this thread.
+    let rc = unsafe { libc::pthread_setschedparam(libc::pthread_self(), libc::SCHED_FIFO, &param) };
+    if rc == 0 {
+        Ok(())
+    } else {
+        Err(std::io::Error::from_raw_os_error(rc))
+    }
 }
 
 /// SCHED_FIFO, affinity and `mlockall` as asked; returns a warning per refusal
@@ -592,21 +598,13 @@ pub(crate) fn apply_scheduling(opts: &RtOptions) -> Vec<String> {
                 ));
             }
         }
-        if let Some(prio) = opts.fifo_priority {
-            let param = libc::sched_param {
-                sched_priority: prio,
-            };
-            // SAFETY: `param` is a valid sched_param; pthread_self is this thread.
-            let rc = unsafe {
-                libc::pthread_setschedparam(libc::pthread_self(), libc::SCHED_FIFO, &param)
-            };
-            if rc != 0 {
-                warn(format!(
-                    "SCHED_FIFO priority {prio} refused ({}): running with normal scheduling \
-                     (give the binary CAP_SYS_NICE or raise RLIMIT_RTPRIO)",
-                    std::io::Error::from_raw_os_error(rc)
-                ));
-            }
+        if let Some(prio) = opts.fifo_priority
+            && let Err(e) = set_fifo(prio)
+        {
+            warn(format!(
+                "SCHED_FIFO priority {prio} refused ({e}): running with normal scheduling \
+                 (give the binary CAP_SYS_NICE or raise RLIMIT_RTPRIO)"
+            ));
         }
     }
     #[cfg(not(target_os = "linux"))]
