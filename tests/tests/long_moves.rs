@@ -124,23 +124,22 @@ fn around_a_cut(block: &Block, u_cut: f64) -> (Around, Around) {
         let x = tail_s + s_cut;
         let k0 = ((x - 0.1) / hs).floor() as i64;
         let subs: Vec<i64> = (k0..k0 + (0.2 / hs) as i64).collect();
-        for &k in subs.iter().step_by(SUB) {
-            let it = planner.window().interval_at((k as f64 + 0.5) * hs).unwrap();
-            // (The parts' end samples at the cut: elsewhere a sample's place
-            // is found to a fraction of a µm, and its derivatives are the
-            // curve's there.)
-            let Some((cut_s, u)) = cut else {
-                continue;
-            };
+        // (The parts' end samples at the cut: elsewhere a sample's place is
+        // found to a fraction of a µm, and its derivatives are the curve's
+        // there.)
+        if let Some((cut_s, u)) = cut {
+            let curve = ArcLengthDerivs::new(&block.path.eval(u, 3)).unwrap();
             let at_cut = |smp: &&AxisSample| (smp.s - cut_s).abs() <= 1e-7;
-            for smp in it.samples[..it.n_samples as usize].iter().filter(at_cut) {
-                let curve = ArcLengthDerivs::new(&block.path.eval(u, 3)).unwrap();
-                for (got, want) in [(smp.css, curve.c_ss), (smp.csss, curve.c_sss)] {
-                    let err = (Vec3::from(got) - want).norm();
-                    assert!(
-                        err <= 1e-6 * want.norm().max(1e-3),
-                        "an axis sample at u = {u} (cut at {u_cut}): {got:?}, the curve's {want:?}"
-                    );
+            for &k in subs.iter().step_by(SUB) {
+                let it = planner.window().interval_at((k as f64 + 0.5) * hs).unwrap();
+                for smp in it.samples[..it.n_samples as usize].iter().filter(at_cut) {
+                    for (got, want) in [(smp.css, curve.c_ss), (smp.csss, curve.c_sss)] {
+                        let err = (Vec3::from(got) - want).norm();
+                        assert!(
+                            err <= 1e-6 * want.norm().max(1e-3),
+                            "an axis sample at u = {u} (cut at {u_cut}): {got:?}, the curve's {want:?}"
+                        );
+                    }
                 }
             }
         }
