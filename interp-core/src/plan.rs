@@ -1953,6 +1953,10 @@ impl Window {
                     };
                     self.totals.crawled += 1;
                     self.crawl_end = self.data.pieces[self.data.n_pieces - 1].x1;
+                    // Tried from where the machine is: planned again from
+                    // there (the next tick's retry) it would fail the same
+                    // way, at the cost of this solve again.
+                    self.crawl_tried = keep_from;
                     // The pieces before this plan's start stay as they are.
                     let first_kept = self.data.pieces[0].x0;
                     self.data.drop_before(first_kept.min(keep_from));

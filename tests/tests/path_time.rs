@@ -453,6 +453,82 @@ fn the_knob_turned_while_holding_never_stops_the_machine() {
     }
 }
 
+/// A re-solve that found no plan and crawled is not planned again from
+/// where it was planned: the same solve from the same state fails the same
+/// way, and the crawl's retry at the next tick cost a second whole failing
+/// solve (20–40 ms in the service) right after the first, past the planning
+/// thread's lead. `homer-q2` at F6000, the knob turned every 23 ms, a hold
+/// every 41 ms resumed 7 ms later: a lowered override crawled at tick 1771
+/// and again at 1772, 25 µm further on. Now the crawl counts as tried from
+/// where the machine was, and its retry waits until it has moved half a
+/// grid interval (`Window::take_crawl_retry`).
+#[test]
+fn a_crawl_is_not_planned_again_from_where_it_was_planned() {
+    use interp_core::RunState;
+    let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../gcode/tests/programs/homer-q2.ngc");
+    let blocks = load_program(&file, Some(6000.0), None).unwrap();
+    let cfg = InterpConfig::default();
+    let crawls = std::thread::Builder::new()
+        .stack_size(interpd_tests::path_time::INTERPOLATOR_STACK)
+        .spawn(move || {
+            let p = blocks[0].path.start_point();
+            let mut run = interp_run::Run::<1024>::new(cfg, [p.x, p.y, p.z, 0.0, 0.0, 0.0])
+                .unwrap()
+                .with_tick_limit(2500);
+            // (machine position, crawls so far) at each tick that added one.
+            let mut crawls: Vec<(f64, u64)> = Vec::new();
+            let mut seen = |r: &interp_run::Run<1024>| {
+                let c = r.driver().planner().window().totals.crawled;
+                if c > crawls.last().map_or(0, |l| l.1) {
+                    crawls.push((r.executor().status().plan_position, c));
+                }
+            };
+            let _ = run.run_program_with::<()>(
+                &blocks,
+                |r| {
+                    seen(r);
+                    let t = r.ticks();
+                    if t > 0 && t % 23 == 0 {
+                        let k = (t / 23) as usize % OVERRIDE_KNOB.len();
+                        let _ = r.set_feed_override(OVERRIDE_KNOB[k]);
+                    }
+                    if t > 0 && t % 41 == 0 && r.state() == RunState::Running {
+                        r.feed_hold();
+                    }
+                    if t > 7 && (t - 7) % 41 == 0 && r.state() == RunState::Holding {
+                        r.resume();
+                    }
+                    Ok(())
+                },
+                |_, _| Ok(()),
+            );
+            let h = run.driver().planner().window().h();
+            (crawls, h)
+        })
+        .unwrap()
+        .join()
+        .unwrap();
+    let (crawls, h) = crawls;
+    assert!(!crawls.is_empty(), "no crawl to retry: the case is gone");
+    let mut last = f64::NEG_INFINITY;
+    let mut count = 0;
+    for &(x, c) in &crawls {
+        assert_eq!(
+            c,
+            count + 1,
+            "two crawls before one tick at {x} mm: {crawls:?}"
+        );
+        assert!(
+            x - last >= 0.5 * h,
+            "crawled again {} mm after the last crawl (half a grid interval: {} mm): {crawls:?}",
+            x - last,
+            0.5 * h
+        );
+        (last, count) = (x, c);
+    }
+}
+
 /// A feed hold brakes within every limit, an axis's jerk included: on the
 /// gear's tight teeth at F6000 an axis's jerk binds at a steady speed, and
 /// the closed-form tangential stop passed it (1.44× with a hold every 97
