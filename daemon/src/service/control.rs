@@ -58,7 +58,7 @@ pub struct Control {
     /// The last hold or resume sent for the program that moves
     /// ([`HOLD_SENT`], [`RESUME_SENT`], 0: neither since its start or an
     /// abort): a command acts a planning lead after it is sent, and until
-    /// then the machine's state does not show it ([`Self::commanded_state`]).
+    /// then the machine's state does not show it (`commanded_state`).
     pub motion_command: AtomicU8,
     /// Blocks (protocol lines) accepted.
     pub blocks_accepted: AtomicU64,
@@ -309,6 +309,11 @@ pub struct StatusReply {
     /// Periods the RT thread waited for the planning thread (0 while the
     /// planner keeps its lead; see `--plan-lead-ms`).
     pub planner_late: u64,
+    /// Holds, resumes and overrides merged with a later one before they
+    /// were applied (a hold and its resume cancel out; the last override
+    /// counts): commands came faster than the planner applies them.
+    #[serde(default)]
+    pub commands_merged: u64,
     /// Ticks the recorder had no room for.
     pub recorder_drops: u64,
     /// Failed publishes.
@@ -505,6 +510,7 @@ impl Control {
             line_errors: self.errors.load(Ordering::Acquire),
             overruns: s.overruns.load(Ordering::Acquire),
             planner_late: s.planner_late.load(Ordering::Acquire),
+            commands_merged: s.commands_merged.load(Ordering::Acquire),
             recorder_drops: s.recorder_drops.load(Ordering::Acquire),
             publish_failures: s.publish_failures.load(Ordering::Acquire),
         }

@@ -174,6 +174,9 @@ pub struct RtStatus {
     /// Periods the RT thread waited for the planning thread to decide its
     /// tick while a program ran (0 while the planner keeps its lead).
     pub planner_late: AtomicU64,
+    /// Holds, resumes and overrides the planning thread merged with a later
+    /// one before applying them (see `sequencer::Deferred`).
+    pub commands_merged: AtomicU64,
     /// Blocks refused by the interpolator.
     pub blocks_refused: AtomicU64,
     /// Joins planned as rest points in the session (corners slower to pass
@@ -500,6 +503,7 @@ pub fn spawn(cfg: InterpConfig, position: [f64; 6], opts: RtOptions) -> Result<R
                 finished: false,
                 end_requested: None,
                 pending: None,
+                deferred: Default::default(),
             }
             .run();
         })

@@ -19,13 +19,14 @@
 //!
 //! The copy runs at most [`RtOptions::lead_ticks`](crate::service::rt::RtOptions)
 //! ahead of the RT thread: a command (hold, override, abort) takes effect
-//! that many periods after it is given; the RT thread never waits for a
-//! plan while this thread keeps within its lead (a wait is counted as
-//! `planner_late`).
+//! that many periods after it is given (a hold, resume or override that
+//! comes while the planning is behind waits until it has its lead again:
+//! `Deferred`); the RT thread never waits for a plan while this thread
+//! keeps within its lead (a wait is counted as `planner_late`).
 
 use core::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use heapless::spsc::{Consumer, Producer};
 use interp_core::interp::PushError;
@@ -84,6 +85,88 @@ pub(crate) struct Sequencer {
     pub end_requested: Option<u32>,
     /// A segment that did not fit yet.
     pub pending: Option<Segment>,
+    /// Holds, resumes and overrides not applied yet (see [`Deferred`]).
+    pub deferred: Deferred,
+}
+
+/// The operator's commands that plan the speed again (hold, resume,
+/// override: a re-solve of the look-ahead each, 10–17 ms), waiting for the
+/// planning thread to be its full lead ahead of the RT thread before each
+/// one, so that none starts with less than the lead to plan in. Applied
+/// as they came, a burst (a hold, its resume and two overrides within one
+/// lead) outlasted the lead, and the RT thread waited for the planner: its
+/// last point published again, a stop of the machine for a period.
+///
+/// What is still waiting when the next command comes is merged with it,
+/// as the machine would end up after both: a hold and then a resume (or a
+/// resume and then a hold) cancel out, the machine going on as it was (it
+/// never held, or stays held); of several overrides the last value counts.
+/// So a backlog never grows, however fast commands come.
+#[derive(Debug, Default)]
+pub(crate) struct Deferred {
+    /// A hold or a resume.
+    motion: Option<Command>,
+    /// The override to set.
+    feed_override: Option<f64>,
+    /// When the oldest of them came.
+    since: Option<Instant>,
+    /// Commands merged away (cancelled or superseded), for the status.
+    pub merged: u64,
+}
+
+impl Deferred {
+    /// Adds `c` (a hold, resume or override), merged with what waits.
+    fn add(&mut self, c: Command) {
+        match (c, self.motion) {
+            (Command::Override(x), _) => {
+                if self.feed_override.replace(x).is_some() {
+                    self.merged += 1;
+                }
+            }
+            (Command::Hold, Some(Command::Resume)) | (Command::Resume, Some(Command::Hold)) => {
+                self.motion = None;
+                self.merged += 2;
+            }
+            (Command::Hold | Command::Resume, Some(_)) => self.merged += 1,
+            (Command::Hold | Command::Resume, None) => self.motion = Some(c),
+            _ => unreachable!("only holds, resumes and overrides wait"),
+        }
+        if self.motion.is_none() && self.feed_override.is_none() {
+            self.since = None;
+        } else {
+            self.since.get_or_insert_with(Instant::now);
+        }
+    }
+
+    /// Drops a waiting hold or resume (an abort came).
+    fn drop_motion(&mut self) {
+        if self.motion.take().is_some() {
+            self.merged += 1;
+        }
+        if self.feed_override.is_none() {
+            self.since = None;
+        }
+    }
+
+    /// The next command to apply, in the order that plans least: a hold
+    /// before an override, an override before a resume (set while the
+    /// machine holds or brakes to a hold, an override plans nothing: the
+    /// next plan takes it).
+    fn take(&mut self) -> Option<Command> {
+        let c = match self.motion {
+            Some(Command::Resume) if self.feed_override.is_some() => {
+                self.feed_override.take().map(Command::Override)
+            }
+            _ => self
+                .motion
+                .take()
+                .or_else(|| self.feed_override.take().map(Command::Override)),
+        };
+        if self.motion.is_none() && self.feed_override.is_none() {
+            self.since = None;
+        }
+        c
+    }
 }
 
 impl Sequencer {
@@ -93,6 +176,7 @@ impl Sequencer {
             self.feed();
             self.end_if_due();
             self.apply_commands();
+            self.apply_deferred();
             let moving = self.started || self.aborting;
             let rt_ticks = self.status.ticks.load(Ordering::Acquire);
             if moving && self.ticks() < rt_ticks + self.lead_ticks {
@@ -245,6 +329,52 @@ impl Sequencer {
         }
     }
 
+    /// Applies the deferred commands (see [`Deferred`]), each once the copy
+    /// is its lead ahead of the RT thread (less a quarter, the RT thread
+    /// ticking on meanwhile), or it has waited a lead already (the planning
+    /// is behind on its own: waiting longer would not help), or nothing
+    /// moves.
+    fn apply_deferred(&mut self) {
+        while let Some(since) = self.deferred.since {
+            let moving = self.started || self.aborting;
+            let rt_ticks = self.status.ticks.load(Ordering::Acquire);
+            let lead_full = self.ticks() + self.lead_ticks / 4 >= rt_ticks + self.lead_ticks;
+            let waited = since.elapsed() >= self.period * self.lead_ticks as u32;
+            if moving && !lead_full && !waited {
+                return;
+            }
+            self.apply_one_deferred();
+        }
+    }
+
+    fn apply_one_deferred(&mut self) {
+        match self.deferred.take() {
+            Some(Command::Hold) if self.started && self.run.state() == RunState::Running => {
+                self.run.feed_hold();
+                self.flush(Some(Applied::Hold), false);
+            }
+            Some(Command::Resume) if self.run.state() == RunState::Holding => {
+                self.run.resume();
+                self.flush(Some(Applied::Resume), false);
+            }
+            Some(Command::Override(x)) => {
+                // The control plane checked the range; a refusal leaves the old value.
+                let ok = self.run.set_feed_override(x).is_ok();
+                self.flush(None, false);
+                if ok {
+                    self.status
+                        .feed_override
+                        .store(x.to_bits(), Ordering::Release);
+                    self.send(None, false, Some(Applied::Override(x)));
+                }
+            }
+            _ => {}
+        }
+        self.status
+            .commands_merged
+            .store(self.deferred.merged, Ordering::Release);
+    }
+
     fn apply_commands(&mut self) {
         while let Some(c) = self.commands.dequeue() {
             match c {
@@ -256,32 +386,12 @@ impl Sequencer {
                     }
                 }
                 // Only motion is held: a hold while nothing moves is not
-                // remembered for the next program.
-                Command::Hold => {
-                    if self.started && self.run.state() == RunState::Running {
-                        self.run.feed_hold();
-                        self.flush(Some(Applied::Hold), false);
-                    }
-                }
-                Command::Resume => {
-                    if self.run.state() == RunState::Holding {
-                        self.run.resume();
-                        self.flush(Some(Applied::Resume), false);
-                    }
-                }
-                Command::Override(x) => {
-                    // The control plane checked the range; a refusal leaves the old value.
-                    let ok = self.run.set_feed_override(x).is_ok();
-                    self.flush(None, false);
-                    if ok {
-                        self.status
-                            .feed_override
-                            .store(x.to_bits(), Ordering::Release);
-                        self.send(None, false, Some(Applied::Override(x)));
-                    }
-                }
+                // remembered for the next program (judged when applied).
+                Command::Hold | Command::Resume | Command::Override(_) => self.deferred.add(c),
                 Command::End(p) => self.end_requested = Some(p),
                 Command::Abort => {
+                    // A hold or resume waiting is moot; an override stays set.
+                    self.deferred.drop_motion();
                     self.run.abort();
                     self.flush(Some(Applied::Abort), true);
                     self.pending = None;
@@ -305,5 +415,70 @@ impl Sequencer {
             self.aborting = false;
             self.started = self.autostart;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn drain(d: &mut Deferred) -> Vec<String> {
+        std::iter::from_fn(|| d.take())
+            .map(|c| format!("{c:?}"))
+            .collect()
+    }
+
+    #[test]
+    fn a_hold_and_its_resume_waiting_together_cancel_out() {
+        for pair in [
+            [Command::Hold, Command::Resume],
+            [Command::Resume, Command::Hold],
+        ] {
+            let mut d = Deferred::default();
+            for c in pair {
+                d.add(c);
+            }
+            assert!(d.since.is_none(), "{pair:?}: nothing waits");
+            assert_eq!(drain(&mut d), Vec::<String>::new(), "{pair:?}");
+            assert_eq!(d.merged, 2);
+        }
+    }
+
+    #[test]
+    fn of_several_overrides_waiting_the_last_one_is_applied() {
+        let mut d = Deferred::default();
+        for x in [0.5, 1.2, 0.8] {
+            d.add(Command::Override(x));
+        }
+        assert_eq!(drain(&mut d), ["Override(0.8)"]);
+        assert_eq!(d.merged, 2);
+        assert!(d.since.is_none());
+    }
+
+    #[test]
+    fn an_override_goes_after_a_hold_and_before_a_resume() {
+        // Set while the machine brakes to a hold or rests in it, an override
+        // plans nothing; the hold's and the resume's own plans take it.
+        let mut d = Deferred::default();
+        d.add(Command::Override(0.6));
+        d.add(Command::Hold);
+        assert_eq!(drain(&mut d), ["Hold", "Override(0.6)"]);
+        d.add(Command::Resume);
+        d.add(Command::Override(1.5));
+        assert_eq!(drain(&mut d), ["Override(1.5)", "Resume"]);
+        assert_eq!(d.merged, 0);
+    }
+
+    #[test]
+    fn an_abort_drops_a_waiting_hold_and_keeps_the_override() {
+        let mut d = Deferred::default();
+        d.add(Command::Hold);
+        d.add(Command::Override(0.7));
+        d.drop_motion();
+        assert!(d.since.is_some());
+        assert_eq!(drain(&mut d), ["Override(0.7)"]);
+        d.add(Command::Resume);
+        d.drop_motion();
+        assert!(d.since.is_none(), "nothing waits");
     }
 }
