@@ -780,3 +780,81 @@ fn a_g43_4_curve_with_rotary_coordinates_is_served_to_its_last_point() {
     // The rotary axes moved along the curve, not just at its end.
     assert!(t.setpoints.iter().any(|s| s.c > 1.0 && s.c < 24.0));
 }
+
+/// An operator's commands coming as fast as a knob turns, while a program
+/// with long curves streams: the session replays bit for bit by its
+/// schedule. A push that waits for room plans the due parts of a long
+/// block before it all the same; with an override or a hold applied in the
+/// same tick, the order of the two decides the plans. Unrecorded, replay
+/// planned the parts after the command (at the tick), and the butterfly at
+/// F6000 under an override every 13 ms and a hold every 47 ms resumed 11 ms
+/// later replayed off by a few ulps from a few thousand ticks on; now the
+/// trace notes such a push (`parts`) where it came among the commands.
+#[test]
+fn commands_as_fast_as_a_knob_turns_replay_bit_for_bit() {
+    let service = service_name("knob");
+    let dir = temp_dir("knob");
+    let trace = dir.join("knob.mcap");
+    let program = dir.join("butterfly-f6000.ngc");
+    let text = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../gcode/tests/programs/curva_farfalla-q1.ngc"),
+    )
+    .unwrap();
+    std::fs::write(
+        &program,
+        text.replace("F100", "F6000").replace("F290", "F6000"),
+    )
+    .unwrap();
+    let srv = Server::start(
+        &service,
+        &[
+            "--no-socket",
+            "--autostart",
+            "--record",
+            trace.to_str().unwrap(),
+        ],
+    );
+    let sender = spawn_send(srv.port, &program, &[]);
+    let mut knob = srv.connect();
+    let t0 = Instant::now();
+    let ms = |t: Instant| t.elapsed().as_millis() as u64;
+    let (mut overrides, mut holds) = (0u64, 0u64);
+    let mut next_hold = 47;
+    // Until the program is done (or 30 s: the sender then reports it).
+    while ms(t0) < 30_000 {
+        let x = [1.0, 0.6, 1.2, 0.8, 1.5][overrides as usize % 5];
+        assert!(knob.ask(&format!("override {x}")).starts_with("ok"));
+        overrides += 1;
+        if ms(t0) >= next_hold {
+            // Refused while nothing moves (before the first block, after the end).
+            if knob.ask("hold").starts_with("ok") {
+                holds += 1;
+            }
+            std::thread::sleep(Duration::from_millis(11));
+            let _ = knob.ask("resume");
+            next_hold += 47;
+        }
+        if knob.status()["program_phase"] == "done" {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(13));
+    }
+    let out = wait_child(sender, "interpd send");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let s = knob.status();
+    assert_eq!(s["state"], "done", "{s}");
+    assert!(
+        overrides > 100 && holds > 20,
+        "{overrides} overrides, {holds} holds"
+    );
+    let (st, text) = srv.stop();
+    assert!(st.success(), "serve exited with {st}: {text}");
+    let compared = replay_bit_identical(&trace);
+    let ticks = s["ticks"].as_u64().unwrap();
+    assert!(compared >= ticks, "{compared} of {ticks} ticks replayed");
+}

@@ -409,12 +409,18 @@ impl Driver {
         block: &Block,
         sink: PlanSink<'_>,
     ) -> Result<(), PushError> {
-        if !exec.status().finished {
-            self.drive_due(exec, true, sink);
-        }
+        self.parts_into(exec, sink);
         let plan = self.push(&exec.status(), block)?;
         sink(plan);
         exec.commit(plan)
+    }
+
+    /// Commit the due parts of a long block into `exec` (see
+    /// [`Self::next_part`]): what [`Self::push_into`] plans before its block.
+    pub fn parts_into<const Q: usize>(&mut self, exec: &mut Executor<Q>, sink: PlanSink<'_>) {
+        if !exec.status().finished {
+            self.drive_due(exec, true, sink);
+        }
     }
 
     /// The program ends with what is pushed into `exec` (see [`Self::finish`]).

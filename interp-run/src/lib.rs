@@ -221,6 +221,18 @@ impl<const Q: usize> Run<Q> {
         self.planning(|d, e, sink| d.push_into(e, block, sink))
     }
 
+    /// Plans the due parts of a long block, as [`Self::push`] does before
+    /// its block (see [`Driver::parts_into`]): what a push that had to wait
+    /// for room planned.
+    pub fn plan_parts(&mut self) {
+        self.planning(|d, e, sink| d.parts_into(e, sink));
+    }
+
+    /// Whether steps were recorded since the last [`Self::take_steps`].
+    pub fn has_steps(&self) -> bool {
+        self.steps.as_ref().is_some_and(|s| !s.is_empty())
+    }
+
     /// The program ends with what is pushed (see [`Driver::finish_into`]).
     pub fn finish(&mut self) {
         self.planning(|d, e, sink| d.finish_into(e, sink));

@@ -311,6 +311,12 @@ pub enum EventKind {
     /// finished program is cleared as an abort clears it (replay applies
     /// it so), but no operator asked for it, so it is not an `abort`.
     NextProgram,
+    /// A block waiting for room in a live run: the due parts of a long
+    /// block before it were planned all the same (the planning that goes
+    /// before a push), between the commands of that tick. Replay plans them
+    /// at the same point: an operator's command in the same tick planned
+    /// before them or after them gives different plans.
+    Parts,
 }
 
 /// `/interpd/events`: one event.

@@ -304,6 +304,7 @@ fn follow_schedule(
                 | EventKind::Override
                 | EventKind::Abort
                 | EventKind::NextProgram
+                | EventKind::Parts
                 | EventKind::Finish
         )
     });
@@ -425,6 +426,7 @@ fn follow_schedule(
                         pipe = None;
                     }
                     EventKind::Finish => ip.finish(),
+                    EventKind::Parts => ip.plan_parts(),
                     _ => {}
                 }
                 next_event = events.next();

@@ -133,6 +133,9 @@ pub enum Applied {
     NextProgram,
     /// `finish`: the program ends after what is queued.
     Finish,
+    /// A segment's push waited for room, and the due parts of a long
+    /// block were planned before it (`interp_run::Run::plan_parts`).
+    Parts,
 }
 
 /// One tick for the recorder.

@@ -261,7 +261,11 @@ impl Sequencer {
                 return;
             }
             let r = self.run.push(&seg.block);
-            self.flush(None, false);
+            // A push that must wait may have planned the due parts of a
+            // long block before it: recorded, so that replay plans them at
+            // the same point among this tick's commands.
+            let parts = r.as_ref().is_err_and(|e| e.is_wait()) && self.run.has_steps();
+            self.flush(parts.then_some(Applied::Parts), false);
             match r {
                 Ok(()) => {
                     self.send(None, false, Some(Applied::Commit(seg.block.id)));

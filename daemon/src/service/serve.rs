@@ -555,6 +555,7 @@ fn trace_sink(tx: traces::RecordTx, period: f64) -> TickSink {
                 Applied::Abort => ev(EventKind::Abort),
                 Applied::NextProgram => ev(EventKind::NextProgram),
                 Applied::Finish => ev(EventKind::Finish),
+                Applied::Parts => ev(EventKind::Parts),
             };
             let _ = tx.try_push(traces::Record::Event(ev));
         }
