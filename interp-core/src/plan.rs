@@ -560,6 +560,15 @@ pub struct MachinePlace {
     n_pieces: usize,
 }
 
+/// Pieces past the first one after the machine a re-solve of everything
+/// ahead (`BlockPlanner::replan`) is tried from, when no braking rate
+/// finds a plan from that one: the plan keeps its pieces a little longer.
+/// Right after a resume turned a hold's braking around on pieces graded at
+/// an eighth of the grid step, every override (raised or lowered) failed
+/// through every rate from the first two pieces after the machine and
+/// crawled (`homer-q2` at F6000), and found a plan at once from the third.
+pub const LATER_FREEZES: usize = 2;
+
 /// The look-ahead window and its solver.
 #[derive(Clone, Debug)]
 pub struct Window {
@@ -572,6 +581,11 @@ pub struct Window {
     pub totals: PlanTotals,
     /// Called after every iteration of the linear program (diagnostics).
     pub trace: Option<fn(lp::Iteration)>,
+    /// Pieces past the first one after the machine that a re-solve of
+    /// everything ahead (`BlockPlanner::replan`) is tried from when no
+    /// braking rate finds a plan from that one, before it crawls
+    /// ([`LATER_FREEZES`]; 0 to try none, as before 2026-12-07).
+    pub later_freezes: usize,
     /// The intervals of the last [`Self::mark`].
     saved: [Interval; MARK_INTERVALS],
     /// Where the pieces of the last crawl end (`-inf`: none left): until
@@ -1259,6 +1273,7 @@ impl Window {
             last: SolveStats::default(),
             totals: PlanTotals::default(),
             trace: None,
+            later_freezes: LATER_FREEZES,
             saved: [open; MARK_INTERVALS],
             crawl_end: f64::NEG_INFINITY,
             crawl_tried: f64::NEG_INFINITY,

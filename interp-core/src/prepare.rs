@@ -544,17 +544,32 @@ impl BlockPlanner {
         // The spline follows a braking curve only approximately: if the
         // linear program cannot, brake more gently (the override takes a
         // little longer to take effect) rather than keep the old plan.
-        let p = self.window.piece(f);
+        // Then, before the last resort (where the current plan is not
+        // kept), from a piece or two later, as planned
+        // (`plan::LATER_FREEZES`).
+        let n_pieces = self.window.n_pieces();
+        let n_later = if keep_plan {
+            0
+        } else {
+            self.window.later_freezes
+        };
+        let later = (1..=n_later).take_while(|k| f + k < n_pieces);
+        let tries = LIFT_SOFTENING
+            .iter()
+            .map(|&gentle| (f, gentle))
+            .chain(later.clone().map(|k| (f + k, 1.0)));
+        let n_tries = LIFT_SOFTENING.len() + later.count();
         let mut r = Ok(());
-        for (k, gentle) in LIFT_SOFTENING.iter().enumerate() {
-            let stop = self.braking(&p, *gentle);
-            let last = k + 1 == LIFT_SOFTENING.len() && !keep_plan;
+        for (k, (g, gentle)) in tries.enumerate() {
+            let p = self.window.piece(g);
+            let stop = self.braking(&p, gentle);
+            let last = k + 1 == n_tries && !keep_plan;
             let lift = Lift {
                 at: p.x1(),
                 stop,
                 until: f64::INFINITY,
             };
-            r = self.solve_into(freeze, end, Some(lift), last, out);
+            r = self.solve_into(Freeze::At(g), end, Some(lift), last, out);
             if !matches!(r, Err(PushError::Schedule)) {
                 break;
             }

@@ -453,30 +453,25 @@ fn the_knob_turned_while_holding_never_stops_the_machine() {
     }
 }
 
-/// A re-solve that found no plan and crawled is not planned again from
-/// where it was planned: the same solve from the same state fails the same
-/// way, and the crawl's retry at the next tick cost a second whole failing
-/// solve (20–40 ms in the service) right after the first, past the planning
-/// thread's lead. `homer-q2` at F6000, the knob turned every 23 ms, a hold
-/// every 41 ms resumed 7 ms later: a lowered override crawled at tick 1771
-/// and again at 1772, 25 µm further on. Now the crawl counts as tried from
-/// where the machine was, and its retry waits until it has moved half a
-/// grid interval (`Window::take_crawl_retry`).
-#[test]
-fn a_crawl_is_not_planned_again_from_where_it_was_planned() {
+/// `homer-q2` at F6000 to tick 2,500 under a knob turned every 23 ms and
+/// a hold every 41 ms resumed 7 ms later, the re-solves of everything
+/// ahead tried from up to `later_freezes` later pieces
+/// (`Window::later_freezes`): the machine's position at each tick a crawl
+/// was planned before, with the crawls so far, and the grid interval.
+fn crawls_under_a_fast_knob(later_freezes: usize) -> (Vec<(f64, u64)>, f64) {
     use interp_core::RunState;
     let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../gcode/tests/programs/homer-q2.ngc");
     let blocks = load_program(&file, Some(6000.0), None).unwrap();
     let cfg = InterpConfig::default();
-    let crawls = std::thread::Builder::new()
+    std::thread::Builder::new()
         .stack_size(interpd_tests::path_time::INTERPOLATOR_STACK)
         .spawn(move || {
             let p = blocks[0].path.start_point();
             let mut run = interp_run::Run::<1024>::new(cfg, [p.x, p.y, p.z, 0.0, 0.0, 0.0])
                 .unwrap()
                 .with_tick_limit(2500);
-            // (machine position, crawls so far) at each tick that added one.
+            run.driver_mut().window_mut().later_freezes = later_freezes;
             let mut crawls: Vec<(f64, u64)> = Vec::new();
             let mut seen = |r: &interp_run::Run<1024>| {
                 let c = r.driver().planner().window().totals.crawled;
@@ -503,22 +498,30 @@ fn a_crawl_is_not_planned_again_from_where_it_was_planned() {
                 },
                 |_, _| Ok(()),
             );
-            let h = run.driver().planner().window().h();
-            (crawls, h)
+            (crawls, run.driver().planner().window().h())
         })
         .unwrap()
         .join()
-        .unwrap();
-    let (crawls, h) = crawls;
+        .unwrap()
+}
+
+/// A re-solve that found no plan and crawled is not planned again from
+/// where it was planned: the same solve from the same state fails the same
+/// way, and the crawl's retry at the next tick cost a second whole failing
+/// solve (20–40 ms in the service) right after the first, past the planning
+/// thread's lead. Under [`crawls_under_a_fast_knob`] with no later freeze
+/// piece tried, an override crawled at tick 1771 and again at 1772, 25 µm
+/// further on. Now the crawl counts as tried from where the machine was,
+/// and its retry waits until it has moved half a grid interval
+/// (`Window::take_crawl_retry`).
+#[test]
+fn a_crawl_is_not_planned_again_from_where_it_was_planned() {
+    let (crawls, h) = crawls_under_a_fast_knob(0);
     assert!(!crawls.is_empty(), "no crawl to retry: the case is gone");
     let mut last = f64::NEG_INFINITY;
     let mut count = 0;
     for &(x, c) in &crawls {
-        assert_eq!(
-            c,
-            count + 1,
-            "two crawls before one tick at {x} mm: {crawls:?}"
-        );
+        assert_eq!(c, count + 1, "two crawls in one tick at {x} mm: {crawls:?}");
         assert!(
             x - last >= 0.5 * h,
             "crawled again {} mm after the last crawl (half a grid interval: {} mm): {crawls:?}",
@@ -527,6 +530,21 @@ fn a_crawl_is_not_planned_again_from_where_it_was_planned() {
         );
         (last, count) = (x, c);
     }
+}
+
+/// An override right after a resume finds a plan: that crawl (above) came
+/// where the resume turned the hold's braking around on pieces graded at
+/// an eighth of the grid step. Every override, raised or lowered, failed
+/// through every braking rate from the first two pieces after the machine
+/// and found a plan at once from the third. A re-solve of everything ahead
+/// that would crawl now tries from up to two pieces later first
+/// (`Window::later_freezes`).
+#[test]
+fn an_override_right_after_a_resume_finds_a_plan_from_a_later_piece() {
+    let (crawls, _) = crawls_under_a_fast_knob(interp_core::plan::LATER_FREEZES);
+    assert!(crawls.is_empty(), "crawled at {crawls:?}");
+    // (The case: from the first piece after the machine only, it crawls.)
+    assert!(!crawls_under_a_fast_knob(0).0.is_empty());
 }
 
 /// A feed hold brakes within every limit, an axis's jerk included: on the
