@@ -561,8 +561,9 @@ pub struct MachinePlace {
 }
 
 /// Pieces past the first one after the machine a re-solve of everything
-/// ahead (`BlockPlanner::replan`) is tried from, when no braking rate
-/// finds a plan from that one: the plan keeps its pieces a little longer.
+/// ahead (`BlockPlanner::replan`) is tried from at the steepest braking
+/// rate, when that rate finds no plan from that one (and before the
+/// gentler rates): the plan keeps its pieces a little longer.
 /// Right after a resume turned a hold's braking around on pieces graded at
 /// an eighth of the grid step, every override (raised or lowered) failed
 /// through every rate from the first two pieces after the machine and
@@ -582,8 +583,8 @@ pub struct Window {
     /// Called after every iteration of the linear program (diagnostics).
     pub trace: Option<fn(lp::Iteration)>,
     /// Pieces past the first one after the machine that a re-solve of
-    /// everything ahead (`BlockPlanner::replan`) is tried from when no
-    /// braking rate finds a plan from that one, before it crawls
+    /// everything ahead (`BlockPlanner::replan`) is tried from when the
+    /// steepest braking rate finds no plan from that one
     /// ([`LATER_FREEZES`]; 0 to try none, as before 2026-12-07).
     pub later_freezes: usize,
     /// The intervals of the last [`Self::mark`].

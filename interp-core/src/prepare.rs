@@ -544,9 +544,10 @@ impl BlockPlanner {
         // The spline follows a braking curve only approximately: if the
         // linear program cannot, brake more gently (the override takes a
         // little longer to take effect) rather than keep the old plan.
-        // Then, before the last resort (where the current plan is not
-        // kept), from a piece or two later, as planned
-        // (`plan::LATER_FREEZES`).
+        // Where the current plan is not kept, a piece or two later (as
+        // planned) at the steepest rate comes before the gentler rates
+        // (`plan::LATER_FREEZES`): a freeze piece no rate can continue
+        // from cost all six solves before it.
         let n_pieces = self.window.n_pieces();
         let n_later = if keep_plan {
             0
@@ -554,10 +555,9 @@ impl BlockPlanner {
             self.window.later_freezes
         };
         let later = (1..=n_later).take_while(|k| f + k < n_pieces);
-        let tries = LIFT_SOFTENING
-            .iter()
-            .map(|&gentle| (f, gentle))
-            .chain(later.clone().map(|k| (f + k, 1.0)));
+        let tries = core::iter::once((f, LIFT_SOFTENING[0]))
+            .chain(later.clone().map(|k| (f + k, 1.0)))
+            .chain(LIFT_SOFTENING[1..].iter().map(|&gentle| (f, gentle)));
         let n_tries = LIFT_SOFTENING.len() + later.count();
         let mut r = Ok(());
         for (k, (g, gentle)) in tries.enumerate() {
