@@ -90,12 +90,13 @@ pub(crate) struct Sequencer {
 }
 
 /// The operator's commands that plan the speed again (hold, resume,
-/// override: a re-solve of the look-ahead each, 10–17 ms), waiting for the
-/// planning thread to be its full lead ahead of the RT thread before each
-/// one, so that none starts with less than the lead to plan in. Applied
-/// as they came, a burst (a hold, its resume and two overrides within one
-/// lead) outlasted the lead, and the RT thread waited for the planner: its
-/// last point published again, a stop of the machine for a period.
+/// override: a re-solve of the look-ahead each, 10–40 ms in `serve`),
+/// waiting for the planning thread to be its lead ahead of the RT thread
+/// again (less a quarter) before each one, so that none starts with less
+/// than that to plan in. Applied as they came, a burst (a hold, its resume
+/// and two overrides within one lead) outlasted the lead, and the RT thread
+/// waited for the planner: its last point published again, a stop of the
+/// machine for a period.
 ///
 /// What is still waiting when the next command comes is merged with it,
 /// as the machine would end up after both: a hold and then a resume (or a
