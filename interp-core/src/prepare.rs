@@ -548,17 +548,16 @@ impl BlockPlanner {
         // planned) at the steepest rate comes before the gentler rates
         // (`plan::LATER_FREEZES`): a freeze piece no rate can continue
         // from cost all six solves before it.
-        let n_pieces = self.window.n_pieces();
-        let n_later = if keep_plan {
+        let later = if keep_plan {
             0
         } else {
-            self.window.later_freezes
+            let after_f = self.window.n_pieces().saturating_sub(f + 1);
+            self.window.later_freezes.min(after_f)
         };
-        let later = (1..=n_later).take_while(|k| f + k < n_pieces);
         let tries = core::iter::once((f, LIFT_SOFTENING[0]))
-            .chain(later.clone().map(|k| (f + k, 1.0)))
+            .chain((1..=later).map(|k| (f + k, 1.0)))
             .chain(LIFT_SOFTENING[1..].iter().map(|&gentle| (f, gentle)));
-        let n_tries = LIFT_SOFTENING.len() + later.count();
+        let n_tries = LIFT_SOFTENING.len() + later;
         let mut r = Ok(());
         for (k, (g, gentle)) in tries.enumerate() {
             let p = self.window.piece(g);

@@ -530,8 +530,9 @@ pub fn spawn(cfg: InterpConfig, position: [f64; 6], opts: RtOptions) -> Result<R
 /// thread (which then published its last point again): `ruota_dentata-q1`
 /// at F6000 with an override every 113 ms and a hold every 97 ms resumed
 /// after 20 ms, with four busy loops beside it on a 2-core machine,
-/// 162–327 periods a run; at SCHED_FIFO 40, none. (Idle, bursts of such
-/// commands still outlast the lead now and then, either way.)
+/// 162–327 periods a run; at SCHED_FIFO 40, none. (Bursts of commands
+/// that outlast the lead on an idle machine are the sequencer's to pace:
+/// `sequencer::Deferred`.)
 pub fn planning_priority(rt: i32) -> i32 {
     (rt / 2).max(1)
 }

@@ -132,11 +132,15 @@ impl Deferred {
             (Command::Hold | Command::Resume, None) => self.motion = Some(c),
             _ => unreachable!("only holds, resumes and overrides wait"),
         }
-        if self.motion.is_none() && self.feed_override.is_none() {
+        if self.is_empty() {
             self.since = None;
         } else {
             self.since.get_or_insert_with(Instant::now);
         }
+    }
+
+    fn is_empty(&self) -> bool {
+        self.motion.is_none() && self.feed_override.is_none()
     }
 
     /// Drops a waiting hold or resume (an abort came).
@@ -144,7 +148,7 @@ impl Deferred {
         if self.motion.take().is_some() {
             self.merged += 1;
         }
-        if self.feed_override.is_none() {
+        if self.is_empty() {
             self.since = None;
         }
     }
@@ -163,7 +167,7 @@ impl Deferred {
                 .take()
                 .or_else(|| self.feed_override.take().map(Command::Override)),
         };
-        if self.motion.is_none() && self.feed_override.is_none() {
+        if self.is_empty() {
             self.since = None;
         }
         c
