@@ -587,6 +587,10 @@ pub struct Window {
     /// steepest braking rate finds no plan from that one
     /// ([`LATER_FREEZES`]; 0 to try none, as before 2026-12-07).
     pub later_freezes: usize,
+    /// A re-solve frozen inside an interval keeps the kept plan's pieces
+    /// to the interval's end (see `Data::rebuild_from`); `false` cuts them
+    /// afresh, as before 2026-12-07 (to reproduce what that failed on).
+    pub kept_pieces: bool,
     /// The intervals of the last [`Self::mark`].
     saved: [Interval; MARK_INTERVALS],
     /// Where the pieces of the last crawl end (`-inf`: none left): until
@@ -854,12 +858,16 @@ impl Data {
         mut x: f64,
         mut rest: bool,
         end: f64,
+        keep: bool,
     ) -> Result<(), PlanError> {
         let mut n = from;
         let mut si = self.rests().partition_point(|&s| s <= x);
         // A cut closer than this to the next one would leave a sliver piece
         // (round-off between a block end and a grid line): merge it.
         let sliver = SLIVER * self.h;
+        let first_line = (index_of(x, self.h) + 1) as f64 * self.h;
+        // The kept plan's pieces are taken up to here.
+        let mut kept_until = x;
         while x < end {
             let g0 = index_of(x, self.h);
             let mut x1 = ((g0 + 1) as f64 * self.h).min(end);
@@ -867,13 +875,33 @@ impl Data {
                 // Just before a grid line (round-off): run to the next one.
                 x1 = ((g0 + 2) as f64 * self.h).min(end);
             }
+            // The rest of the freeze point's interval keeps the kept plan's
+            // pieces as they are (uncut: they were cut when planned). Cut
+            // afresh, it could lose cuts the room then gave the kept plan
+            // (a slow stretch's eighths come last), and the kept piece,
+            // whose end its neighbour's length and coefficient shape, could
+            // not be continued: every pass failed (`ruota_dentata-q1` under
+            // the knob).
+            let mut old = false;
+            if keep && x < first_line - sliver && n < self.n_pieces && self.pieces[n].x0 == x {
+                let ox1 = self.pieces[n].x1;
+                if ox1 > x + sliver && ox1 <= x1 + sliver {
+                    x1 = x1.min(ox1);
+                    old = true;
+                }
+            }
             let mut stop_here = false;
             if si < self.n_stops && self.stops[si] <= x1 + sliver {
+                old = old && self.stops[si] == x1;
                 x1 = self.stops[si];
                 stop_here = true;
                 si += 1;
             } else if end - x1 <= sliver {
+                old = old && end == x1;
                 x1 = end;
+            }
+            if old && kept_until == x {
+                kept_until = x1;
             }
             if x1 > x {
                 if n >= WINDOW {
@@ -904,7 +932,7 @@ impl Data {
             x = x1;
         }
         self.n_pieces = n;
-        self.refine_pieces(from);
+        self.refine_pieces(from, kept_until);
         Ok(())
     }
 
@@ -1137,7 +1165,9 @@ impl Data {
     /// Cut the pieces `from..` (see [`Self::cuts`]), as many cuts as one
     /// linear program can hold, level by level ([`CutLevel`]), each level
     /// nearest the start first; then give every piece its speed limits.
-    fn refine_pieces(&mut self, from: usize) {
+    /// Pieces that end by `kept_until` are the kept plan's, cut already
+    /// (see [`Self::rebuild_from`]): left as they are.
+    fn refine_pieces(&mut self, from: usize, kept_until: f64) {
         let n = self.n_pieces;
         if n <= from {
             return;
@@ -1154,6 +1184,10 @@ impl Data {
             let mut i = a;
             while i < b {
                 let p = d.pieces[i];
+                if p.x1 <= kept_until {
+                    i += 1;
+                    continue;
+                }
                 let m = d.cuts(&p, rest_end(d, i), level, &mut cut);
                 let total = extra - counts[i] as usize + m;
                 if total > budget {
@@ -1275,6 +1309,7 @@ impl Window {
             totals: PlanTotals::default(),
             trace: None,
             later_freezes: LATER_FREEZES,
+            kept_pieces: true,
             saved: [open; MARK_INTERVALS],
             crawl_end: f64::NEG_INFINITY,
             crawl_tried: f64::NEG_INFINITY,
@@ -1849,7 +1884,8 @@ impl Window {
         // failure.
         let mut warm = first > 0;
         loop {
-            self.data.rebuild_from(first, from_x, rest, end)?;
+            self.data
+                .rebuild_from(first, from_x, rest, end, self.kept_pieces)?;
             let n = self.data.n_pieces;
             if n - first > REGION {
                 return Err(PlanError::Full);
@@ -1956,12 +1992,13 @@ impl Window {
                     self.totals.last_failure = Some(e);
                     // Last resort, never a stall: keep the current plan to its
                     // end (at rest) and crawl from there, resting at every knot.
+                    let kept_pieces = self.kept_pieces;
                     let d = &mut self.data;
                     d.pieces[..backup_n].copy_from_slice(&self.scratch.backup[..backup_n]);
                     d.n_pieces = backup_n;
                     d.prev = backup_prev;
                     let start = backup_n;
-                    d.rebuild_from(start, old_end, true, end)?;
+                    d.rebuild_from(start, old_end, true, end, kept_pieces)?;
                     crawl(d, start, ovr, &lift);
                     self.last = SolveStats {
                         crawled: true,

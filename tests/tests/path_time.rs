@@ -456,9 +456,11 @@ fn the_knob_turned_while_holding_never_stops_the_machine() {
 /// `homer-q2` at F6000 to tick 2,500 under a knob turned every 23 ms and
 /// a hold every 41 ms resumed 7 ms later, the re-solves of everything
 /// ahead tried from up to `later_freezes` later pieces
-/// (`Window::later_freezes`): the machine's position at each tick a crawl
-/// was planned before, with the crawls so far, and the grid interval.
-fn crawls_under_a_fast_knob(later_freezes: usize) -> (Vec<(f64, u64)>, f64) {
+/// (`Window::later_freezes`), and frozen inside an interval keeping the
+/// kept plan's pieces there or not (`Window::kept_pieces`): the machine's
+/// position at each tick a crawl was planned before, with the crawls so
+/// far, and the grid interval.
+fn crawls_under_a_fast_knob(later_freezes: usize, kept_pieces: bool) -> (Vec<(f64, u64)>, f64) {
     use interp_core::RunState;
     let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../gcode/tests/programs/homer-q2.ngc");
@@ -472,6 +474,7 @@ fn crawls_under_a_fast_knob(later_freezes: usize) -> (Vec<(f64, u64)>, f64) {
                 .unwrap()
                 .with_tick_limit(2500);
             run.driver_mut().window_mut().later_freezes = later_freezes;
+            run.driver_mut().window_mut().kept_pieces = kept_pieces;
             let mut crawls: Vec<(f64, u64)> = Vec::new();
             let mut seen = |r: &interp_run::Run<1024>| {
                 let c = r.driver().planner().window().totals.crawled;
@@ -505,18 +508,92 @@ fn crawls_under_a_fast_knob(later_freezes: usize) -> (Vec<(f64, u64)>, f64) {
         .unwrap()
 }
 
+/// The overrides of a run whose re-solve failed every pass (the plan kept,
+/// or a crawl), by tick: `file` at F6000 to tick `ticks` under the knob
+/// turned every 31 ms through [`OVERRIDE_KNOB`] and a hold every 47 ms
+/// resumed 11 ms later, as `override_knob --every 31 --hold-every 47
+/// --resume-after 11` gives them; the kept plan's pieces kept or not
+/// (`Window::kept_pieces`).
+fn overrides_failed_through(file: &str, ticks: u64, kept_pieces: bool) -> (Vec<u64>, u64) {
+    let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../gcode/tests/programs")
+        .join(file);
+    let blocks = load_program(&file, Some(6000.0), None).unwrap();
+    let cfg = InterpConfig::default();
+    std::thread::Builder::new()
+        .stack_size(interpd_tests::path_time::INTERPOLATOR_STACK)
+        .spawn(move || {
+            let p = blocks[0].path.start_point();
+            let mut run = interp_run::Run::<1024>::new(cfg, [p.x, p.y, p.z, 0.0, 0.0, 0.0])
+                .unwrap()
+                .with_tick_limit(ticks);
+            run.driver_mut().window_mut().kept_pieces = kept_pieces;
+            let (mut failed, mut solved) = (Vec::new(), 0);
+            let _ = run.run_program_with::<()>(
+                &blocks,
+                |r| {
+                    let t = r.ticks();
+                    if t > 0 && t % 31 == 0 {
+                        let totals =
+                            |r: &interp_run::Run<1024>| r.driver().planner().window().totals;
+                        let before = totals(r);
+                        let _ = r.set_feed_override(
+                            OVERRIDE_KNOB[(t / 31) as usize % OVERRIDE_KNOB.len()],
+                        );
+                        let after = totals(r);
+                        if after.solves > before.solves {
+                            solved += 1;
+                        } else if after.warm_failed > before.warm_failed {
+                            failed.push(t);
+                        }
+                    }
+                    if t > 0 && t % 47 == 0 {
+                        r.feed_hold();
+                    }
+                    if t > 11 && (t - 11) % 47 == 0 {
+                        r.resume();
+                    }
+                    Ok(())
+                },
+                |_, _| Ok(()),
+            );
+            (failed, solved)
+        })
+        .unwrap()
+        .join()
+        .unwrap()
+}
+
+/// A re-solve frozen inside a grid interval continues the pieces the kept
+/// plan has there. `ruota_dentata-q1`'s slow stretches are cut into eighths
+/// of an interval; a re-solve from the machine on, its freeze point three
+/// eighths in, rebuilt the rest of that interval as one piece, held to the
+/// slowest of its five eighths: below the speed the kept plan passes the
+/// freeze point with. Every pass failed (the knob's override before tick
+/// 4,278: twelve linear programs, 20–40 ms in the service, where the
+/// planning thread fell behind the RT thread).
+#[test]
+fn a_re_solve_frozen_inside_a_finely_cut_interval_keeps_its_cuts() {
+    let (failed, solved) = overrides_failed_through("ruota_dentata-q1.ngc", 4_400, true);
+    assert!(solved > 50, "{solved} overrides re-solved");
+    assert!(failed.is_empty(), "every pass failed at ticks {failed:?}");
+    // (The case: cut afresh, that override fails every pass.)
+    let (failed, _) = overrides_failed_through("ruota_dentata-q1.ngc", 4_400, false);
+    assert!(!failed.is_empty());
+}
+
 /// A re-solve that found no plan and crawled is not planned again from
 /// where it was planned: the same solve from the same state fails the same
 /// way, and the crawl's retry at the next tick cost a second whole failing
 /// solve (20–40 ms in the service) right after the first, past the planning
 /// thread's lead. Under [`crawls_under_a_fast_knob`] with no later freeze
-/// piece tried, an override crawled at tick 1771 and again at 1772, 25 µm
-/// further on. Now the crawl counts as tried from where the machine was,
+/// piece tried (and the kept pieces cut afresh), an override crawled at
+/// tick 1771 and again at 1772, 25 µm further on. Now the crawl counts as tried from where the machine was,
 /// and its retry waits until it has moved half a grid interval
 /// (`Window::take_crawl_retry`).
 #[test]
 fn a_crawl_is_not_planned_again_from_where_it_was_planned() {
-    let (crawls, h) = crawls_under_a_fast_knob(0);
+    let (crawls, h) = crawls_under_a_fast_knob(0, false);
     assert!(!crawls.is_empty(), "no crawl to retry: the case is gone");
     let mut last = f64::NEG_INFINITY;
     let mut count = 0;
@@ -538,13 +615,20 @@ fn a_crawl_is_not_planned_again_from_where_it_was_planned() {
 /// through every braking rate from the first two pieces after the machine
 /// and found a plan at once from the third. A re-solve of everything ahead
 /// that would crawl now tries from up to two pieces later first
-/// (`Window::later_freezes`).
+/// (`Window::later_freezes`). The pieces failed because the re-solve cut
+/// the rest of the freeze point's interval afresh (see
+/// `a_re_solve_frozen_inside_a_finely_cut_interval_keeps_its_cuts`):
+/// keeping the kept plan's pieces there, it finds a plan from the first.
 #[test]
 fn an_override_right_after_a_resume_finds_a_plan_from_a_later_piece() {
-    let (crawls, _) = crawls_under_a_fast_knob(interp_core::plan::LATER_FREEZES);
+    use interp_core::plan::LATER_FREEZES;
+    let (crawls, _) = crawls_under_a_fast_knob(LATER_FREEZES, false);
     assert!(crawls.is_empty(), "crawled at {crawls:?}");
     // (The case: from the first piece after the machine only, it crawls.)
-    assert!(!crawls_under_a_fast_knob(0).0.is_empty());
+    assert!(!crawls_under_a_fast_knob(0, false).0.is_empty());
+    // Either answer alone, and both, plan it without a crawl.
+    assert!(crawls_under_a_fast_knob(0, true).0.is_empty());
+    assert!(crawls_under_a_fast_knob(LATER_FREEZES, true).0.is_empty());
 }
 
 /// A feed hold brakes within every limit, an axis's jerk included: on the
