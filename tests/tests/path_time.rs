@@ -453,68 +453,20 @@ fn the_knob_turned_while_holding_never_stops_the_machine() {
     }
 }
 
-/// `homer-q2` at F6000 to tick 2,500 under a knob turned every 23 ms and
-/// a hold every 41 ms resumed 7 ms later, the re-solves of everything
-/// ahead tried from up to `later_freezes` later pieces
-/// (`Window::later_freezes`), and frozen inside an interval keeping the
-/// kept plan's pieces there or not (`Window::kept_pieces`): the machine's
-/// position at each tick a crawl was planned before, with the crawls so
-/// far, and the grid interval.
-fn crawls_under_a_fast_knob(later_freezes: usize, kept_pieces: bool) -> (Vec<(f64, u64)>, f64) {
-    use interp_core::RunState;
-    let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../gcode/tests/programs/homer-q2.ngc");
-    let blocks = load_program(&file, Some(6000.0), None).unwrap();
-    let cfg = InterpConfig::default();
-    std::thread::Builder::new()
-        .stack_size(interpd_tests::path_time::INTERPOLATOR_STACK)
-        .spawn(move || {
-            let p = blocks[0].path.start_point();
-            let mut run = interp_run::Run::<1024>::new(cfg, [p.x, p.y, p.z, 0.0, 0.0, 0.0])
-                .unwrap()
-                .with_tick_limit(2500);
-            run.driver_mut().window_mut().later_freezes = later_freezes;
-            run.driver_mut().window_mut().kept_pieces = kept_pieces;
-            let mut crawls: Vec<(f64, u64)> = Vec::new();
-            let mut seen = |r: &interp_run::Run<1024>| {
-                let c = r.driver().planner().window().totals.crawled;
-                if c > crawls.last().map_or(0, |l| l.1) {
-                    crawls.push((r.executor().status().plan_position, c));
-                }
-            };
-            let _ = run.run_program_with::<()>(
-                &blocks,
-                |r| {
-                    seen(r);
-                    let t = r.ticks();
-                    if t > 0 && t % 23 == 0 {
-                        let k = (t / 23) as usize % OVERRIDE_KNOB.len();
-                        let _ = r.set_feed_override(OVERRIDE_KNOB[k]);
-                    }
-                    if t > 0 && t % 41 == 0 && r.state() == RunState::Running {
-                        r.feed_hold();
-                    }
-                    if t > 7 && (t - 7) % 41 == 0 && r.state() == RunState::Holding {
-                        r.resume();
-                    }
-                    Ok(())
-                },
-                |_, _| Ok(()),
-            );
-            (crawls, run.driver().planner().window().h())
-        })
-        .unwrap()
-        .join()
-        .unwrap()
-}
-
-/// The overrides of a run whose re-solve failed every pass (the plan kept,
-/// or a crawl), by tick: `file` at F6000 to tick `ticks` under the knob
-/// turned every 31 ms through [`OVERRIDE_KNOB`] and a hold every 47 ms
-/// resumed 11 ms later, as `override_knob --every 31 --hold-every 47
-/// --resume-after 11` gives them; the kept plan's pieces kept or not
-/// (`Window::kept_pieces`).
-fn overrides_failed_through(file: &str, ticks: u64, kept_pieces: bool) -> (Vec<u64>, u64) {
+/// `file` (a bundled program) at F6000 to tick `ticks`, the re-solves of
+/// everything ahead tried from up to `later_freezes` later pieces
+/// (`Window::later_freezes`) and, frozen inside an interval, keeping the
+/// kept plan's pieces there or not (`Window::kept_pieces`); `hook` gives
+/// the operator's commands before each tick and notes what it needs in
+/// `state`. Returns `state` and the grid interval.
+fn under_commands<S: Send + 'static>(
+    file: &str,
+    ticks: u64,
+    later_freezes: usize,
+    kept_pieces: bool,
+    mut state: S,
+    hook: fn(&mut interp_run::Run<1024>, &mut S),
+) -> (S, f64) {
     let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../gcode/tests/programs")
         .join(file);
@@ -527,41 +479,84 @@ fn overrides_failed_through(file: &str, ticks: u64, kept_pieces: bool) -> (Vec<u
             let mut run = interp_run::Run::<1024>::new(cfg, [p.x, p.y, p.z, 0.0, 0.0, 0.0])
                 .unwrap()
                 .with_tick_limit(ticks);
-            run.driver_mut().window_mut().kept_pieces = kept_pieces;
-            let (mut failed, mut solved) = (Vec::new(), 0);
+            let w = run.driver_mut().window_mut();
+            (w.later_freezes, w.kept_pieces) = (later_freezes, kept_pieces);
             let _ = run.run_program_with::<()>(
                 &blocks,
                 |r| {
-                    let t = r.ticks();
-                    if t > 0 && t % 31 == 0 {
-                        let totals =
-                            |r: &interp_run::Run<1024>| r.driver().planner().window().totals;
-                        let before = totals(r);
-                        let _ = r.set_feed_override(
-                            OVERRIDE_KNOB[(t / 31) as usize % OVERRIDE_KNOB.len()],
-                        );
-                        let after = totals(r);
-                        if after.solves > before.solves {
-                            solved += 1;
-                        } else if after.warm_failed > before.warm_failed {
-                            failed.push(t);
-                        }
-                    }
-                    if t > 0 && t % 47 == 0 {
-                        r.feed_hold();
-                    }
-                    if t > 11 && (t - 11) % 47 == 0 {
-                        r.resume();
-                    }
+                    hook(r, &mut state);
                     Ok(())
                 },
                 |_, _| Ok(()),
             );
-            (failed, solved)
+            (state, run.driver().planner().window().h())
         })
         .unwrap()
         .join()
         .unwrap()
+}
+
+/// `homer-q2` under [`under_commands`] to tick 2,500, a knob turned every
+/// 23 ms and a hold every 41 ms resumed 7 ms later: the machine's position
+/// at each tick a crawl was planned before, with the crawls so far, and
+/// the grid interval.
+fn crawls_under_a_fast_knob(later_freezes: usize, kept_pieces: bool) -> (Vec<(f64, u64)>, f64) {
+    use interp_core::RunState;
+    let hook = |r: &mut interp_run::Run<1024>, crawls: &mut Vec<(f64, u64)>| {
+        let c = r.driver().planner().window().totals.crawled;
+        if c > crawls.last().map_or(0, |l| l.1) {
+            crawls.push((r.executor().status().plan_position, c));
+        }
+        let t = r.ticks();
+        if t > 0 && t.is_multiple_of(23) {
+            let k = (t / 23) as usize % OVERRIDE_KNOB.len();
+            let _ = r.set_feed_override(OVERRIDE_KNOB[k]);
+        }
+        if t > 0 && t.is_multiple_of(41) && r.state() == RunState::Running {
+            r.feed_hold();
+        }
+        if t > 7 && (t - 7).is_multiple_of(41) && r.state() == RunState::Holding {
+            r.resume();
+        }
+    };
+    under_commands(
+        "homer-q2.ngc",
+        2500,
+        later_freezes,
+        kept_pieces,
+        Vec::new(),
+        hook,
+    )
+}
+
+/// The overrides of a run whose re-solve failed every pass (the plan kept,
+/// or a crawl), by tick, and how many re-solved: `file` under
+/// [`under_commands`] to tick `ticks`, the knob turned every 31 ms and a
+/// hold every 47 ms resumed 11 ms later, as `override_knob --every 31
+/// --hold-every 47 --resume-after 11` gives them.
+fn overrides_failed_through(file: &str, ticks: u64, kept_pieces: bool) -> (Vec<u64>, u64) {
+    let hook = |r: &mut interp_run::Run<1024>, (failed, solved): &mut (Vec<u64>, u64)| {
+        let t = r.ticks();
+        if t > 0 && t.is_multiple_of(31) {
+            let totals = |r: &interp_run::Run<1024>| r.driver().planner().window().totals;
+            let before = totals(r);
+            let _ = r.set_feed_override(OVERRIDE_KNOB[(t / 31) as usize % OVERRIDE_KNOB.len()]);
+            let after = totals(r);
+            if after.solves > before.solves {
+                *solved += 1;
+            } else if after.warm_failed > before.warm_failed {
+                failed.push(t);
+            }
+        }
+        if t > 0 && t.is_multiple_of(47) {
+            r.feed_hold();
+        }
+        if t > 11 && (t - 11).is_multiple_of(47) {
+            r.resume();
+        }
+    };
+    let later = interp_core::plan::LATER_FREEZES;
+    under_commands(file, ticks, later, kept_pieces, (Vec::new(), 0), hook).0
 }
 
 /// A re-solve frozen inside a grid interval continues the pieces the kept
