@@ -565,7 +565,7 @@ fn overrides_failed_through(file: &str, ticks: u64, kept_pieces: bool) -> (Vec<u
 /// eighths in, rebuilt the rest of that interval as one piece, held to the
 /// slowest of its five eighths: below the speed the kept plan passes the
 /// freeze point with. Every pass failed (the knob's override before tick
-/// 4,278: twelve linear programs, 20–40 ms in the service, where the
+/// 4,278: eighteen linear programs, 20–50 ms in the service, where the
 /// planning thread fell behind the RT thread).
 #[test]
 fn a_re_solve_frozen_inside_a_finely_cut_interval_keeps_its_cuts() {
