@@ -882,13 +882,17 @@ impl Data {
             // whose end its neighbour's length and coefficient shape, could
             // not be continued: every pass failed (`ruota_dentata-q1` under
             // the knob).
+            // The last plan's piece that starts here, if any.
+            let prior = (n < self.n_pieces && self.pieces[n].x0 == x).then(|| self.pieces[n]);
             let mut old = false;
-            if keep && x < first_line - sliver && n < self.n_pieces && self.pieces[n].x0 == x {
-                let ox1 = self.pieces[n].x1;
-                if ox1 > x + sliver && ox1 <= x1 + sliver {
-                    x1 = x1.min(ox1);
-                    old = true;
-                }
+            if let Some(p) = prior
+                && keep
+                && x < first_line - sliver
+                && p.x1 > x + sliver
+                && p.x1 <= x1 + sliver
+            {
+                x1 = x1.min(p.x1);
+                old = true;
             }
             let mut stop_here = false;
             if si < self.n_stops && self.stops[si] <= x1 + sliver {
@@ -907,11 +911,7 @@ impl Data {
                 if n >= WINDOW {
                     return Err(PlanError::Full);
                 }
-                let (d, ramp) = if n < self.n_pieces && self.pieces[n].x0 == x {
-                    (self.pieces[n].d, self.pieces[n].ramp)
-                } else {
-                    (0.0, false)
-                };
+                let (d, ramp) = prior.map_or((0.0, false), |p| (p.d, p.ramp));
                 self.pieces[n] = WPiece {
                     x0: x,
                     x1,
