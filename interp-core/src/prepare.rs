@@ -544,16 +544,15 @@ impl BlockPlanner {
         // The spline follows a braking curve only approximately: if the
         // linear program cannot, brake more gently (the override takes a
         // little longer to take effect) rather than keep the old plan.
-        // Where the current plan is not kept, a piece or two later (as
-        // planned) at the steepest rate comes before the gentler rates
-        // (`plan::LATER_FREEZES`): a freeze piece no rate can continue
-        // from cost all six solves before it.
-        let later = if keep_plan {
-            0
-        } else {
-            let after_f = self.window.n_pieces().saturating_sub(f + 1);
-            self.window.later_freezes.min(after_f)
-        };
+        // A piece or two later (as planned) at the steepest rate comes
+        // before the gentler rates (`plan::LATER_FREEZES`): a freeze piece
+        // no rate can continue from cost all six solves before it, and a
+        // kept plan cost them too (a raised override at a ramp into a rest
+        // point, which its kept neighbour and its own jerk pin to the value
+        // it has: a plan through the later freeze found, the service's
+        // planning thread 50 ms late).
+        let after_f = self.window.n_pieces().saturating_sub(f + 1);
+        let later = self.window.later_freezes.min(after_f);
         let tries = core::iter::once((f, LIFT_SOFTENING[0]))
             .chain((1..=later).map(|k| (f + k, 1.0)))
             .chain(LIFT_SOFTENING[1..].iter().map(|&gentle| (f, gentle)));

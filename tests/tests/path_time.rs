@@ -533,8 +533,14 @@ fn crawls_under_a_fast_knob(later_freezes: usize, kept_pieces: bool) -> (Vec<(f6
 /// or a crawl), by tick, and how many re-solved: `file` under
 /// [`under_commands`] to tick `ticks`, the knob turned every 31 ms and a
 /// hold every 47 ms resumed 11 ms later, as `override_knob --every 31
-/// --hold-every 47 --resume-after 11` gives them.
-fn overrides_failed_through(file: &str, ticks: u64, kept_pieces: bool) -> (Vec<u64>, u64) {
+/// --hold-every 47 --resume-after 11` gives them, the window's later
+/// freezes and kept pieces set.
+fn overrides_failed_through(
+    file: &str,
+    ticks: u64,
+    later_freezes: usize,
+    kept_pieces: bool,
+) -> (Vec<u64>, u64) {
     let hook = |r: &mut interp_run::Run<1024>, (failed, solved): &mut (Vec<u64>, u64)| {
         let t = r.ticks();
         if t > 0 && t.is_multiple_of(31) {
@@ -555,8 +561,15 @@ fn overrides_failed_through(file: &str, ticks: u64, kept_pieces: bool) -> (Vec<u
             r.resume();
         }
     };
-    let later = interp_core::plan::LATER_FREEZES;
-    under_commands(file, ticks, later, kept_pieces, (Vec::new(), 0), hook).0
+    under_commands(
+        file,
+        ticks,
+        later_freezes,
+        kept_pieces,
+        (Vec::new(), 0),
+        hook,
+    )
+    .0
 }
 
 /// A re-solve frozen inside a grid interval continues the pieces the kept
@@ -569,12 +582,30 @@ fn overrides_failed_through(file: &str, ticks: u64, kept_pieces: bool) -> (Vec<u
 /// planning thread fell behind the RT thread).
 #[test]
 fn a_re_solve_frozen_inside_a_finely_cut_interval_keeps_its_cuts() {
-    let (failed, solved) = overrides_failed_through("ruota_dentata-q1.ngc", 4_400, true);
+    let later = interp_core::plan::LATER_FREEZES;
+    let (failed, solved) = overrides_failed_through("ruota_dentata-q1.ngc", 4_400, later, true);
     assert!(solved > 50, "{solved} overrides re-solved");
     assert!(failed.is_empty(), "every pass failed at ticks {failed:?}");
-    // (The case: cut afresh, that override fails every pass.)
-    let (failed, _) = overrides_failed_through("ruota_dentata-q1.ngc", 4_400, false);
-    assert!(!failed.is_empty());
+    // (The case: cut afresh, and no later freeze tried, that override
+    // fails every pass.)
+    let (failed, _) = overrides_failed_through("ruota_dentata-q1.ngc", 4_400, 0, false);
+    assert!(failed.contains(&4_278), "{failed:?}");
+}
+
+/// A raised override whose re-solve from the freeze piece fails is tried
+/// from a piece or two later, as a lowered one is, before the plan is
+/// kept: each failing freeze costs eighteen linear programs (the
+/// service's planning thread fell 50 ms behind, at a ramp into a rest
+/// point that its kept neighbour and its own jerk pinned). The override
+/// before tick 4,278 of [`overrides_failed_through`] on `ruota_dentata-q1`
+/// is raised (30 → 100 %) and fails from its freeze piece when the
+/// interval's cuts are not kept (the case above).
+#[test]
+fn a_raised_override_that_fails_from_its_freeze_piece_is_planned_from_a_later_one() {
+    let later = interp_core::plan::LATER_FREEZES;
+    let (failed, solved) = overrides_failed_through("ruota_dentata-q1.ngc", 4_400, later, false);
+    assert!(solved > 50, "{solved} overrides re-solved");
+    assert!(failed.is_empty(), "every pass failed at ticks {failed:?}");
 }
 
 /// A re-solve that found no plan and crawled is not planned again from
