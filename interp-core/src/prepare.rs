@@ -748,8 +748,23 @@ impl BlockPlanner {
         self.lift
     }
 
+    /// Where a solve of what is queued starts (see [`Window::freeze`]); not
+    /// before a hold's rest point while the machine brakes to it: the plan
+    /// to it stays (the machine rests there either way), and a steepest
+    /// stop planned again under the rows of a longer program can find no
+    /// plan at all (a block pushed while `serve` braked for a hold failed
+    /// every pass there and crawled).
     fn freeze(&self) -> Freeze {
-        self.window.freeze(self.machine, self.machine_at_rest)
+        let freeze = self.window.freeze(self.machine, self.machine_at_rest);
+        let (Some(rest), Freeze::At(f)) = (self.hold_rest(), freeze) else {
+            return freeze;
+        };
+        // The piece that ends at the rest point (pieces are cut there, and
+        // none is shorter than a sliver).
+        let near = rest - SLIVER * self.h;
+        (f..self.window.n_pieces())
+            .find(|&k| self.window.piece(k).x1() >= near)
+            .map_or(freeze, Freeze::At)
     }
 
     fn solve_into(

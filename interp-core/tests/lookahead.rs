@@ -1083,3 +1083,60 @@ fn a_hold_resumed_while_braking_goes_on_without_resting() {
         }
     }
 }
+
+/// A block pushed while the machine brakes to a hold's rest point is
+/// planned from that rest point on: the hold's braking stays as planned
+/// (the machine rests there either way). Planned again from the machine
+/// under the rows of the longer program, a steepest stop can find no plan
+/// at all: a block streamed into `serve` while it braked for a hold failed
+/// every pass there and crawled. Resumed, the program ends on its last
+/// point with every limit held.
+#[test]
+fn a_block_pushed_while_braking_for_a_hold_is_planned_from_its_rest_point() {
+    let cfg = InterpConfig::default();
+    let line = |id: u32, a: f64, b: f64| {
+        Block::new(
+            id,
+            Path::Line(Line::new(Vec3::new(a, 0.0, 0.0), Vec3::new(b, 0.0, 0.0)).unwrap()),
+            100.0,
+        )
+    };
+    let mut ip = Box::new(Interpolator::<256>::new(cfg, [0.0; 6]).unwrap());
+    ip.push(&line(1, 0.0, 40.0)).unwrap();
+    let mut sps: Vec<Setpoint> = (0..330).map(|_| ip.tick()).collect();
+    assert!(sps.last().unwrap().feed > 99.0, "{:?}", sps.last());
+    ip.feed_hold();
+    sps.extend((0..3).map(|_| ip.tick()));
+    let rest = ip
+        .planner()
+        .hold_rest()
+        .expect("a hold planned to its rest point");
+    let machine = sps.last().unwrap().s;
+    ip.push(&line(2, 40.0, 70.0)).unwrap();
+    let (from, _) = ip.planner().window().last.range;
+    assert!(
+        from >= rest,
+        "planned from {from} mm, the machine at {machine}, the hold rests at {rest}"
+    );
+    ip.finish();
+    sps.extend((0..400).map(|_| ip.tick()));
+    let held = sps.last().unwrap();
+    assert_eq!((held.state, held.feed), (RunState::Holding, 0.0));
+    assert!(
+        (held.s - rest).abs() < 1e-6,
+        "rests at {} for {rest}",
+        held.s
+    );
+    ip.resume();
+    loop {
+        let sp = ip.tick();
+        sps.push(sp);
+        if sp.state == RunState::Done {
+            break;
+        }
+        assert!(sp.seq < 100_000);
+    }
+    check_kinematics(&cfg, Vec3::zeros(), &sps);
+    assert_eq!(v3(&sps.last().unwrap().axes), Vec3::new(70.0, 0.0, 0.0));
+    assert_eq!(ip.planner().window().totals.added_stops(), 0);
+}
