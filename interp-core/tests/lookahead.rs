@@ -1035,6 +1035,20 @@ fn a_held_machine_stays_at_rest_until_resumed() {
     assert_eq!(v3(&sp.axes), Vec3::new(50.0, 0.0, 0.0));
 }
 
+/// Resumes `ip` and ticks it until its program is done, every setpoint
+/// into `sps`.
+fn resume_to_done(ip: &mut Interpolator<256>, sps: &mut Vec<Setpoint>) {
+    ip.resume();
+    loop {
+        let sp = ip.tick();
+        sps.push(sp);
+        if sp.state == RunState::Done {
+            break;
+        }
+        assert!(sp.seq < 100_000);
+    }
+}
+
 /// A hold resumed while the machine still brakes fast goes on from its
 /// braking, without coming to rest at the hold's point (at `1beb3bf` it
 /// braked to rest there first, then started again): the speed turns above
@@ -1057,15 +1071,7 @@ fn a_hold_resumed_while_braking_goes_on_without_resting() {
         assert!(cruise > 99.0, "{cruise} mm/s");
         ip.feed_hold();
         sps.extend((0..resume_after).map(|_| ip.tick()));
-        ip.resume();
-        loop {
-            let sp = ip.tick();
-            sps.push(sp);
-            if sp.state == RunState::Done {
-                break;
-            }
-            assert!(sp.seq < 100_000);
-        }
+        resume_to_done(&mut ip, &mut sps);
         check_kinematics(&cfg, Vec3::zeros(), &sps);
         assert_eq!(v3(&sps.last().unwrap().axes), Vec3::new(200.0, 0.0, 0.0));
         // (The line's end is 1,000 ticks after the hold.)
@@ -1127,15 +1133,7 @@ fn a_block_pushed_while_braking_for_a_hold_is_planned_from_its_rest_point() {
         "rests at {} for {rest}",
         held.s
     );
-    ip.resume();
-    loop {
-        let sp = ip.tick();
-        sps.push(sp);
-        if sp.state == RunState::Done {
-            break;
-        }
-        assert!(sp.seq < 100_000);
-    }
+    resume_to_done(&mut ip, &mut sps);
     check_kinematics(&cfg, Vec3::zeros(), &sps);
     assert_eq!(v3(&sps.last().unwrap().axes), Vec3::new(70.0, 0.0, 0.0));
     assert_eq!(ip.planner().window().totals.added_stops(), 0);
