@@ -614,9 +614,9 @@ fn a_raised_override_that_fails_from_its_freeze_piece_is_planned_from_a_later_on
 /// solve (20–40 ms in the service) right after the first, past the planning
 /// thread's lead. Under [`crawls_under_a_fast_knob`] with no later freeze
 /// piece tried (and the kept pieces cut afresh), an override crawled at
-/// tick 1771 and again at 1772, 25 µm further on. Now the crawl counts as tried from where the machine was,
-/// and its retry waits until it has moved half a grid interval
-/// (`Window::take_crawl_retry`).
+/// tick 1771 and again at 1772, 25 µm further on. Now the crawl counts
+/// as tried from where the machine was, and its retry waits until it has
+/// moved half a grid interval (`Window::take_crawl_retry`).
 #[test]
 fn a_crawl_is_not_planned_again_from_where_it_was_planned() {
     let (crawls, h) = crawls_under_a_fast_knob(0, false);
