@@ -7,6 +7,7 @@
 //! real-time path.
 
 use crate::geom::{Curve, Derivs, Vec3};
+use nalgebra::Rotation3;
 
 /// Highest degree accepted (order 6).
 pub const MAX_DEGREE: usize = 5;
@@ -1433,6 +1434,19 @@ impl Nurbs {
         r
     }
 
+    /// Turned by `rotation` about the origin; weights and knots unchanged
+    /// (a rotation is linear, so it turns the homogeneous points as they are).
+    pub fn rotated(&self, rotation: &Rotation3<f64>) -> Nurbs {
+        let mut r = *self;
+        for h in r.ctrl.iter_mut().take(self.control_count()) {
+            let p = rotation * Vec3::new(h[0], h[1], h[2]);
+            (h[0], h[1], h[2]) = (p.x, p.y, p.z);
+        }
+        r.start = rotation * self.start;
+        r.end = rotation * self.end;
+        r
+    }
+
     /// Translated by `by`; weights and knots unchanged.
     pub fn translated(&self, by: Vec3) -> Nurbs {
         let mut r = *self;
@@ -1759,6 +1773,7 @@ mod tests {
 
     use super::*;
     use core::f64::consts::{FRAC_1_SQRT_2, PI};
+    use nalgebra::Vector3;
     use std::string::ToString;
     use std::vec::Vec;
 
@@ -2516,6 +2531,25 @@ mod tests {
         }
         assert_eq!(inch.start_point(), Vec3::new(25.4, 0.0, 0.0));
         assert_eq!(moved.end_point(), Vec3::new(2.0, -2.0, 3.0));
+    }
+
+    #[test]
+    fn rotated_turns_every_derivative_and_keeps_the_parameter() {
+        let c = unit_circle().translated(Vec3::new(3.0, -1.0, 0.5));
+        let rot = Rotation3::from_axis_angle(&Vector3::y_axis(), 0.7)
+            * Rotation3::from_axis_angle(&Vector3::z_axis(), -1.9);
+        let r = c.rotated(&rot);
+        for i in 0..=50 {
+            let u = i as f64 / 50.0;
+            let (d, e) = (c.eval(u, 3), r.eval(u, 3));
+            assert!(dist(e.p, rot * d.p) < 1e-13);
+            assert!(dist(e.d1, rot * d.d1) < 1e-12);
+            assert!(dist(e.d2, rot * d.d2) < 1e-11);
+            assert!(dist(e.d3, rot * d.d3) < 1e-10);
+        }
+        assert!(dist(r.start_point(), rot * c.start_point()) < 1e-15);
+        assert!(dist(r.end_point(), rot * c.end_point()) < 1e-15);
+        assert!(libm::fabs(r.arc_length(0.1, 0.8, 1e-12) - c.arc_length(0.1, 0.8, 1e-12)) < 1e-11);
     }
 
     fn split_all(r: &Raw, max_ctrl: usize) -> Vec<Nurbs> {

@@ -5,6 +5,7 @@
 use crate::fiveaxis::Orientation;
 use crate::geom::{Curve, Derivs, Vec3};
 use crate::nurbs::{Nurbs, NurbsError};
+use nalgebra::Rotation3;
 
 /// Relative tolerance on the two radii of an arc given by its centre
 /// (start–centre vs end–centre), as a fraction of the radius. LinuxCNC allows
@@ -381,6 +382,31 @@ impl Path {
                 let (a, b) = n.split_at(u).map_err(SplitAtError::Nurbs)?;
                 Ok((Path::Nurbs(a), Path::Nurbs(b)))
             }
+        }
+    }
+
+    /// The same path turned by `rotation` about the origin, as a part turned
+    /// on the table: the parameter, length and laws' geometry are unchanged
+    /// but for the axes each derivative falls on.
+    pub fn rotated(&self, rotation: &Rotation3<f64>) -> Path {
+        let r = |v: Vec3| rotation * v;
+        match self {
+            Path::Line(l) => Path::Line(Line {
+                start: r(l.start),
+                end: r(l.end),
+                dir: r(l.dir),
+                ..*l
+            }),
+            Path::Arc(a) => Path::Arc(Arc {
+                centre: r(a.centre),
+                axis: r(a.axis),
+                e1: r(a.e1),
+                e2: r(a.e2),
+                start: r(a.start),
+                end: r(a.end),
+                ..*a
+            }),
+            Path::Nurbs(n) => Path::Nurbs(n.rotated(rotation)),
         }
     }
 

@@ -388,6 +388,41 @@ fn translated_curve_gives_translated_setpoints() {
     same_run(&s1, &s2, 1.0, SAME_POINT_TOL, |p| p - shift).unwrap();
 }
 
+/// A part turned on the table: the same path, the laws on other axes.
+#[test]
+fn a_part_turned_on_the_table_keeps_its_schedule_and_every_limit() {
+    use nalgebra::{Rotation3, Unit, Vector3};
+    let cfg = InterpConfig::default();
+    assert_eq!(cfg.axis_max_jerk[0], cfg.axis_max_jerk[1]);
+    assert_eq!(cfg.axis_max_accel[0], cfg.axis_max_accel[1]);
+    let a = common::butterfly_blocks(100.0);
+    let turned = |rot: &Rotation3<f64>| -> Vec<Block> {
+        a.iter()
+            .map(|b| Block {
+                path: b.path.rotated(rot),
+                ..*b
+            })
+            .collect()
+    };
+    let (s1, _) = run(cfg, &a);
+    // A quarter turn about Z swaps X and Y, whose limits are the same: the
+    // same schedule.
+    let quarter = Rotation3::from_axis_angle(&Vector3::z_axis(), core::f64::consts::FRAC_PI_2);
+    let (s2, _) = run(cfg, &turned(&quarter));
+    same_run(&s1, &s2, 1.0, 1e-9, |p| quarter.inverse() * p).unwrap();
+    // Turned about an oblique axis (Z now carries curvature too): every
+    // limit on every tick, about the same time at this feed.
+    let oblique =
+        Rotation3::from_axis_angle(&Unit::new_normalize(Vector3::new(1.0, 2.0, 3.0)), 0.9);
+    let b = turned(&oblique);
+    let (s3, _) = run(cfg, &b);
+    check_properties(&cfg, &b, &s3);
+    let (t1, t3) = (s1.last().unwrap().time, s3.last().unwrap().time);
+    assert!((t3 / t1 - 1.0).abs() < 0.05, "{t1} s, turned {t3} s");
+    let end = oblique * a.last().unwrap().path.end_point();
+    assert!((v3(&s3.last().unwrap().axes) - end).norm() < 1e-9);
+}
+
 #[test]
 fn reversed_curve_traces_the_same_points_backwards() {
     let segs = common::butterfly_segments(20);

@@ -1,10 +1,11 @@
 //! An abort at every stage of a program: the program runs to its end (as
 //! the drivers run it: the `G64 P` stage, then the interpolator), and
 //! before every `--every`-th tick (default 7) a copy of the run is aborted
-//! and braked to idle, every setpoint checked against every limit.
+//! and braked to idle, every setpoint checked against every limit
+//! (`--rotate` turns the part on the table first, as in `path_time`).
 //!
 //! ```text
-//! cargo run --release -p interpd-tests --example abort_scan -- [--feed MM_PER_MIN] [--every TICKS] FILE.ngc...
+//! cargo run --release -p interpd-tests --example abort_scan -- [--feed MM_PER_MIN] [--every TICKS] [--rotate DEG[,X,Y,Z]] FILE.ngc...
 //! ```
 //!
 //! Prints per program: the aborts tried, those with a failed check, the
@@ -16,11 +17,12 @@
 use std::path::PathBuf;
 
 use interp_core::InterpConfig;
-use interpd_tests::cli::take_number;
-use interpd_tests::path_time::{abort_scan, every, jerk_use, load_as_run};
+use interpd_tests::cli::{take_number, take_rotation};
+use interpd_tests::path_time::{abort_scan, every, jerk_use, load_turned_as_run};
 
 fn main() {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
+    let rotation = take_rotation(&mut args, "--rotate");
     let mut flag = |name: &str| take_number(&mut args, name);
     let feed = flag("--feed");
     let n = flag("--every").unwrap_or(7.0);
@@ -34,13 +36,14 @@ fn main() {
         "program | aborts | failed | jerk use | at tick | longest stop (ticks) | longest plan ms"
     );
     for file in &args {
-        let blocks = match load_as_run(&PathBuf::from(file), feed, None, &cfg) {
-            Ok(b) => b,
-            Err(e) => {
-                eprintln!("{e}");
-                continue;
-            }
-        };
+        let blocks =
+            match load_turned_as_run(&PathBuf::from(file), feed, None, rotation.as_ref(), &cfg) {
+                Ok(b) => b,
+                Err(e) => {
+                    eprintln!("{e}");
+                    continue;
+                }
+            };
         match abort_scan(&blocks, &cfg, every(n)) {
             Ok(tried) => {
                 let worst = tried

@@ -3,7 +3,7 @@
 //! 30–200 % (1.0, 0.6, 1.2, 0.8, 1.5, 0.3, 1.0, 0.9, 1.1, 0.5, 2.0, 0.7).
 //!
 //! ```text
-//! cargo run --release -p interpd-tests --example override_knob -- [--feed MM_PER_MIN] [--g64 P] [--every MS] [--hold-every MS] [--resume-after MS] FILE.ngc...
+//! cargo run --release -p interpd-tests --example override_knob -- [--feed MM_PER_MIN] [--g64 P] [--every MS] [--hold-every MS] [--resume-after MS] [--rotate DEG[,X,Y,Z]] FILE.ngc...
 //! ```
 //!
 //! `--every 0` leaves the knob alone; `--hold-every H` also gives a feed
@@ -11,7 +11,7 @@
 //! before rest, when the machine was fast).
 //!
 //! Each program runs as the drivers run it (the `G64 P` stage, then the
-//! interpolator; `--feed` and `--g64` as in the `path_time` example), every setpoint checked against every limit (the feed
+//! interpolator; `--feed`, `--g64` and `--rotate` as in the `path_time` example), every setpoint checked against every limit (the feed
 //! bound at the largest override). Prints per program: the path time with
 //! the knob turned and at 100 %, the turns, the look-ahead's solves, its
 //! retries (solves tried again with other rows) and the stops it added (a
@@ -27,13 +27,14 @@
 use std::path::PathBuf;
 
 use interp_core::InterpConfig;
-use interpd_tests::cli::take_number;
+use interpd_tests::cli::{take_number, take_rotation};
 use interpd_tests::path_time::{
-    Command, OVERRIDE_KNOB, interpolated_run, interpolated_run_with_commands, load_as_run,
+    Command, OVERRIDE_KNOB, interpolated_run, interpolated_run_with_commands, load_turned_as_run,
 };
 
 fn main() {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
+    let rotation = take_rotation(&mut args, "--rotate");
     let mut flag = |name: &str| take_number(&mut args, name);
     let feed = flag("--feed");
     let g64 = flag("--g64");
@@ -56,13 +57,14 @@ fn main() {
         "program | knob s | 100 % s | turns | solves | retries | added stops | failed checks | jerk use | holds | softened | unplanned | longest command ms | longest step ms"
     );
     for file in &args {
-        let blocks = match load_as_run(&PathBuf::from(file), feed, g64, &cfg) {
-            Ok(b) => b,
-            Err(e) => {
-                eprintln!("{e}");
-                continue;
-            }
-        };
+        let blocks =
+            match load_turned_as_run(&PathBuf::from(file), feed, g64, rotation.as_ref(), &cfg) {
+                Ok(b) => b,
+                Err(e) => {
+                    eprintln!("{e}");
+                    continue;
+                }
+            };
         let plain = match interpolated_run(&blocks, &cfg, false) {
             Ok(r) => r,
             Err(e) => {

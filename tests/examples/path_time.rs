@@ -28,6 +28,10 @@
 //! cargo run --release -p interpd-tests --example path_time -- --feed 6000 --g64 0.001 RASTER.ngc
 //! ```
 //!
+//! `--rotate DEG[,X,Y,Z]` runs each program as the same part turned on the
+//! table by `DEG` degrees about the axis `(X, Y, Z)` through the origin
+//! (about Z without an axis): the same path, its laws on other axes.
+//!
 //! `--no-deviation` skips the two deviation columns (printed NaN): on NURBS
 //! curves at production feed the reference search takes minutes per program.
 //!
@@ -48,9 +52,9 @@ use std::path::{Path, PathBuf};
 
 use interp_core::InterpConfig;
 use interp_core::smooth::Policy;
-use interpd_tests::cli::take_value;
+use interpd_tests::cli::{take_rotation, take_value};
 use interpd_tests::path_time::{
-    BoundTerms, first_curve, jerk_aware_bound_with, load_program, program_run, smoothed,
+    BoundTerms, first_curve, jerk_aware_bound_with, load_program, program_run, smoothed, turned,
 };
 
 const CORPUS: &str = "../shared/corpus/nurbs-linuxcnc/g6";
@@ -77,6 +81,7 @@ fn main() {
         }
         None => false,
     };
+    let rotation = take_rotation(&mut args, "--rotate");
     let mut flag = |name: &str| take_value(&mut args, name);
     let feed = flag("--feed").and_then(|v| v.parse::<f64>().ok());
     let g64 = flag("--g64").and_then(|v| v.parse::<f64>().ok());
@@ -111,7 +116,11 @@ fn main() {
         }
     );
     for f in files {
-        let blocks = match load_program(&f, feed, g64) {
+        let loaded = load_program(&f, feed, g64).and_then(|b| match &rotation {
+            Some(r) => turned(&b, r),
+            None => Ok(b),
+        });
+        let blocks = match loaded {
             Ok(b) => b,
             Err(e) => {
                 eprintln!("{e}");

@@ -29,6 +29,7 @@ use interp_core::smooth::{Policy, SmoothError, SmoothStats, Smoother};
 use interp_core::{InterpConfig, RunState, Vec3};
 use interp_run::Run;
 use interp_run::check::{Checker, Limits, Measured, Violations};
+use nalgebra::Rotation3;
 
 use crate::polyline::Polyline;
 
@@ -484,7 +485,42 @@ pub fn load_as_run(
     g64: Option<f64>,
     cfg: &InterpConfig,
 ) -> Result<Vec<Block>, String> {
-    Ok(smoothed(&load_program(path, feed, g64)?, cfg, Policy::Auto).0)
+    load_turned_as_run(path, feed, g64, None, cfg)
+}
+
+/// [`load_as_run`] with the part turned on the table first ([`turned`]).
+pub fn load_turned_as_run(
+    path: &std::path::Path,
+    feed: Option<f64>,
+    g64: Option<f64>,
+    rotation: Option<&Rotation3<f64>>,
+    cfg: &InterpConfig,
+) -> Result<Vec<Block>, String> {
+    let mut blocks = load_program(path, feed, g64)?;
+    if let Some(r) = rotation {
+        blocks = turned(&blocks, r).map_err(|e| format!("{}: {e}", path.display()))?;
+    }
+    Ok(smoothed(&blocks, cfg, Policy::Auto).0)
+}
+
+/// `blocks` as the program of the same part turned on the table by
+/// `rotation` (about the origin): each path turned, feeds and blending
+/// kept. A five-axis block is refused, naming it (its tool axis would turn
+/// too, through the machine's kinematics).
+pub fn turned(blocks: &[Block], rotation: &Rotation3<f64>) -> Result<Vec<Block>, String> {
+    blocks
+        .iter()
+        .map(|b| match b.orientation {
+            None => Ok(Block {
+                path: b.path.rotated(rotation),
+                ..*b
+            }),
+            Some(_) => Err(format!(
+                "block {}: a five-axis block is not turned with the part",
+                b.id
+            )),
+        })
+        .collect()
 }
 
 /// A program's first NURBS curve: its contiguous run of NURBS blocks (empty
