@@ -1562,10 +1562,11 @@ fn sample_laws(
     let mut prev_both = [law(&d_start, 0), law(&d_start, 1)];
     // The length over which the path's curvature terms change: its radius
     // of curvature or `1/√|C‴|`, the lower. Per-axis samples between two law
-    // samples are half that far apart at most (every half spacing at least,
-    // up to 8 a spacing): the axis jerk `C‴·v³ + 3·C″·v·a + t·j` changes over
-    // it, and at a ramp's speeds a fitted 15 µm turn sampled every 16 µm
-    // passed 1.01× an axis's jerk between its samples.
+    // samples are a quarter of that apart at most (every half spacing at
+    // least, up to 16 a spacing): the axis jerk `C‴·v³ + 3·C″·v·a + t·j`
+    // changes over it. At a ramp's speeds a fitted 15 µm turn sampled every
+    // 16 µm passed 1.01× an axis's jerk between its samples, and an abort
+    // braking through a 23 µm turn sampled every 10 µm (half of it) 1.018×.
     let feature = |d: &Derivs| {
         ArcLengthDerivs::new(d).map_or(f64::INFINITY, |a| {
             (1.0 / a.c_ss.norm()).min(1.0 / libm::sqrt(a.c_sss.norm()))
@@ -1573,7 +1574,7 @@ fn sample_laws(
     };
     let between = |l: f64, gap: f64| -> usize {
         if l < gap {
-            (libm::ceil(2.0 * gap / l) as usize).clamp(2, 8)
+            (libm::ceil(4.0 * gap / l) as usize).clamp(2, 16)
         } else {
             2
         }

@@ -9,7 +9,8 @@ use interp_core::{InterpConfig, nurbs::split_program_curve};
 use interpd_tests::path_time::{
     Command, InterpolatedRun, OVERRIDE_KNOB, PathTimes, abort_scan, accel_only_optimum, every,
     first_curve, interpolated_run, interpolated_run_with_commands, interpolated_run_with_overrides,
-    jerk_aware_bound, load_as_run, load_program, path_times, rest_to_rest, step_cap,
+    jerk_aware_bound, load_as_run, load_program, load_turned_as_run, path_times, rest_to_rest,
+    step_cap,
 };
 
 /// The target: total path time ≤ 1.10 × the acceleration-only optimum.
@@ -727,6 +728,28 @@ fn an_abort_in_a_cusp_keeps_every_axis_jerk_limit() {
     let blocks = load_as_run(&file, Some(6000.0), None, &cfg).unwrap();
     let tried = abort_scan(&blocks, &cfg, |at| (12_260..12_300).contains(&at)).unwrap();
     assert_eq!(tried.len(), 40);
+    for a in &tried {
+        assert_eq!(a.violations.total(), 0, "{a:?}");
+    }
+}
+
+/// The same part turned on the table (35° about the axis (1, 2, 0)): an
+/// abort before tick 17,648 brakes `homer-q2` through a turn of 23 µm
+/// radius (`C‴` up to 1,800 mm⁻², now on Y and Z too) at 4 mm/s, and the
+/// per-axis samples half its length apart (10 µm) missed where the braking
+/// jerk and `C‴·v³` added up: 1.018× the Y axis's jerk. They are a quarter
+/// of it apart now (up to 16 between two law samples, were 8).
+#[test]
+fn an_abort_on_a_part_turned_on_the_table_keeps_every_axis_jerk_limit() {
+    use nalgebra::{Rotation3, Unit, Vector3};
+    let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../gcode/tests/programs/homer-q2.ngc");
+    let cfg = InterpConfig::default();
+    let axis = Unit::new_normalize(Vector3::new(1.0, 2.0, 0.0));
+    let turned = Rotation3::from_axis_angle(&axis, 35f64.to_radians());
+    let blocks = load_turned_as_run(&file, Some(6000.0), None, Some(&turned), &cfg).unwrap();
+    let tried = abort_scan(&blocks, &cfg, |at| (17_640..17_656).contains(&at)).unwrap();
+    assert_eq!(tried.len(), 16);
     for a in &tried {
         assert_eq!(a.violations.total(), 0, "{a:?}");
     }
