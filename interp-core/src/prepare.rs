@@ -1566,7 +1566,9 @@ fn sample_laws(
     // least, up to 16 a spacing): the axis jerk `C‴·v³ + 3·C″·v·a + t·j`
     // changes over it. At a ramp's speeds a fitted 15 µm turn sampled every
     // 16 µm passed 1.01× an axis's jerk between its samples, and an abort
-    // braking through a 23 µm turn sampled every 10 µm (half of it) 1.018×.
+    // braking through a 23 µm turn sampled every 10 µm (half of it) 1.018×;
+    // a third of it, up to 8 a spacing, held that abort but let another
+    // there reach 1.049×.
     let feature = |d: &Derivs| {
         ArcLengthDerivs::new(d).map_or(f64::INFINITY, |a| {
             (1.0 / a.c_ss.norm()).min(1.0 / libm::sqrt(a.c_sss.norm()))
