@@ -101,6 +101,13 @@ fn main() {
                     .file_name()
                     .map_or(file.clone(), |n| n.to_string_lossy().into());
                 let t = run.plan;
+                if run.violations.total() > 0 {
+                    eprintln!(
+                        "{name}: {} (first at seq {:?})",
+                        run.violations.breakdown(),
+                        run.violations.first_seq
+                    );
+                }
                 println!(
                     "{name} | {:.3} | {:.3} | {done} | {} | {} | {} | {} | {:.3} | {} | {} | {} | {:.1} | {:.1}",
                     run.time,
