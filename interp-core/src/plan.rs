@@ -710,12 +710,13 @@ impl Data {
         rest_end: bool,
     ) -> impl Iterator<Item = &'a AxisSample> + 'a {
         // Its own samples, those at its ends included (the jerk jumps at a
-        // knot: a sample there bounds both sides). A short piece with none
-        // (cut next to a rest point, or where a limit changes) is checked
-        // against the nearest sample on each side, at its nearer end, if it
-        // lies within the piece's length or a sample spacing; samples lie on
-        // a grid of that spacing, so the reach stops a hair short of it
-        // (whether a sample counts must not turn on round-off).
+        // knot: a sample there bounds both sides). A short piece with no
+        // sample at an end (cut next to a rest point, or where a limit
+        // changes) is checked there against the nearest sample past that
+        // end, at the end, if it lies within the piece's length or a sample
+        // spacing; samples lie on a grid of that spacing, so the reach stops
+        // a hair short of it (whether a sample counts must not turn on
+        // round-off).
         let tol = SLIVER * self.h;
         let reach = if p.h() < 0.5 * self.h {
             p.h().max(self.h / SUB as f64) * (1.0 - SUB_SNAP)
@@ -739,7 +740,15 @@ impl Data {
         };
         let own =
             move |smp: &&AxisSample| smp.s >= p.x0 - tol && smp.s <= p.x1 + tol && !across(smp);
-        let none = !near().any(|smp| own(&smp));
+        // An end with no sample of its own at it: a piece cut short (next
+        // to a rest point, where a limit changes) may hold one sample at one
+        // end and none near the other, where `C‴` may be several percent
+        // higher (the Y axis of `homer-q1` turned on the table passed
+        // 1.0007× its jerk on a 12.5 µm piece sampled at its start only).
+        let bare = move |before: bool| {
+            let end = if before { p.x0 } else { p.x1 };
+            !near().any(|smp| own(&smp) && libm::fabs(smp.s - end) <= tol)
+        };
         // Nor across a block junction: past a block's end sample (or a
         // junction's) before the piece, or a block's start sample after it,
         // the derivatives are another block's (a blend's `C‴` held the line
@@ -760,6 +769,7 @@ impl Data {
             }
         };
         let closest = move |before: bool| {
+            let none = bare(before);
             let wall = if none { wall(before) } else { 0.0 };
             near()
                 .filter(move |smp| {

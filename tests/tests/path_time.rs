@@ -733,6 +733,36 @@ fn an_abort_in_a_cusp_keeps_every_axis_jerk_limit() {
     }
 }
 
+/// `homer-q1` turned on the table (35° about the axis (1, 2, 0)) under a
+/// feed hold every 29 ms resumed 7 ms later: the resume before tick 9,606
+/// (the machine at 11 mm/s) re-solved over a piece cut 12.5 µm short that
+/// held one per-axis sample, at its start; at its end, 0.6 µm before the
+/// next sample, `C‴_y` was 8 % higher, and a tick reached 1.0007× the Y
+/// axis's jerk. A short piece with no sample at an end is now checked
+/// there against the nearest sample past it.
+#[test]
+fn a_short_piece_is_checked_at_both_ends_on_a_part_turned_on_the_table() {
+    use nalgebra::{Rotation3, Unit, Vector3};
+    let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../gcode/tests/programs/homer-q1.ngc");
+    let cfg = InterpConfig::default();
+    let axis = Unit::new_normalize(Vector3::new(1.0, 2.0, 0.0));
+    let turned = Rotation3::from_axis_angle(&axis, 35f64.to_radians());
+    let blocks = load_turned_as_run(&file, Some(6000.0), None, Some(&turned), &cfg).unwrap();
+    let commands: Vec<(u64, Command)> = (1..=340)
+        .flat_map(|k| [(29 * k, Command::Hold), (29 * k + 7, Command::Resume)])
+        .collect();
+    let run = interpolated_run_with_commands(&blocks, &cfg, &commands).unwrap();
+    assert_eq!(
+        run.violations.total(),
+        0,
+        "{} (first at seq {:?})",
+        run.violations.breakdown(),
+        run.violations.first_seq
+    );
+    assert_eq!(run.plan.added_stops(), 0);
+}
+
 /// The same part turned on the table (35° about the axis (1, 2, 0)): an
 /// abort before tick 17,648 brakes `homer-q2` through a turn of 23 µm
 /// radius (`C‴` up to 1,800 mm⁻², now on Y and Z too) at 4 mm/s, and the
