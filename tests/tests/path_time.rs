@@ -733,6 +733,18 @@ fn an_abort_in_a_cusp_keeps_every_axis_jerk_limit() {
     }
 }
 
+/// A program of `gcode/tests/programs` at F6000, its part turned on the
+/// table 35° about the axis (1, 2, 0), as the drivers run it.
+fn tilted_at_f6000(name: &str, cfg: &InterpConfig) -> Vec<interp_core::Block> {
+    use nalgebra::{Rotation3, Unit, Vector3};
+    let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../gcode/tests/programs")
+        .join(name);
+    let axis = Unit::new_normalize(Vector3::new(1.0, 2.0, 0.0));
+    let turned = Rotation3::from_axis_angle(&axis, 35f64.to_radians());
+    load_turned_as_run(&file, Some(6000.0), None, Some(&turned), cfg).unwrap()
+}
+
 /// `homer-q1` turned on the table (35° about the axis (1, 2, 0)) under a
 /// feed hold every 29 ms resumed 7 ms later: the resume before tick 9,606
 /// (the machine at 11 mm/s) re-solved over a piece cut 12.5 µm short that
@@ -742,13 +754,8 @@ fn an_abort_in_a_cusp_keeps_every_axis_jerk_limit() {
 /// there against the nearest sample past it.
 #[test]
 fn a_short_piece_is_checked_at_both_ends_on_a_part_turned_on_the_table() {
-    use nalgebra::{Rotation3, Unit, Vector3};
-    let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../gcode/tests/programs/homer-q1.ngc");
     let cfg = InterpConfig::default();
-    let axis = Unit::new_normalize(Vector3::new(1.0, 2.0, 0.0));
-    let turned = Rotation3::from_axis_angle(&axis, 35f64.to_radians());
-    let blocks = load_turned_as_run(&file, Some(6000.0), None, Some(&turned), &cfg).unwrap();
+    let blocks = tilted_at_f6000("homer-q1.ngc", &cfg);
     let commands: Vec<(u64, Command)> = (1..=340)
         .flat_map(|k| [(29 * k, Command::Hold), (29 * k + 7, Command::Resume)])
         .collect();
@@ -771,13 +778,8 @@ fn a_short_piece_is_checked_at_both_ends_on_a_part_turned_on_the_table() {
 /// of it apart now (up to 16 between two law samples, were 8).
 #[test]
 fn an_abort_on_a_part_turned_on_the_table_keeps_every_axis_jerk_limit() {
-    use nalgebra::{Rotation3, Unit, Vector3};
-    let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../gcode/tests/programs/homer-q2.ngc");
     let cfg = InterpConfig::default();
-    let axis = Unit::new_normalize(Vector3::new(1.0, 2.0, 0.0));
-    let turned = Rotation3::from_axis_angle(&axis, 35f64.to_radians());
-    let blocks = load_turned_as_run(&file, Some(6000.0), None, Some(&turned), &cfg).unwrap();
+    let blocks = tilted_at_f6000("homer-q2.ngc", &cfg);
     let tried = abort_scan(&blocks, &cfg, |at| (17_640..17_656).contains(&at)).unwrap();
     assert_eq!(tried.len(), 16);
     for a in &tried {
