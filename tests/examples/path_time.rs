@@ -54,7 +54,7 @@ use interp_core::InterpConfig;
 use interp_core::smooth::Policy;
 use interpd_tests::cli::{take_rotation, take_value};
 use interpd_tests::path_time::{
-    BoundTerms, first_curve, jerk_aware_bound_with, load_program, program_run, smoothed, turned,
+    BoundTerms, first_curve, jerk_aware_bound_with, load_turned, program_run, smoothed,
 };
 
 const CORPUS: &str = "../shared/corpus/nurbs-linuxcnc/g6";
@@ -116,11 +116,7 @@ fn main() {
         }
     );
     for f in files {
-        let loaded = load_program(&f, feed, g64).and_then(|b| match &rotation {
-            Some(r) => turned(&b, r),
-            None => Ok(b),
-        });
-        let blocks = match loaded {
+        let blocks = match load_turned(&f, feed, g64, rotation.as_ref()) {
             Ok(b) => b,
             Err(e) => {
                 eprintln!("{e}");

@@ -488,7 +488,7 @@ pub fn load_as_run(
     load_turned_as_run(path, feed, g64, None, cfg)
 }
 
-/// [`load_as_run`] with the part turned on the table first ([`turned`]).
+/// [`load_as_run`] with the part turned on the table first ([`load_turned`]).
 pub fn load_turned_as_run(
     path: &std::path::Path,
     feed: Option<f64>,
@@ -496,11 +496,23 @@ pub fn load_turned_as_run(
     rotation: Option<&Rotation3<f64>>,
     cfg: &InterpConfig,
 ) -> Result<Vec<Block>, String> {
-    let mut blocks = load_program(path, feed, g64)?;
-    if let Some(r) = rotation {
-        blocks = turned(&blocks, r).map_err(|e| format!("{}: {e}", path.display()))?;
-    }
+    let blocks = load_turned(path, feed, g64, rotation)?;
     Ok(smoothed(&blocks, cfg, Policy::Auto).0)
+}
+
+/// [`load_program`], its part turned on the table by `rotation` if any
+/// ([`turned`]).
+pub fn load_turned(
+    path: &std::path::Path,
+    feed: Option<f64>,
+    g64: Option<f64>,
+    rotation: Option<&Rotation3<f64>>,
+) -> Result<Vec<Block>, String> {
+    let blocks = load_program(path, feed, g64)?;
+    match rotation {
+        Some(r) => turned(&blocks, r).map_err(|e| format!("{}: {e}", path.display())),
+        None => Ok(blocks),
+    }
 }
 
 /// `blocks` as the program of the same part turned on the table by
