@@ -232,7 +232,11 @@ fn turn_time(piece: &Piece, x: f64, v: f64, t: f64) -> Option<f64> {
 fn rest_time(piece: &Piece, x: f64, v: f64, t: f64) -> Option<f64> {
     let (_, vt) = state_after(piece, x, v, t);
     if vt > 0.0 {
-        return None;
+        // On a concave piece the closed form swings back past the rest at
+        // its end: its first turn is that rest. (At rest a round-off short
+        // of the end, the turn is now: without it the machine waited there
+        // for good.)
+        return turn_time(piece, x, v, t);
     }
     // The speed falls monotonically to zero here (it is √S on a piece that
     // ends at rest): bisect.
@@ -574,6 +578,58 @@ mod tests {
                 let want = 2.0 / 9.0 * libm::pow(3.0 * p.d, 1.5) / (p.h * p.h);
                 let j = (xs[4] - 3.0 * xs[3] + 3.0 * xs[2] - xs[1]) / (dt * dt * dt);
                 assert!((j - want).abs() < 1e-3 * want, "{j} vs {want}");
+            }
+        }
+    }
+
+    /// Ticks of `ts` until the motion from `(x, v)` reaches the end of
+    /// `p`, as the executor takes them (`None` after `most`).
+    fn ticks_to_end(p: &Piece, mut x: f64, mut v: f64, ts: f64, most: usize) -> Option<usize> {
+        for k in 0..most {
+            if time_to_end(p, x, v, ts).is_some() {
+                return Some(k);
+            }
+            (x, v) = advance(p, x, v, ts);
+        }
+        None
+    }
+
+    #[test]
+    fn a_piece_ending_at_rest_is_reached_from_a_round_off_short_of_its_end() {
+        // A steep 0.29 µm drop to a rest point (jerk limits of 10⁹ mm/s³):
+        // the motion came to rest an ulp short of its end. The closed form
+        // from there swings back up within the tick; the end is reached now.
+        let p = Piece {
+            x0: 939.250_289_775_601_9,
+            h: 0.000_289_775_601_913_788_7,
+            e0: 1.402_513_913_258_517_4,
+            d: 1.402_513_913_142_467_8,
+            e1: 0.0,
+            form: Form::Quadratic,
+        };
+        let x = 0.000_289_775_601_913_632;
+        assert!(x < p.h);
+        assert_eq!(ticks_to_end(&p, x, 0.0, 1e-3, 3), Some(0));
+        // Concave pieces that end at rest, from their start at speed: each
+        // is reached within the time its closed form takes, plus a tick.
+        for h in [1e-6, 3e-4, 0.01, 0.25] {
+            for (e0, d) in [(1.4, 1.4), (0.0, 10.0), (100.0, 60.0), (2500.0, 2400.0)] {
+                let p = Piece {
+                    h,
+                    e0,
+                    d,
+                    e1: 0.0,
+                    ..p
+                };
+                assert!(p.alpha() < 0.0);
+                let v0 = libm::sqrt(e0);
+                // (From rest the closed form's half period, π/ω, crosses it.)
+                let most = 2 + (core::f64::consts::PI / libm::sqrt(-p.alpha()) / 1e-3) as usize;
+                let k = ticks_to_end(&p, 0.0, v0, 1e-3, most);
+                assert!(
+                    k.is_some(),
+                    "h {h} e0 {e0} d {d}: not reached in {most} ticks"
+                );
             }
         }
     }
