@@ -16,7 +16,7 @@
 //! | tangential acceleration `\|S'/2\| ≤ A` | at the knots, where the linear `S'` peaks |
 //! | tangential jerk `\|α·v\| ≤ J`, `α = S''/2` | `±(e_p − 2d_p + e_{p+1}) ≤ (J·h²/V_p)·(1.5 − c/(2V_p²))`, `c` the coefficients that can hold the piece's largest `S` |
 //! | axis jerk `v·(C'''_i·S + 1.5·C''_i·S' + 0.5·t_i·S'') ` | at the per-axis samples, `±(…) ≤ (J_i/V_p)·(1.5 − S/(2V_p²))` |
-//! | rest points | `\|S'/2\| ≤ J·Ts/2` next to them: arriving and leaving, the acceleration steps by at most one tick of jerk |
+//! | rest points | `\|S'/2\| ≤ min(J·Ts/2, A)` next to them: arriving and leaving, the acceleration steps by at most one tick of jerk |
 //!
 //! (`C''`, `C'''` are the path's derivatives in arc length, `t` its tangent.
 //! A jerk limit `|F(S)| ≤ J/√S` is held through the tangent of its convex
@@ -2827,12 +2827,16 @@ fn reach_from(v0: f64, s: f64, a0: f64, cfg: &InterpConfig) -> f64 {
 /// The acceleration step allowed next to a rest point on a piece of
 /// interval `it`: half a tick of the path's jerk (`a_rest`), or of the
 /// jerk a five-axis block's joints allow there, if lower (a rotary joint
-/// that turns several degrees per mm; see `crate::fiveaxis`).
+/// that turns several degrees per mm; see `crate::fiveaxis`); never more
+/// than the acceleration limit (a rest point has no acceleration row of
+/// its own, and a stiff machine's half tick of jerk, above 4·10⁶ mm/s³ at
+/// the defaults, is more than it).
 fn rest_accel(a_rest: f64, it: &Interval, cfg: &InterpConfig) -> f64 {
+    let a = a_rest.min(it.accel);
     if it.joint_jerk.is_finite() {
-        a_rest.min(0.5 * it.joint_jerk * cfg.period)
+        a.min(0.5 * it.joint_jerk * cfg.period)
     } else {
-        a_rest
+        a
     }
 }
 

@@ -379,7 +379,11 @@ impl BlockPlanner {
     /// otherwise run short of plan: the queue starves, or the program ends).
     pub fn plan_ahead(&mut self, out: &mut PlannedBlock) -> Result<(), PushError> {
         self.speed_only(out);
-        if !self.has_unplanned() {
+        // At the program's end even a remnant shorter than a sliver is
+        // planned: the machine would wait short of it for good (the last
+        // moves of 115 nm and 1 nm after a plan to a block's end).
+        let remnant = self.finished && self.tail_s > self.planned_to;
+        if !(self.has_unplanned() || remnant) {
             return Ok(());
         }
         let freeze = self.freeze();

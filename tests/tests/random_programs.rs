@@ -96,20 +96,31 @@ fn random_program(seed: u64, n: usize, exact: Option<bool>) -> (String, Vec<Vec3
 /// bound; returns (ours, reference, moves run, stops): the reference is the
 /// acceleration-only optimum plus the jerk allowance at the stops.
 fn check(seed: u64, n: usize, exact: Option<bool>) -> (f64, f64, usize, usize) {
+    check_on(&InterpConfig::default(), seed, n, exact)
+}
+
+/// [`check`] on the machine of `cfg`.
+fn check_on(
+    cfg: &InterpConfig,
+    seed: u64,
+    n: usize,
+    exact: Option<bool>,
+) -> (f64, f64, usize, usize) {
     let (text, pts, exact, zero) = random_program(seed, n, exact);
-    check_text(&text, &pts, exact, n - zero, &format!("seed {seed}"))
+    check_text(cfg, &text, &pts, exact, n - zero, &format!("seed {seed}"))
 }
 
 /// [`check`] of a program's text: `pts` its points, `moves` how many of its
 /// moves have a length.
 fn check_text(
+    cfg: &InterpConfig,
     text: &str,
     pts: &[Vec3],
     exact: bool,
     moves: usize,
     what: &str,
 ) -> (f64, f64, usize, usize) {
-    let cfg = InterpConfig::default();
+    let cfg = *cfg;
     let program = gcode::parse(text).expect("parses");
     let blocks = program
         .to_core_blocks(&CoreOptions::default())
@@ -179,6 +190,65 @@ proptest! {
     }
 }
 
+/// A machine with jerk limits `jerk` (the axes' twice that) and
+/// acceleration `accel` (the axes' `axis_accel`), the rest as the defaults.
+fn machine(jerk: f64, accel: f64, axis_accel: f64) -> InterpConfig {
+    InterpConfig {
+        max_path_jerk: jerk,
+        axis_max_jerk: [2.0 * jerk; 3],
+        max_path_accel: accel,
+        axis_max_accel: [axis_accel; 3],
+        ..InterpConfig::default()
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig {
+        cases: 4,
+        rng_seed: proptest::test_runner::RngSeed::Fixed(0x50f7_571f),
+        ..ProptestConfig::default()
+    })]
+
+    /// The same on machines from soft to stiff: jerk limits from 10⁴ to
+    /// 10⁹ mm/s³, accelerations from 300 to 10⁴ mm/s² (the axes' at least
+    /// twice the path's, as the defaults' share assumes).
+    #[test]
+    fn random_programs_end_near_the_optimum_on_soft_and_stiff_machines(
+        seed in any::<u64>(),
+        n in 20usize..300,
+        jerk_exp in 4.0f64..9.0,
+        accel_exp in 2.5f64..4.0,
+        axis_share in 0.0f64..0.3,
+    ) {
+        let accel = 10f64.powf(accel_exp);
+        let cfg = machine(10f64.powf(jerk_exp), accel, 2.0 * accel * 10f64.powf(axis_share));
+        let (ours, reference, moves, _) = check_on(&cfg, seed, n, None);
+        eprintln!("seed {seed}: {moves} moves, {:.3}× on J {:.3e} A {accel:.0}", ours / reference, cfg.max_path_jerk);
+    }
+}
+
+/// Found on a stiff machine (jerk 10⁷ mm/s³): half a tick of jerk is more
+/// than the acceleration limit, and the plan left each rest point of a
+/// `G61` program at up to 1.9× it (the rest rows had no bound by it).
+#[test]
+fn a_stiff_machine_leaves_its_rest_points_within_its_acceleration_limit() {
+    check_on(&machine(1e7, 2000.0, 4000.0), 10549479219436498, 299, None);
+}
+
+/// Found on a soft machine (jerk 10⁴ mm/s³): the program's last two moves
+/// (115 nm and 1 nm) came after a plan to a block's end and were shorter
+/// than the smallest piece the look-ahead plans; the machine waited short
+/// of them for good.
+#[test]
+fn the_last_moves_of_a_program_run_however_short_they_are() {
+    check_on(
+        &machine(1e4, 2000.0, 4000.0),
+        9456108982048456704,
+        299,
+        None,
+    );
+}
+
 /// Found by the property test: fitted pieces with turns of a few µm
 /// radius. A cubic C2 knot's step of `C‴` (the axis jerk steps with it) was
 /// seen by no sample a few µm past it (1.04× an axis's jerk); a turn between
@@ -233,7 +303,14 @@ fn micro_moves_turning_sharply_become_corners_not_slow_pieces() {
     for p in &pts[1..] {
         text += &format!("G1 X{} Y{} Z{}\n", p.x, p.y, p.z);
     }
-    let (ours, reference, _, _) = check_text(&text, &pts, false, pts.len() - 1, "micro-moves");
+    let (ours, reference, _, _) = check_text(
+        &InterpConfig::default(),
+        &text,
+        &pts,
+        false,
+        pts.len() - 1,
+        "micro-moves",
+    );
     // 1.599 s before; 0.394 s now.
     assert!(ours < 0.5, "{ours} s (reference {reference} s)");
 }
