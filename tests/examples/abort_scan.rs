@@ -2,10 +2,11 @@
 //! the drivers run it: the `G64 P` stage, then the interpolator), and
 //! before every `--every`-th tick (default 7) a copy of the run is aborted
 //! and braked to idle, every setpoint checked against every limit
-//! (`--rotate` turns the part on the table first, as in `path_time`).
+//! (`--rotate` turns the part on the table first, and `--set KEY=VALUE`
+//! runs another machine, as in `path_time`).
 //!
 //! ```text
-//! cargo run --release -p interpd-tests --example abort_scan -- [--feed MM_PER_MIN] [--every TICKS] [--rotate DEG[,X,Y,Z]] FILE.ngc...
+//! cargo run --release -p interpd-tests --example abort_scan -- [--feed MM_PER_MIN] [--every TICKS] [--rotate DEG[,X,Y,Z]] [--set KEY=VALUE]... FILE.ngc...
 //! ```
 //!
 //! Prints per program: the aborts tried, those with a failed check, the
@@ -16,13 +17,13 @@
 
 use std::path::PathBuf;
 
-use interp_core::InterpConfig;
-use interpd_tests::cli::{take_number, take_rotation};
+use interpd_tests::cli::{take_config, take_number, take_rotation};
 use interpd_tests::path_time::{abort_scan, every, jerk_use, load_turned_as_run};
 
 fn main() {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
     let rotation = take_rotation(&mut args, "--rotate");
+    let cfg = take_config(&mut args);
     let mut flag = |name: &str| take_number(&mut args, name);
     let feed = flag("--feed");
     let n = flag("--every").unwrap_or(7.0);
@@ -31,7 +32,6 @@ fn main() {
         "--every: a whole number of ticks, at least 1"
     );
     let n = n as u64;
-    let cfg = InterpConfig::default();
     println!(
         "program | aborts | failed | jerk use | at tick | longest stop (ticks) | longest plan ms"
     );

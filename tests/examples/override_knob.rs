@@ -3,7 +3,7 @@
 //! 30–200 % (1.0, 0.6, 1.2, 0.8, 1.5, 0.3, 1.0, 0.9, 1.1, 0.5, 2.0, 0.7).
 //!
 //! ```text
-//! cargo run --release -p interpd-tests --example override_knob -- [--feed MM_PER_MIN] [--g64 P] [--every MS] [--hold-every MS] [--resume-after MS] [--rotate DEG[,X,Y,Z]] FILE.ngc...
+//! cargo run --release -p interpd-tests --example override_knob -- [--feed MM_PER_MIN] [--g64 P] [--every MS] [--hold-every MS] [--resume-after MS] [--rotate DEG[,X,Y,Z]] [--set KEY=VALUE]... FILE.ngc...
 //! ```
 //!
 //! `--every 0` leaves the knob alone; `--hold-every H` also gives a feed
@@ -11,7 +11,7 @@
 //! before rest, when the machine was fast).
 //!
 //! Each program runs as the drivers run it (the `G64 P` stage, then the
-//! interpolator; `--feed`, `--g64` and `--rotate` as in the `path_time` example), every setpoint checked against every limit (the feed
+//! interpolator; `--feed`, `--g64`, `--rotate` and `--set` as in the `path_time` example), every setpoint checked against every limit (the feed
 //! bound at the largest override). Prints per program: the path time with
 //! the knob turned and at 100 %, the turns, the look-ahead's solves, its
 //! retries (solves tried again with other rows) and the stops it added (a
@@ -26,8 +26,7 @@
 
 use std::path::PathBuf;
 
-use interp_core::InterpConfig;
-use interpd_tests::cli::{take_number, take_rotation};
+use interpd_tests::cli::{take_config, take_number, take_rotation};
 use interpd_tests::path_time::{
     Command, OVERRIDE_KNOB, interpolated_run, interpolated_run_with_commands, load_turned_as_run,
 };
@@ -35,6 +34,7 @@ use interpd_tests::path_time::{
 fn main() {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
     let rotation = take_rotation(&mut args, "--rotate");
+    let cfg = take_config(&mut args);
     let mut flag = |name: &str| take_number(&mut args, name);
     let feed = flag("--feed");
     let g64 = flag("--g64");
@@ -50,7 +50,6 @@ fn main() {
         hold_every == 0.0 || hold_every > resume_after,
         "--hold-every is 0 (no hold) or over --resume-after"
     );
-    let cfg = InterpConfig::default();
     let ticks = |ms: f64| (ms * 1e-3 / cfg.period).round() as u64;
     let (every, hold_every, resume_after) = (ticks(every), ticks(hold_every), ticks(resume_after));
     println!(

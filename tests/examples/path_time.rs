@@ -32,6 +32,10 @@
 //! table by `DEG` degrees about the axis `(X, Y, Z)` through the origin
 //! (about Z without an axis): the same path, its laws on other axes.
 //!
+//! `--set KEY=VALUE` (any number; keys of `[interp]` in the service's
+//! configuration, values in TOML) measures another machine than the
+//! defaults: `--set max-path-jerk=1e7 --set axis-max-jerk=[2e7,2e7,2e7]`.
+//!
 //! `--no-deviation` skips the two deviation columns (printed NaN): on NURBS
 //! curves at production feed the reference search takes minutes per program.
 //!
@@ -50,9 +54,8 @@
 
 use std::path::{Path, PathBuf};
 
-use interp_core::InterpConfig;
 use interp_core::smooth::Policy;
-use interpd_tests::cli::{take_rotation, take_value};
+use interpd_tests::cli::{take_config, take_rotation, take_value};
 use interpd_tests::path_time::{
     BoundTerms, first_curve, jerk_aware_bound_with, load_turned, program_run, smoothed,
 };
@@ -82,6 +85,7 @@ fn main() {
         None => false,
     };
     let rotation = take_rotation(&mut args, "--rotate");
+    let cfg = take_config(&mut args);
     let mut flag = |name: &str| take_value(&mut args, name);
     let feed = flag("--feed").and_then(|v| v.parse::<f64>().ok());
     let g64 = flag("--g64").and_then(|v| v.parse::<f64>().ok());
@@ -106,7 +110,6 @@ fn main() {
     } else {
         args.iter().map(PathBuf::from).collect()
     };
-    let cfg = InterpConfig::default();
     println!(
         "program | part | blocks in | out | length mm | ours s | trapezoid s | optimum s | ours/opt | trap/opt | setpoint dev um | chord dev um | bound s | ours/bound | jerk use | failed checks | retries / crawls{}",
         if parts {

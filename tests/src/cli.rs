@@ -1,6 +1,7 @@
 //! The command-line flags of the examples (`--name VALUE` anywhere among
 //! the file arguments).
 
+use interp_core::InterpConfig;
 use nalgebra::{Rotation3, Unit, Vector3};
 
 /// Removes `name VALUE` from `args` and returns `VALUE` (`None` when the
@@ -48,6 +49,37 @@ pub fn take_rotation(args: &mut Vec<String>, name: &str) -> Option<Rotation3<f64
     Some(Rotation3::from_axis_angle(&axis, n[0].to_radians()))
 }
 
+/// Every `--set KEY=VALUE` (a key of `[interp]` in the service's
+/// configuration, a TOML value: `--set max-path-jerk=1e9`, `--set
+/// axis-max-jerk=[2e9,2e9,2e9]`) laid over the default configuration, to
+/// measure another machine. Removed from `args`; panics naming the flag on
+/// an unknown key, a malformed value or a configuration the interpolator
+/// refuses.
+pub fn take_config(args: &mut Vec<String>) -> InterpConfig {
+    let mut table = toml::Table::try_from(InterpConfig::default()).expect("the defaults serialise");
+    while args.iter().any(|a| a == "--set") {
+        let v = take_value(args, "--set").unwrap_or_else(|| panic!("--set takes KEY=VALUE"));
+        let Some((k, value)) = v.split_once('=') else {
+            panic!("--set {v}: expected KEY=VALUE");
+        };
+        let k = k.trim();
+        assert!(
+            table.contains_key(k),
+            "--set {v}: unknown key `{k}` (known: {})",
+            table.keys().cloned().collect::<Vec<_>>().join(", ")
+        );
+        let doc: toml::Table = toml::from_str(&format!("{k} = {}", value.trim()))
+            .unwrap_or_else(|e| panic!("--set {v}: VALUE must be a TOML value ({e})"));
+        table.extend(doc);
+    }
+    let cfg: InterpConfig = table
+        .try_into()
+        .unwrap_or_else(|e| panic!("--set: the configuration does not fit ({e})"));
+    cfg.validate()
+        .unwrap_or_else(|e| panic!("--set: the configuration is refused ({e:?})"));
+    cfg
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -66,6 +98,36 @@ mod tests {
         let r = take_rotation(&mut a, "--rotate").unwrap();
         assert!((r * Vector3::y() - Vector3::z()).norm() < 1e-15);
         assert!(take_rotation(&mut args(&["a.ngc"]), "--rotate").is_none());
+    }
+
+    #[test]
+    fn settings_are_laid_over_the_defaults_and_taken_out_of_the_files() {
+        let mut a = args(&[
+            "--set",
+            "max-path-jerk=1e9",
+            "a.ngc",
+            "--set",
+            "axis-max-jerk = [2e9, 2e9, 3e9]",
+        ]);
+        let cfg = take_config(&mut a);
+        assert_eq!(a, args(&["a.ngc"]));
+        assert_eq!(cfg.max_path_jerk, 1e9);
+        assert_eq!(cfg.axis_max_jerk, [2e9, 2e9, 3e9]);
+        let d = InterpConfig::default();
+        assert_eq!(cfg.max_path_accel, d.max_path_accel);
+        assert_eq!(take_config(&mut args(&["a.ngc"])), d);
+    }
+
+    #[test]
+    #[should_panic(expected = "unknown key `max-path-jrk`")]
+    fn a_misspelt_setting_is_refused_by_name() {
+        take_config(&mut args(&["--set", "max-path-jrk=1e9"]));
+    }
+
+    #[test]
+    #[should_panic(expected = "the configuration is refused")]
+    fn a_setting_out_of_range_is_refused() {
+        take_config(&mut args(&["--set", "max-path-jerk=-1"]));
     }
 
     #[test]
