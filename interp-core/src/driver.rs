@@ -96,6 +96,10 @@ pub struct Driver {
     /// for room is offered again every tick, and finding a NURBS's tangent
     /// breaks measures it.
     split_memo: Option<(Block, usize)>,
+    /// An abort was given (or seen braking) since the planner last started
+    /// again: once the executor is idle and empty, the old queue is gone
+    /// even where the machine stopped on its end.
+    aborted: bool,
 }
 
 impl Driver {
@@ -111,6 +115,7 @@ impl Driver {
             emitted: 0,
             last_error: None,
             split_memo: None,
+            aborted: false,
         })
     }
 
@@ -184,6 +189,7 @@ impl Driver {
             self.finish_sent = false;
         }
         if st.aborting {
+            self.aborted = true;
             return Err(PushError::Aborting);
         }
         if self.in_flight(st) {
@@ -213,12 +219,16 @@ impl Driver {
 
     /// After an abort (the executor idle with nothing queued), the planner
     /// starts again where the machine stands: the old queue's long block,
-    /// hold's rest and plans are forgotten.
+    /// hold's rest and plans are forgotten. (An abort that stops exactly on
+    /// the end of what was queued, as a soft machine's long stop does,
+    /// leaves the planner's tail where the machine stands: the rest of a
+    /// long block ran on after it.)
     fn resync_to(&mut self, st: &ExecStatus) {
         let p = Vec3::new(st.point[0], st.point[1], st.point[2]);
-        if self.planner.tail_s() != st.s || self.planner.tail() != p {
+        if self.aborted || self.planner.tail_s() != st.s || self.planner.tail() != p {
             self.planner.resync(p, st.s);
         }
+        self.aborted = false;
     }
 
     /// How many queue segments `block` takes (memoised: a block refused for
@@ -303,6 +313,7 @@ impl Driver {
 
     fn due(&mut self, st: &ExecStatus, parts_only: bool) -> Option<&PlannedBlock> {
         // Nothing more goes in while an abort brakes.
+        self.aborted |= st.aborting;
         if self.in_flight(st) || st.aborting {
             return None;
         }
@@ -448,6 +459,7 @@ impl Driver {
     /// under a feed hold ([`Self::plan_to_rest`]), then the queue is flushed.
     pub fn abort_into<const Q: usize>(&mut self, exec: &mut Executor<Q>, sink: PlanSink<'_>) {
         exec.abort();
+        self.aborted = true;
         self.plan_stop_into(exec, sink);
     }
 

@@ -786,3 +786,25 @@ fn an_abort_on_a_part_turned_on_the_table_keeps_every_axis_jerk_limit() {
         assert_eq!(a.violations.total(), 0, "{a:?}");
     }
 }
+
+/// On a soft machine (jerk 10⁴ mm/s³) an abort's stop is long: before tick
+/// 443 of the butterfly at F6000 it ended exactly on the end of what was
+/// queued of the long first curve, the planner's queue end where the
+/// machine stood, and the rest of the curve was planned and run after the
+/// abort. The queue is forgotten after every abort now.
+#[test]
+fn an_abort_on_a_soft_machine_drops_the_rest_of_a_long_block() {
+    let cfg = InterpConfig {
+        max_path_jerk: 1e4,
+        axis_max_jerk: [2e4; 3],
+        ..InterpConfig::default()
+    };
+    let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../gcode/tests/programs/curva_farfalla-q1.ngc");
+    let blocks = load_as_run(&file, Some(6000.0), None, &cfg).unwrap();
+    let tried = abort_scan(&blocks, &cfg, |at| (436..450).contains(&at)).unwrap();
+    assert_eq!(tried.len(), 14);
+    for a in &tried {
+        assert_eq!(a.violations.total(), 0, "{a:?}");
+    }
+}
