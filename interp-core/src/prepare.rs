@@ -363,9 +363,13 @@ impl BlockPlanner {
         self.planned_to
     }
 
-    /// Is part of the queue not planned yet (past the last chunk mark)?
+    /// Is part of the queue not planned yet (past the last chunk mark)? At
+    /// the program's end, even a remnant shorter than a sliver: the machine
+    /// would wait short of it for good (the last moves of 115 nm and 1 nm
+    /// after a plan to a block's end).
     pub fn has_unplanned(&self) -> bool {
-        self.tail_s > self.planned_to + SLIVER * self.h
+        let sliver = if self.finished { 0.0 } else { SLIVER * self.h };
+        self.tail_s > self.planned_to + sliver
     }
 
     /// The program ends with what is queued: plan the speed to its end.
@@ -379,11 +383,7 @@ impl BlockPlanner {
     /// otherwise run short of plan: the queue starves, or the program ends).
     pub fn plan_ahead(&mut self, out: &mut PlannedBlock) -> Result<(), PushError> {
         self.speed_only(out);
-        // At the program's end even a remnant shorter than a sliver is
-        // planned: the machine would wait short of it for good (the last
-        // moves of 115 nm and 1 nm after a plan to a block's end).
-        let remnant = self.finished && self.tail_s > self.planned_to;
-        if !(self.has_unplanned() || remnant) {
+        if !self.has_unplanned() {
             return Ok(());
         }
         let freeze = self.freeze();
