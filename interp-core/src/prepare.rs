@@ -2090,10 +2090,22 @@ pub(crate) fn axis_jerk_load(smp: &AxisSample, ax: usize, l2: f64, cfg: &InterpC
 /// [`axis_jerk_load`] with the path's tangential jerk at most `jerk`
 /// (before the planning margin) instead of `max_path_jerk`.
 fn axis_jerk_load_at(smp: &AxisSample, ax: usize, l2: f64, cfg: &InterpConfig, jerk: f64) -> f64 {
+    axis_jerk_load_with(smp, ax, l2, cfg, jerk, cfg.planned_accel())
+}
+
+/// [`axis_jerk_load_at`] with the tangential acceleration at most `accel`.
+fn axis_jerk_load_with(
+    smp: &AxisSample,
+    ax: usize,
+    l2: f64,
+    cfg: &InterpConfig,
+    jerk: f64,
+    accel: f64,
+) -> f64 {
     let keep = 1.0 - cfg.planning_margin;
     let v = libm::sqrt(l2).max(1e-9);
     let worst = libm::fabs(smp.csss[ax]) * l2
-        + 3.0 * libm::fabs(smp.css[ax]) * cfg.planned_accel()
+        + 3.0 * libm::fabs(smp.css[ax]) * accel
         + libm::fabs(smp.t[ax]) * jerk * keep / v;
     // (Against the share a junction's step leaves.)
     worst * v / (cfg.axis_max_jerk[ax] * keep * (1.0 - smp.reserve.larger(ax)))
@@ -2139,8 +2151,12 @@ pub(crate) fn keep_axis_sample(
                 reserve: smp.reserve.scaled((v * v / v2).min(1.0)),
                 ..smp
             };
+            // (Any schedule whose speed stays positive under tangential
+            // jerk `J` has `|a| ≤ √(2·J·v)`: slow, it cannot be fast to
+            // accelerate.)
+            let accel = cfg.planned_accel().min(libm::sqrt(2.0 * jerk * v));
             (0..3)
-                .map(|ax| axis_jerk_load_at(&at_v, ax, v * v, cfg, jerk))
+                .map(|ax| axis_jerk_load_with(&at_v, ax, v * v, cfg, jerk, accel))
                 .fold(0.0, f64::max)
         };
         // The load grows with the speed: bisect for the highest safe one.

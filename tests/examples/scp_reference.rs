@@ -5,12 +5,13 @@
 //!
 //! ```text
 //! cargo run --release -p interpd-tests --features scp --example scp_reference -- \
-//!     [--feed MM_PER_MIN] [--g64 P] [--step MM] [--iterations N] [--scale F] FILE.ngc...
+//!     [--feed MM_PER_MIN] [--g64 P] [--step MM] [--iterations N] [--scale F] [--set KEY=VALUE]... FILE.ngc...
 //! ```
 //!
 //! `--step` is the reference's grid (0.1 mm), `--iterations` the most
 //! linear programs (30; it stops once one gains under 1e-5), `--scale F`
-//! scales the reference's acceleration and jerk limits (not ours). Prints,
+//! scales the reference's acceleration and jerk limits (not ours), `--set` sets
+//! a key of `[interp]` for both (as `path_time`'s). Prints,
 //! times in s: ours, optimum, bound, the first and the last iterate of the
 //! reference, the number of programs and grid nodes, ours over each, and
 //! the reference sampled every servo period as the loop samples a plan
@@ -21,9 +22,8 @@
 
 use std::path::PathBuf;
 
-use interp_core::InterpConfig;
 use interp_core::smooth::Policy;
-use interpd_tests::cli::take_value;
+use interpd_tests::cli::{take_config, take_value};
 use interpd_tests::path_time::{
     accel_only_optimum, first_curve, interpolated_time, jerk_aware_bound, load_program, smoothed,
 };
@@ -35,6 +35,7 @@ const SAMPLED_EDGE: f64 = 1.0;
 
 fn main() {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
+    let cfg = take_config(&mut args);
     let mut flag = |name: &str| take_value(&mut args, name);
     let feed = flag("--feed").and_then(|v| v.parse::<f64>().ok());
     let step = flag("--step")
@@ -50,7 +51,6 @@ fn main() {
     let scale = flag("--scale")
         .and_then(|v| v.parse::<f64>().ok())
         .unwrap_or(1.0);
-    let cfg = InterpConfig::default();
     let mut ref_cfg = cfg;
     ref_cfg.max_path_accel *= scale;
     ref_cfg.max_path_jerk *= scale;

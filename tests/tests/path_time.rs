@@ -310,6 +310,36 @@ fn a_stationary_point_near_a_curves_end_is_passed_without_a_crawl() {
     assert_first_curve_at_f6000("curva_delfino-q1.ngc", 1.1);
 }
 
+/// The same stationary point on a soft machine (path jerk 10⁴ mm/s³, axes
+/// 2·10⁴): there every per-axis sample near the point may bind, and the
+/// interval's sample slots fill. A sample that could not be kept lowered
+/// the speed until its axis jerk could not bind under the full tangential
+/// acceleration (`3·|C″|·A`, with `C″` growing as `1/√s` towards the
+/// point): 0.6 µm/s over the last 33 µm, 60.9 s for the curve, 25× the
+/// jerk-aware bound. A schedule held to jerk `J` whose speed stays positive
+/// cannot accelerate faster than `√(2·J·v)`; bounded with that, the curve
+/// takes 4.0 s (1.64× the bound).
+#[test]
+fn a_soft_machine_passes_a_stationary_point_whose_samples_overflow_without_a_crawl() {
+    let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../gcode/tests/programs/curva_delfino-q1.ngc");
+    let blocks = first_curve(&load_program(&file, Some(6000.0), None).unwrap());
+    let cfg = InterpConfig {
+        max_path_jerk: 1e4,
+        axis_max_jerk: [2e4; 3],
+        ..InterpConfig::default()
+    };
+    let run = interpolated_run(&blocks, &cfg, false).unwrap();
+    let bound = jerk_aware_bound(&blocks, &cfg);
+    eprintln!(
+        "soft curva_delfino-q1 F6000: ours {} bound {bound}",
+        run.time
+    );
+    assert_eq!(run.violations.total(), 0, "{:?}", run.violations);
+    assert!(bound <= run.time, "the bound {bound} is above our time");
+    assert!(run.time <= 2.0 * bound, "ours/bound {}", run.time / bound);
+}
+
 /// A dip of the machine law at a knot where the curvature jumps: the G5.2
 /// guitar's law falls from 20 to 2.2 mm/s at a knot 0.1 mm into the curve
 /// and rises to 17 mm/s within 25 µm after it. Charged to the knot's law
