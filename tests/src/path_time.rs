@@ -50,6 +50,17 @@ pub fn reference_laws(cfg: &InterpConfig) -> InterpConfig {
     real_limits(&without_jerk(cfg))
 }
 
+/// The default machine with path jerk `jerk` and the axes' jerk twice that
+/// (the defaults' ratio): a soft machine at 10⁴ mm/s³ (a heavy gantry), a
+/// stiff one at 10⁷ (linear motors).
+pub fn machine_with_jerk(jerk: f64) -> InterpConfig {
+    InterpConfig {
+        max_path_jerk: jerk,
+        axis_max_jerk: [2.0 * jerk; 3],
+        ..InterpConfig::default()
+    }
+}
+
 /// The configuration with jerk limits switched off (acceleration only).
 pub fn without_jerk(cfg: &InterpConfig) -> InterpConfig {
     InterpConfig {

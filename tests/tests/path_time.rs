@@ -9,8 +9,8 @@ use interp_core::{InterpConfig, nurbs::split_program_curve};
 use interpd_tests::path_time::{
     Command, InterpolatedRun, OVERRIDE_KNOB, PathTimes, abort_scan, accel_only_optimum, every,
     first_curve, interpolated_run, interpolated_run_with_commands, interpolated_run_with_overrides,
-    jerk_aware_bound, load_as_run, load_program, load_turned_as_run, path_times, rest_to_rest,
-    step_cap,
+    jerk_aware_bound, load_as_run, load_program, load_turned_as_run, machine_with_jerk, path_times,
+    rest_to_rest, step_cap,
 };
 
 /// The target: total path time ≤ 1.10 × the acceleration-only optimum.
@@ -324,11 +324,7 @@ fn a_soft_machine_passes_a_stationary_point_whose_samples_overflow_without_a_cra
     let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../gcode/tests/programs/curva_delfino-q1.ngc");
     let blocks = first_curve(&load_program(&file, Some(6000.0), None).unwrap());
-    let cfg = InterpConfig {
-        max_path_jerk: 1e4,
-        axis_max_jerk: [2e4; 3],
-        ..InterpConfig::default()
-    };
+    let cfg = machine_with_jerk(1e4);
     let run = interpolated_run(&blocks, &cfg, false).unwrap();
     let bound = jerk_aware_bound(&blocks, &cfg);
     eprintln!(
@@ -824,11 +820,7 @@ fn an_abort_on_a_part_turned_on_the_table_keeps_every_axis_jerk_limit() {
 /// abort. The queue is forgotten after every abort now.
 #[test]
 fn an_abort_on_a_soft_machine_drops_the_rest_of_a_long_block() {
-    let cfg = InterpConfig {
-        max_path_jerk: 1e4,
-        axis_max_jerk: [2e4; 3],
-        ..InterpConfig::default()
-    };
+    let cfg = machine_with_jerk(1e4);
     let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../gcode/tests/programs/curva_farfalla-q1.ngc");
     let blocks = load_as_run(&file, Some(6000.0), None, &cfg).unwrap();

@@ -20,7 +20,8 @@ use gcode::CoreOptions;
 use interp_core::smooth::Policy;
 use interp_core::{InterpConfig, Vec3};
 use interpd_tests::path_time::{
-    accel_only_optimum, interpolated_run_within, jerk_aware_bound, smoothed, stop_allowance,
+    accel_only_optimum, interpolated_run_within, jerk_aware_bound, machine_with_jerk, smoothed,
+    stop_allowance,
 };
 use proptest::prelude::*;
 
@@ -194,11 +195,9 @@ proptest! {
 /// acceleration `accel` (the axes' `axis_accel`), the rest as the defaults.
 fn machine(jerk: f64, accel: f64, axis_accel: f64) -> InterpConfig {
     InterpConfig {
-        max_path_jerk: jerk,
-        axis_max_jerk: [2.0 * jerk; 3],
         max_path_accel: accel,
         axis_max_accel: [axis_accel; 3],
-        ..InterpConfig::default()
+        ..machine_with_jerk(jerk)
     }
 }
 
