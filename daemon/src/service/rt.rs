@@ -676,6 +676,9 @@ impl Loop {
             let Some(step) = self.steps.dequeue() else {
                 break;
             };
+            // A step applied after its tick: replay would not follow (see
+            // `run_loop`).
+            debug_assert_eq!(step.at, ticks, "a step for tick {} applied late", step.at);
             if let Some(op) = step.op {
                 let t0 = now_ns();
                 // A refusal is the planning thread's too: its copy was
@@ -756,9 +759,13 @@ impl Loop {
             if self.stop.load(Ordering::Acquire) {
                 break;
             }
+            // Whether this tick is decided, read before its steps are taken:
+            // every step for it was queued before it was decided, so none
+            // is left behind to be applied a tick late.
+            let decided = self.decided.load(Ordering::Acquire) > self.exec.stats().ticks;
             let push_ns = self.apply_steps();
             let t0 = now_ns();
-            let ticked = self.tick(&mut last);
+            let ticked = self.tick(&mut last, decided);
             let seq = self.publisher.publish(&last);
             let tick_ns = (now_ns() - t0).max(0) as u64;
             if push_ns > 0 {
@@ -783,12 +790,12 @@ impl Loop {
         late_ns
     }
 
-    /// Phase 3: ticks once the planning thread has decided this tick (it
-    /// sent every step before it); otherwise `last` again, unticked
-    /// (waiting for `start`, or a late planner). Returns whether it ticked.
-    fn tick(&mut self, last: &mut Setpoint) -> bool {
-        let ticked = self.decided.load(Ordering::Acquire) > self.exec.stats().ticks;
-        if ticked {
+    /// Phase 3: ticks if the planning thread had `decided` this tick when
+    /// its steps were taken (it sent every step before it); otherwise `last`
+    /// again, unticked (waiting for `start`, or a late planner). Returns
+    /// whether it ticked.
+    fn tick(&mut self, last: &mut Setpoint, decided: bool) -> bool {
+        if decided {
             *last = self.exec.tick();
         } else {
             if matches!(self.exec.state(), RunState::Running | RunState::Stopping)
@@ -804,7 +811,7 @@ impl Loop {
                 last.state = RunState::Idle;
             }
         }
-        ticked
+        decided
     }
 
     /// Phase 5: the setpoint and its timing to the recorder.
