@@ -59,16 +59,24 @@ pub const CHUNK: usize = 128;
 pub const SAMPLES_PER_INTERVAL: usize = 48;
 /// Rest points the window can hold.
 pub const MAX_STOPS: usize = 256;
-/// Rows of one linear program: at most ten per piece when the per-axis rows
-/// are aggregated (five tangential jerk rows, a knot's cap and its
-/// acceleration, one aggregate row per axis), for the region's pieces and
-/// the kept one before them; below that, the per-axis rows are written one
-/// by one (`assemble_and_solve` counts them first, and aggregates the
-/// farthest pieces' only, as many as it must). 240 kB more than the
-/// 8 per piece that sufficed with one tangential row.
+/// Rows of one linear program, for the region's pieces and the kept one
+/// before them: at least ten per piece, what a piece gives with its
+/// per-axis rows aggregated (five tangential jerk rows, a knot's cap and its
+/// acceleration, one aggregate row per axis); within the budget the per-axis
+/// rows are written one by one (`assemble_and_solve` counts them first,
+/// and aggregates the farthest pieces' only, as many as it must).
 pub const MAX_ROWS: usize = (REGION + 1) * ROWS_PER_PIECE;
-/// Most rows one piece gives with its per-axis rows aggregated.
-const ROWS_PER_PIECE: usize = 10;
+/// Rows budgeted per piece. An aggregate row holds the speed to a few mm/s
+/// (it drops the cancellation in `t·S''`); on a soft machine (jerk 10⁴) an
+/// axis's jerk may bind at nearly every sample, and with ten rows a piece
+/// the aggregation reached the pieces next to the machine on every
+/// re-solve: `ruota_dentata-q1` crawled at 0.5 mm/s between its teeth and
+/// took 36.2 s, 19.9 s with twelve (240 kB more scratch). With 24 no corpus
+/// curve aggregates there (18.6 s), but the interpolator, built on a
+/// thread's stack before it is boxed, then overflowed the tests' 32 MiB in
+/// an unoptimised build (16 did too). The default machine's curves plan the
+/// same with any of these.
+const ROWS_PER_PIECE: usize = 12;
 
 /// The path's derivatives in arc length at one point, for the per-axis jerk
 /// rows: tangent `t`, `C''` and `C'''`.

@@ -336,6 +336,30 @@ fn a_soft_machine_passes_a_stationary_point_whose_samples_overflow_without_a_cra
     assert!(run.time <= 2.0 * bound, "ours/bound {}", run.time / bound);
 }
 
+/// A soft machine on a curve where an axis's jerk binds nearly everywhere:
+/// `curva_scrool_f-q1` at F6000 with path jerk 10⁴ mm/s³. Its per-axis rows
+/// outgrew the linear program's budget, and the farthest pieces' were
+/// aggregated, one row per axis, which holds the speed to a few mm/s; with
+/// ten rows a piece that reached the pieces next to the machine, and the
+/// curve took 14.3 s (2.85× the jerk-aware bound); with twelve, 10.3 s
+/// (2.05×).
+#[test]
+fn a_soft_machine_where_every_axis_sample_binds_plans_with_exact_rows_near_the_machine() {
+    let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../gcode/tests/programs/curva_scrool_f-q1.ngc");
+    let blocks = first_curve(&load_program(&file, Some(6000.0), None).unwrap());
+    let cfg = machine_with_jerk(1e4);
+    let run = interpolated_run(&blocks, &cfg, false).unwrap();
+    let bound = jerk_aware_bound(&blocks, &cfg);
+    eprintln!(
+        "soft curva_scrool_f-q1 F6000: ours {} bound {bound}",
+        run.time
+    );
+    assert_eq!(run.violations.total(), 0, "{:?}", run.violations);
+    assert!(bound <= run.time, "the bound {bound} is above our time");
+    assert!(run.time <= 2.3 * bound, "ours/bound {}", run.time / bound);
+}
+
 /// A dip of the machine law at a knot where the curvature jumps: the G5.2
 /// guitar's law falls from 20 to 2.2 mm/s at a knot 0.1 mm into the curve
 /// and rises to 17 mm/s within 25 µm after it. Charged to the knot's law
