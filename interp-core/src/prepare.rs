@@ -2084,17 +2084,13 @@ pub(crate) fn axis_jerk_may_bind(smp: &AxisSample, ax: usize, l2: f64, cfg: &Int
 /// The largest axis jerk of axis `ax` at this sample under the bounds of
 /// [`axis_jerk_may_bind`], as a fraction of its limit.
 pub(crate) fn axis_jerk_load(smp: &AxisSample, ax: usize, l2: f64, cfg: &InterpConfig) -> f64 {
-    axis_jerk_load_at(smp, ax, l2, cfg, cfg.max_path_jerk)
+    axis_jerk_load_at(smp, ax, l2, cfg, cfg.max_path_jerk, cfg.planned_accel())
 }
 
 /// [`axis_jerk_load`] with the path's tangential jerk at most `jerk`
-/// (before the planning margin) instead of `max_path_jerk`.
-fn axis_jerk_load_at(smp: &AxisSample, ax: usize, l2: f64, cfg: &InterpConfig, jerk: f64) -> f64 {
-    axis_jerk_load_with(smp, ax, l2, cfg, jerk, cfg.planned_accel())
-}
-
-/// [`axis_jerk_load_at`] with the tangential acceleration at most `accel`.
-fn axis_jerk_load_with(
+/// (before the planning margin) instead of `max_path_jerk`, and its
+/// tangential acceleration at most `accel` instead of the planned one.
+fn axis_jerk_load_at(
     smp: &AxisSample,
     ax: usize,
     l2: f64,
@@ -2156,7 +2152,7 @@ pub(crate) fn keep_axis_sample(
             // accelerate.)
             let accel = cfg.planned_accel().min(libm::sqrt(2.0 * jerk * v));
             (0..3)
-                .map(|ax| axis_jerk_load_with(&at_v, ax, v * v, cfg, jerk, accel))
+                .map(|ax| axis_jerk_load_at(&at_v, ax, v * v, cfg, jerk, accel))
                 .fold(0.0, f64::max)
         };
         // The load grows with the speed: bisect for the highest safe one.
