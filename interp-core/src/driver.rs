@@ -406,9 +406,12 @@ impl Driver {
         None
     }
 
-    /// Commit everything due into `exec` (between ticks). Every plan
-    /// offered to `exec` is shown to `sink` first (see [`PlanSink`]).
+    /// Commit everything due into `exec` (once a tick, before it), having
+    /// forgotten what the machine left behind since the last tick
+    /// ([`BlockPlanner::release_behind`]). Every plan offered to `exec` is
+    /// shown to `sink` first (see [`PlanSink`]).
     pub fn drive<const Q: usize>(&mut self, exec: &mut Executor<Q>, sink: PlanSink<'_>) {
+        self.planner.release_behind(exec.status().plan_position);
         self.drive_due(exec, false, sink);
     }
 

@@ -1644,8 +1644,7 @@ impl Window {
     /// it added to those before it: junction limits and samples, its rest
     /// points), so that the next attempt samples it afresh: a sample
     /// appended again at every retry would fill its interval, which then
-    /// lowers the speed there. Intervals released behind the machine
-    /// meanwhile stay released.
+    /// lowers the speed there.
     pub fn roll_back(&mut self, mark: &QueueEndMark) {
         let d = &mut self.data;
         let held_end = d.g_base + d.n_int as i64;

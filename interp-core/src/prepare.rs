@@ -324,6 +324,18 @@ impl BlockPlanner {
         self.machine_at_rest = at_rest;
     }
 
+    /// Forget the intervals and rest points behind the machine, at arc
+    /// length `machine` (see [`Window::release_before`]). Once a tick,
+    /// before its planning ([`crate::Driver::drive`]), and nowhere else:
+    /// whether a rest point the machine just passed is still held changes
+    /// the next plan (no sample is taken across it), so releasing as a
+    /// refused push tried (the service retries one between commands, a
+    /// replay does not) would plan differently from the same commands
+    /// given at the same ticks.
+    pub fn release_behind(&mut self, machine: f64) {
+        self.window.release_before(machine);
+    }
+
     /// Whether a crawl ahead of the machine is due to be planned again
     /// (`machine`: where it may be; [`Window::take_crawl_retry`]), to be
     /// planned with [`Self::replan`].
@@ -446,7 +458,6 @@ impl BlockPlanner {
         let chunk = CHUNK as f64 * self.h;
         // Refuse early (before any splitting) when not even one part fits yet.
         let reach = (length.min(chunk) + self.tail_s) / self.h;
-        self.window.release_before(self.machine);
         if !self
             .window
             .has_room(libm::floor(reach) as i64 + 1, 2, self.machine)
@@ -900,7 +911,6 @@ impl BlockPlanner {
             }
         }
         let g_last = index_of(self.tail_s + total, h) + 1;
-        self.window.release_before(self.machine);
         if !self.window.has_room(g_last, n_pieces + 2, self.machine) {
             return Err(PushError::ProfileFull);
         }

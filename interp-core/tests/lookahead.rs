@@ -774,6 +774,55 @@ fn a_refused_block_leaves_the_window_as_it_was() {
     }
 }
 
+/// A push refused for room (the block after a long one waits for its
+/// parts) plans nothing and forgets nothing: the service tries such a
+/// segment again between the operator's commands and records only the
+/// pushes that go in, so a try that, say, forgot the rest point the
+/// machine had just left would have the next command planned differently
+/// on replay (a `serve` recording replayed an ulp off). What lies behind
+/// the machine is forgotten once a tick, before it ([`Driver::drive`]).
+#[test]
+fn a_push_refused_for_room_leaves_the_window_as_it_was() {
+    let cfg = InterpConfig::default();
+    let line = |id, a: f64, b: f64| {
+        let (p, q) = (Vec3::new(a, 0.0, 0.0), Vec3::new(b, 0.0, 0.0));
+        Block::new(id, Path::Line(Line::new(p, q).unwrap()), 100.0)
+    };
+    let mut ip = Box::new(Interpolator::<256>::new(cfg, [0.0; 6]).unwrap());
+    let mut exact = line(1, 0.0, 2.0);
+    exact.blending = Blending::ExactStop;
+    ip.push(&exact).unwrap();
+    // Planned in parts as the machine goes.
+    ip.push(&line(2, 2.0, 2000.0)).unwrap();
+    let next = line(3, 2000.0, 2010.0);
+    let (mut tried, mut passed) = (0, false);
+    for _ in 0..2000 {
+        let sp = ip.tick();
+        if sp.s < 1.9 {
+            continue;
+        }
+        let window = format!("{:?}", ip.planner().window());
+        let commits = ip.stats().commits;
+        let r = ip.push(&next);
+        assert!(r.is_err_and(|e| e.is_wait()), "{r:?}");
+        // (A part of the long line due meanwhile is planned first.)
+        if ip.stats().commits == commits {
+            let after = format!("{:?}", ip.planner().window());
+            assert!(
+                after == window,
+                "the refused push changed the window at {} mm",
+                sp.s
+            );
+            tried += 1;
+        }
+        passed |= sp.s > 2.0;
+        if sp.s > 3.0 {
+            break;
+        }
+    }
+    assert!(passed && tried > 10, "{tried} refusals compared");
+}
+
 /// A crawl (the last resort when a linear program fails: rest at every
 /// knot) is planned again from the machine as soon as it is due, not kept
 /// over everything it covers: on a long move the look-ahead is full of it

@@ -104,6 +104,8 @@ fn plan_and_commit() {
             let mut first = true;
             while first || planner.has_pending() {
                 let (s, rest) = ip.executor().plan_position();
+                // (As the driver does once a tick.)
+                planner.release_behind(s);
                 planner.set_machine(s, rest);
                 let t = Instant::now();
                 let r = if first {
@@ -144,6 +146,7 @@ fn plan_and_commit() {
     for b in &lines {
         loop {
             let (s, rest) = ip.executor().plan_position();
+            planner.release_behind(s);
             planner.set_machine(s, rest);
             let t = Instant::now();
             match planner.plan(b, &mut plan) {
