@@ -78,7 +78,7 @@ pub struct ExecStatus {
 }
 
 /// The planning side of the look-ahead: a [`BlockPlanner`] and the decisions
-/// of when to use it (see the module docs). About 1.4 MiB: box it.
+/// of when to use it (see the module docs). About 5.2 MiB: box it.
 #[derive(Clone, Debug)]
 pub struct Driver {
     planner: BlockPlanner,

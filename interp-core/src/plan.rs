@@ -71,12 +71,13 @@ pub const MAX_ROWS: usize = (REGION + 1) * ROWS_PER_PIECE;
 /// axis's jerk may bind at nearly every sample, and with ten rows a piece
 /// the aggregation reached the pieces next to the machine on every
 /// re-solve: `ruota_dentata-q1` crawled at 0.5 mm/s between its teeth and
-/// took 36.2 s, 19.9 s with twelve (240 kB more scratch). With 24 no corpus
-/// curve aggregates there (18.6 s), but the interpolator, built on a
-/// thread's stack before it is boxed, then overflowed the tests' 32 MiB in
-/// an unoptimised build (16 did too). The default machine's curves plan the
-/// same with any of these.
-const ROWS_PER_PIECE: usize = 12;
+/// took 36.2 s, 19.9 s with twelve. With 24 no corpus curve aggregates
+/// there (soft `curva_scrool_m-q1` 5.5 → 3.5 s, `curva_scrool_f-q1` 10.3 →
+/// 8.0 s against twelve); the scratch is 1.4 MB more than with twelve,
+/// which an unoptimised build copies several times on the stack while it
+/// builds an interpolator (tests get 64 MiB: `interp_run::stack`). The
+/// default machine's curves plan the same with any of these.
+const ROWS_PER_PIECE: usize = 24;
 
 /// The path's derivatives in arc length at one point, for the per-axis jerk
 /// rows: tangent `t`, `C''` and `C'''`.

@@ -165,7 +165,7 @@ impl PlannedBlock {
 /// The planning half of the interpolator: tracks where the queue ends,
 /// holds the look-ahead window, and plans each block against it (non-real-time).
 ///
-/// About 1.4 MiB: box it.
+/// About 5.2 MiB: box it.
 #[derive(Clone, Debug)]
 pub struct BlockPlanner {
     cfg: InterpConfig,

@@ -100,7 +100,7 @@ pub enum Pushed {
 }
 
 /// The planning side: an [`Executor`] and the [`Driver`] that plans for it
-/// (see the crate docs). About 3 MiB with the default queue: boxed inside.
+/// (see the crate docs). About 5.6 MB with the default queue: boxed inside.
 /// A clone goes on exactly as the original would (to try what an operator's
 /// command would do at this tick).
 #[derive(Clone, Debug)]

@@ -14,7 +14,7 @@ pub const RT_STACK_BYTES: usize = 32 << 20;
 /// (2 MiB, the default, overflowed in unoptimised builds).
 pub const CONTROL_STACK_BYTES: usize = 16 << 20;
 
-/// A thread that owns an `Interpolator<1024>` (about 3.9 MB) or runs a
+/// A thread that owns an `Interpolator<1024>` (about 7.2 MB) or runs a
 /// bench's planned programs: the tests' path-time runs, the examples, the
 /// benches.
 pub const INTERPOLATOR_STACK_BYTES: usize = 64 << 20;
@@ -37,7 +37,7 @@ pub fn on_interpolator_stack<T: Send + 'static>(f: impl FnOnce() -> T + Send + '
 /// build an `Interpolator` with the default look-ahead in an unoptimised
 /// build (16 MiB overflowed in a five-axis test once one linear program
 /// held 1,024 pieces).
-pub const TEST_STACK_BYTES: usize = 32 << 20;
+pub const TEST_STACK_BYTES: usize = 64 << 20;
 
 #[cfg(test)]
 mod tests {

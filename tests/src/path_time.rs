@@ -177,7 +177,7 @@ pub fn interpolated_run_within(
     keep: bool,
     max_ticks: u64,
 ) -> Result<InterpolatedRun, String> {
-    // An Interpolator<1024> is about 3.9 MB: build it on a thread with room for it.
+    // An Interpolator<1024> is about 7.2 MB: build it on a thread with room for it.
     let (blocks, cfg) = (blocks.to_vec(), *cfg);
     std::thread::Builder::new()
         .stack_size(INTERPOLATOR_STACK)
