@@ -411,7 +411,7 @@ impl Driver {
     /// ([`BlockPlanner::release_behind`]). Every plan offered to `exec` is
     /// shown to `sink` first (see [`PlanSink`]).
     pub fn drive<const Q: usize>(&mut self, exec: &mut Executor<Q>, sink: PlanSink<'_>) {
-        self.planner.release_behind(exec.status().plan_position);
+        self.planner.release_behind(exec.plan_position().0);
         self.drive_due(exec, false, sink);
     }
 
