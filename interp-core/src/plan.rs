@@ -410,6 +410,10 @@ pub struct PlanTotals {
     /// First passes that failed and were retried with the rows past the
     /// kept plan as loose as that plan's (see `kept_caps`).
     pub kept_rows: u64,
+    /// Solves whose passes from the freeze point all failed and that kept
+    /// the plan whole up to its last rest point instead, planned from rest
+    /// there (see [`Window::solve`]): no stop added.
+    pub kept_to_rest: u64,
     /// Solves that kept a rest point at the old end of the queue.
     pub fell_back: u64,
     /// Solves that fell back to the crawl.
@@ -590,6 +594,9 @@ pub struct Window {
     data: Data,
     scratch: Scratch,
     ovr: f64,
+    /// The feed override the current plan was solved under (`ovr` is the
+    /// last solve's, which may have failed).
+    plan_ovr: f64,
     /// What the last solve did.
     pub last: SolveStats,
     /// Counters over every solve.
@@ -1329,6 +1336,7 @@ impl Window {
                 backup_agg: f64::INFINITY,
             },
             ovr: 1.0,
+            plan_ovr: 1.0,
             last: SolveStats::default(),
             totals: PlanTotals::default(),
             trace: None,
@@ -1838,6 +1846,9 @@ impl Window {
         let agg_x = core::mem::replace(&mut self.data.agg_x, f64::INFINITY);
         self.scratch.backup_agg = agg_x;
         let r = self.solve_inner(freeze, end, ovr, lift, keep_from, fallback);
+        if r.is_ok() {
+            self.plan_ovr = ovr;
+        }
         if r.is_err() {
             // Nothing changed: the plan as it was (the backup holds its pieces).
             let d = &mut self.data;
@@ -1896,6 +1907,7 @@ impl Window {
                 (0, 0, x, true)
             }
         };
+        let same_ovr = ovr == self.plan_ovr;
         self.ovr = ovr;
         let mut fell_back = false;
         // After a failed first pass: once more with the rows past the kept
@@ -2003,6 +2015,38 @@ impl Window {
                     self.totals.kept_rows += 1;
                     keep_rows = true;
                 }
+                Err(PlanError::Solver(e))
+                    if same_ovr && self.rest_kept_whole(from_x, old_end, end).is_some() =>
+                {
+                    // The plan up to a rest point it comes to (one that
+                    // stays: a corner, an exact stop, a hold's rest) cannot
+                    // depend on what follows the rest: it is kept whole, and
+                    // the new stretch planned from rest there. From the
+                    // freeze point, a soft machine braking into a corner at
+                    // the jerk limit all the way left the program no room
+                    // (every row binding), and the pieces re-cut next to the
+                    // rest could not follow the kept plan: every pass failed
+                    // and the stretch crawled (`homer-q2` at jerk 10⁴).
+                    self.totals.last_failure = Some(e);
+                    self.totals.kept_to_rest += 1;
+                    let k = self.rest_kept_whole(from_x, old_end, end).unwrap_or(0);
+                    let rest = self.scratch.backup[k].x1;
+                    let d = &mut self.data;
+                    d.pieces[..backup_n].copy_from_slice(&self.scratch.backup[..backup_n]);
+                    d.n_pieces = backup_n;
+                    d.prev = backup_prev;
+                    // (The kept plan's mark of aggregated rows before the
+                    // rest stays; the failed passes' marks are dropped.)
+                    let old_agg = self.scratch.backup_agg;
+                    d.agg_x = if old_agg < rest {
+                        old_agg
+                    } else {
+                        f64::INFINITY
+                    };
+                    // (The last such rest: the solve from it cannot come
+                    // here again.)
+                    return self.solve_inner(Freeze::At(k), end, ovr, lift, keep_from, fallback);
+                }
                 Err(e @ PlanError::Solver(_)) if !fallback => return Err(e),
                 Err(PlanError::Solver(e)) if !fell_back && old_end > from_x => {
                     self.totals.last_failure = Some(e);
@@ -2041,6 +2085,21 @@ impl Window {
                 Err(e) => return Err(e),
             }
         }
+    }
+
+    /// The piece of the plan before this solve (its backup) that ends on
+    /// the last rest point after `from`, at most `old_end` and before the
+    /// solve's `end`, if any (see [`Self::solve`]). (Not past `end`: a
+    /// hold's solve ends at its own rest point, short of the old plan's.)
+    fn rest_kept_whole(&self, from: f64, old_end: f64, end: f64) -> Option<usize> {
+        let backup = &self.scratch.backup[..self.scratch.backup_n];
+        let r = *self
+            .data
+            .rests()
+            .iter()
+            .rev()
+            .find(|&&r| r > from && r <= old_end && r < end)?;
+        backup.iter().position(|p| p.x1 == r)
     }
 
     /// After a successful solve: forget the intervals and rest points no plan

@@ -353,6 +353,28 @@ fn a_soft_machine_where_every_axis_sample_binds_plans_with_exact_rows_near_the_m
     assert_first_curve_on_a_soft_machine("curva_scrool_f-q1.ngc", 1.8);
 }
 
+/// A program of many curves joined at corners (`homer-q2`, 91 blocks, its
+/// corners rest points) on a soft machine: braking into a corner takes the
+/// whole look-ahead, at the jerk limit all the way. Each push re-solved the
+/// plan from the machine up to the corner, where every row bound and the
+/// pieces re-cut next to the rest could not follow the kept plan: every
+/// pass failed (16,291 retries), 1,042 solves crawled, and planning took
+/// 3 minutes for 42.4 s of motion. When the passes fail, the plan up to a
+/// rest point it keeps is now kept whole, and the solve starts from rest
+/// there (41 times, no crawl, 37.7 s).
+#[test]
+fn a_soft_machine_keeps_its_plan_up_to_a_corner_where_it_rests() {
+    let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../gcode/tests/programs/homer-q2.ngc");
+    let cfg = machine_with_jerk(1e4);
+    let blocks = load_as_run(&file, Some(6000.0), None, &cfg).unwrap();
+    let run = interpolated_run(&blocks, &cfg, false).unwrap();
+    eprintln!("soft homer-q2 F6000: {} s, {:?}", run.time, run.plan);
+    assert_eq!(run.violations.total(), 0, "{:?}", run.violations);
+    assert_eq!(run.plan.crawled, 0, "{:?}", run.plan);
+    assert!(run.plan.retries() < 500, "{:?}", run.plan);
+}
+
 /// A dip of the machine law at a knot where the curvature jumps: the G5.2
 /// guitar's law falls from 20 to 2.2 mm/s at a knot 0.1 mm into the curve
 /// and rises to 17 mm/s within 25 µm after it. Charged to the knot's law
