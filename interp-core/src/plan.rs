@@ -2089,8 +2089,9 @@ impl Window {
 
     /// The piece of the plan before this solve (its backup) that ends on
     /// the last rest point after `from`, at most `old_end` and before the
-    /// solve's `end`, if any (see [`Self::solve`]). (Not past `end`: a
-    /// hold's solve ends at its own rest point, short of the old plan's.)
+    /// solve's `end`, if any, where that plan rests (see [`Self::solve`]).
+    /// (Not past `end`: a hold's solve ends at its own rest point, short of
+    /// the old plan's.)
     fn rest_kept_whole(&self, from: f64, old_end: f64, end: f64) -> Option<usize> {
         let backup = &self.scratch.backup[..self.scratch.backup_n];
         let r = *self
@@ -2099,7 +2100,8 @@ impl Window {
             .iter()
             .rev()
             .find(|&&r| r > from && r <= old_end && r < end)?;
-        backup.iter().position(|p| p.x1 == r)
+        let k = backup.iter().position(|p| p.x1 == r)?;
+        backup.get(k + 1).is_none_or(|p| p.rest_start).then_some(k)
     }
 
     /// After a successful solve: forget the intervals and rest points no plan
