@@ -593,10 +593,9 @@ pub const LATER_FREEZES: usize = 2;
 pub struct Window {
     data: Data,
     scratch: Scratch,
+    /// The feed override the current plan was solved under (set by a
+    /// solve that succeeds only).
     ovr: f64,
-    /// The feed override the current plan was solved under (`ovr` is the
-    /// last solve's, which may have failed).
-    plan_ovr: f64,
     /// What the last solve did.
     pub last: SolveStats,
     /// Counters over every solve.
@@ -1336,7 +1335,6 @@ impl Window {
                 backup_agg: f64::INFINITY,
             },
             ovr: 1.0,
-            plan_ovr: 1.0,
             last: SolveStats::default(),
             totals: PlanTotals::default(),
             trace: None,
@@ -1372,7 +1370,7 @@ impl Window {
     pub fn tail(&self) -> f64 {
         self.data.tail
     }
-    /// Feed override of the last solve.
+    /// Feed override the current plan was solved under.
     pub fn feed_override(&self) -> f64 {
         self.ovr
     }
@@ -1847,16 +1845,12 @@ impl Window {
         self.scratch.backup_agg = agg_x;
         let r = self.solve_inner(freeze, end, ovr, lift, keep_from, fallback);
         if r.is_ok() {
-            self.plan_ovr = ovr;
-        }
-        if r.is_err() {
+            self.ovr = ovr;
+        } else {
             // Nothing changed: the plan as it was (the backup holds its pieces).
-            let d = &mut self.data;
-            d.agg_x = agg_x;
-            d.pieces[..n].copy_from_slice(&self.scratch.backup[..n]);
-            d.n_pieces = n;
-            d.prev = prev;
-            d.origin = origin;
+            self.restore_backup(n, prev);
+            self.data.agg_x = agg_x;
+            self.data.origin = origin;
         }
         r
     }
@@ -1907,8 +1901,7 @@ impl Window {
                 (0, 0, x, true)
             }
         };
-        let same_ovr = ovr == self.plan_ovr;
-        self.ovr = ovr;
+        let same_ovr = ovr == self.ovr;
         let mut fell_back = false;
         // After a failed first pass: once more with the rows past the kept
         // pieces as loose as the kept plan's were (see [`kept_caps`]).
@@ -2031,14 +2024,11 @@ impl Window {
                     self.totals.kept_to_rest += 1;
                     let k = self.rest_kept_whole(from_x, old_end, end).unwrap_or(0);
                     let rest = self.scratch.backup[k].x1;
-                    let d = &mut self.data;
-                    d.pieces[..backup_n].copy_from_slice(&self.scratch.backup[..backup_n]);
-                    d.n_pieces = backup_n;
-                    d.prev = backup_prev;
+                    self.restore_backup(backup_n, backup_prev);
                     // (The kept plan's mark of aggregated rows before the
                     // rest stays; the failed passes' marks are dropped.)
                     let old_agg = self.scratch.backup_agg;
-                    d.agg_x = if old_agg < rest {
+                    self.data.agg_x = if old_agg < rest {
                         old_agg
                     } else {
                         f64::INFINITY
@@ -2060,10 +2050,8 @@ impl Window {
                     // Last resort, never a stall: keep the current plan to its
                     // end (at rest) and crawl from there, resting at every knot.
                     let kept_pieces = self.kept_pieces;
+                    self.restore_backup(backup_n, backup_prev);
                     let d = &mut self.data;
-                    d.pieces[..backup_n].copy_from_slice(&self.scratch.backup[..backup_n]);
-                    d.n_pieces = backup_n;
-                    d.prev = backup_prev;
                     let start = backup_n;
                     d.rebuild_from(start, old_end, true, end, kept_pieces)?;
                     crawl(d, start, ovr, &lift);
@@ -2085,6 +2073,15 @@ impl Window {
                 Err(e) => return Err(e),
             }
         }
+    }
+
+    /// The plan as it was before this solve: its `n` pieces (the backup) and
+    /// the last dropped piece's `(h, d)` (`Data::prev`).
+    fn restore_backup(&mut self, n: usize, prev: (f64, f64)) {
+        let d = &mut self.data;
+        d.pieces[..n].copy_from_slice(&self.scratch.backup[..n]);
+        d.n_pieces = n;
+        d.prev = prev;
     }
 
     /// The piece of the plan before this solve (its backup) that ends on
