@@ -375,6 +375,48 @@ fn a_soft_machine_keeps_its_plan_up_to_a_corner_where_it_rests() {
     assert!(run.plan.retries() < 500, "{:?}", run.plan);
 }
 
+/// A soft machine (path jerk 10⁴ mm/s³, axes 2·10⁴) passes both dolphins'
+/// stationary points, each run whole at F6000, without crawling up to them.
+/// On the G6.2 curve (s = 406.74 mm) the curvature blows up next to the
+/// point, the interval held more per-axis samples than it has room for, and
+/// each one left over lowered its whole sub-range (31 µm) to the speed at
+/// which its axis jerk cannot bind: 0.039 mm/s for 886 ticks; it now lowers
+/// the narrowest span that holds it (there, the point's own steps). On the
+/// G5.2 curve (s = 424.23 mm) a long block ends at the point, and its laws'
+/// dip at that end lowered the end's sub-range to the point's 0.0059 mm/s:
+/// 6,750 ticks; the dip is now described in levels rising from the end. What
+/// is left is the approach, slowed by the axis jerk `3·C″·v·a` where the
+/// curvature grows (110 and 220 ticks below 0.1 mm/s; a rest at a corner
+/// takes about 10).
+#[test]
+fn a_soft_machine_passes_stationary_points_without_crawling() {
+    let cfg = machine_with_jerk(1e4);
+    for program in ["curva_delfino-q1.ngc", "curva_delfino-g5-q1.ngc"] {
+        let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../gcode/tests/programs")
+            .join(program);
+        let blocks = load_as_run(&file, Some(6000.0), None, &cfg).unwrap();
+        let run = interpolated_run(&blocks, &cfg, true).unwrap();
+        assert_eq!(run.violations.total(), 0, "{program}: {:?}", run.violations);
+        // The longest stretch of ticks below 0.1 mm/s.
+        let slow = 0.1 * cfg.period;
+        let (mut longest, mut here) = (0, 0);
+        for w in run.points.windows(2) {
+            if (w[1] - w[0]).norm() < slow {
+                here += 1;
+                longest = longest.max(here);
+            } else {
+                here = 0;
+            }
+        }
+        eprintln!(
+            "soft {program} F6000: {} s, longest crawl {longest} ticks",
+            run.time
+        );
+        assert!(longest < 300, "{program}: {longest} ticks below 0.1 mm/s");
+    }
+}
+
 /// A dip of the machine law at a knot where the curvature jumps: the G5.2
 /// guitar's law falls from 20 to 2.2 mm/s at a knot 0.1 mm into the curve
 /// and rises to 17 mm/s within 25 µm after it. Charged to the knot's law
