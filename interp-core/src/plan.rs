@@ -1941,7 +1941,9 @@ impl Window {
                 (0, 0, x, true)
             }
         };
-        let same_ovr = ovr == self.ovr;
+        // (A raised override's feed limits are above the ones the current
+        // plan keeps.)
+        let plan_meets_ovr = ovr >= self.ovr;
         let mut fell_back = false;
         // After a failed first pass: once more with the rows past the kept
         // pieces as loose as the kept plan's were (see [`kept_caps`]).
@@ -2049,7 +2051,7 @@ impl Window {
                     keep_rows = true;
                 }
                 Err(PlanError::Solver(e))
-                    if same_ovr && self.rest_kept_whole(from_x, old_end, end).is_some() =>
+                    if plan_meets_ovr && self.rest_kept_whole(from_x, old_end, end).is_some() =>
                 {
                     // The plan up to a rest point it comes to (one that
                     // stays: a corner, an exact stop, a hold's rest) cannot

@@ -561,7 +561,7 @@ fn the_knob_turned_while_holding_never_stops_the_machine() {
     }
 }
 
-/// `file` (a bundled program) at F6000 to tick `ticks`, the re-solves of
+/// `file` (a bundled program) at F6000 on machine `cfg` to tick `ticks`, the re-solves of
 /// everything ahead tried from up to `later_freezes` later pieces
 /// (`Window::later_freezes`) and, frozen inside an interval, keeping the
 /// kept plan's pieces there or not (`Window::kept_pieces`); `hook` gives
@@ -569,6 +569,7 @@ fn the_knob_turned_while_holding_never_stops_the_machine() {
 /// `state`. Returns `state` and the grid interval.
 fn under_commands<S: Send + 'static>(
     file: &str,
+    cfg: &InterpConfig,
     ticks: u64,
     later_freezes: usize,
     kept_pieces: bool,
@@ -579,7 +580,7 @@ fn under_commands<S: Send + 'static>(
         .join("../gcode/tests/programs")
         .join(file);
     let blocks = load_program(&file, Some(6000.0), None).unwrap();
-    let cfg = InterpConfig::default();
+    let cfg = *cfg;
     std::thread::Builder::new()
         .stack_size(interpd_tests::path_time::INTERPOLATOR_STACK)
         .spawn(move || {
@@ -629,6 +630,7 @@ fn crawls_under_a_fast_knob(later_freezes: usize, kept_pieces: bool) -> (Vec<(f6
     };
     under_commands(
         "homer-q2.ngc",
+        &InterpConfig::default(),
         2500,
         later_freezes,
         kept_pieces,
@@ -645,6 +647,7 @@ fn crawls_under_a_fast_knob(later_freezes: usize, kept_pieces: bool) -> (Vec<(f6
 /// freezes and kept pieces set.
 fn overrides_failed_through(
     file: &str,
+    cfg: &InterpConfig,
     ticks: u64,
     later_freezes: usize,
     kept_pieces: bool,
@@ -671,6 +674,7 @@ fn overrides_failed_through(
     };
     under_commands(
         file,
+        cfg,
         ticks,
         later_freezes,
         kept_pieces,
@@ -678,6 +682,25 @@ fn overrides_failed_through(
         hook,
     )
     .0
+}
+
+/// A raised override on a soft machine (path jerk 10⁴ mm/s³) keeps its plan
+/// up to the corner it rests at when every pass fails, and plans from
+/// there. `homer-q2` under the fast knob to tick 30,000: braking into a
+/// corner at the jerk limit over the whole look-ahead, the re-solve from the
+/// machine has no room, and raised overrides failed from every freeze piece
+/// and every braking rate (eight tries, 60–220 ms, over the service's 40 ms
+/// lead), then kept the plan all the same: 7 of about 950 when the plan was
+/// kept to the corner under the override it was solved with only, 1 now (a
+/// raise whose plan does not rest before its end).
+#[test]
+fn a_raised_override_on_a_soft_machine_keeps_its_plan_to_the_corner() {
+    let later = interp_core::plan::LATER_FREEZES;
+    let cfg = machine_with_jerk(1e4);
+    let (failed, solved) = overrides_failed_through("homer-q2.ngc", &cfg, 30_000, later, true);
+    eprintln!("failed at {failed:?}, {solved} re-solved");
+    assert!(solved > 800, "{solved} overrides re-solved");
+    assert!(failed.len() <= 2, "every pass failed at ticks {failed:?}");
 }
 
 /// A re-solve frozen inside a grid interval continues the pieces the kept
@@ -691,12 +714,24 @@ fn overrides_failed_through(
 #[test]
 fn a_re_solve_frozen_inside_a_finely_cut_interval_keeps_its_cuts() {
     let later = interp_core::plan::LATER_FREEZES;
-    let (failed, solved) = overrides_failed_through("ruota_dentata-q1.ngc", 4_400, later, true);
+    let (failed, solved) = overrides_failed_through(
+        "ruota_dentata-q1.ngc",
+        &InterpConfig::default(),
+        4_400,
+        later,
+        true,
+    );
     assert!(solved > 50, "{solved} overrides re-solved");
     assert!(failed.is_empty(), "every pass failed at ticks {failed:?}");
     // (The case: cut afresh, and no later freeze tried, that override
     // fails every pass.)
-    let (failed, _) = overrides_failed_through("ruota_dentata-q1.ngc", 4_400, 0, false);
+    let (failed, _) = overrides_failed_through(
+        "ruota_dentata-q1.ngc",
+        &InterpConfig::default(),
+        4_400,
+        0,
+        false,
+    );
     assert!(failed.contains(&4_278), "{failed:?}");
 }
 
@@ -711,7 +746,13 @@ fn a_re_solve_frozen_inside_a_finely_cut_interval_keeps_its_cuts() {
 #[test]
 fn a_raised_override_that_fails_from_its_freeze_piece_is_planned_from_a_later_one() {
     let later = interp_core::plan::LATER_FREEZES;
-    let (failed, solved) = overrides_failed_through("ruota_dentata-q1.ngc", 4_400, later, false);
+    let (failed, solved) = overrides_failed_through(
+        "ruota_dentata-q1.ngc",
+        &InterpConfig::default(),
+        4_400,
+        later,
+        false,
+    );
     assert!(solved > 50, "{solved} overrides re-solved");
     assert!(failed.is_empty(), "every pass failed at ticks {failed:?}");
 }
