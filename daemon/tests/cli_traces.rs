@@ -374,3 +374,36 @@ fn commands_run_off_the_main_thread_stack() {
     );
     assert!(o.status.success(), "{}", text(&o));
 }
+
+/// `simulate --json` says when the look-ahead kept a plan whole to a corner
+/// because every pass of a re-solve failed (`planner.kept_to_corner`): slower
+/// planning, and no stop the program does not ask for. `homer-q2` at F6000
+/// on a soft machine (path jerk 10⁴ mm/s³) brakes into its corners at the
+/// jerk limit over the whole look-ahead, where re-solves from the machine
+/// have no room.
+#[test]
+fn simulate_reports_plans_kept_to_a_corner() {
+    let source = Path::new(env!("CARGO_MANIFEST_DIR")).join("../gcode/tests/programs/homer-q2.ngc");
+    let text_in = std::fs::read_to_string(source).unwrap();
+    // The program's F100 at production feed.
+    let ngc = tmp("homer-q2-f6000.ngc");
+    std::fs::write(&ngc, text_in.replace("F100", "F6000")).unwrap();
+    let o = interpd(&[
+        "simulate",
+        ngc.to_str().unwrap(),
+        "--json",
+        "--set",
+        "max-path-jerk=1e4",
+        "--set",
+        "axis-max-jerk=[2e4,2e4,2e4]",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let s: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(s["final_state"], "done", "{s}");
+    let p = &s["planner"];
+    assert!(p["kept_to_corner"].as_u64().expect("a count") > 0, "{s}");
+    assert_eq!(p["kept_rests"], 0, "{s}");
+    assert_eq!(p["crawls"], 0, "{s}");
+    // Every rest before the end is one the program asks for.
+    assert_eq!(s["rests"], p["junction_stops"], "{s}");
+}

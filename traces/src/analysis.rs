@@ -143,6 +143,10 @@ pub struct PlannerReport {
     /// Re-solves that failed every pass and kept a rest point at the old
     /// end of the queue: a stop the program does not ask for.
     pub kept_rests: u64,
+    /// Re-solves that failed every pass and kept the plan whole up to a
+    /// rest point it comes to (a corner), planning from rest there: slower
+    /// planning, no stop added.
+    pub kept_to_corner: u64,
     /// Re-solves that fell back to the crawl (a rest at every knot of the
     /// stretch): stops the program does not ask for.
     pub crawls: u64,
@@ -168,6 +172,7 @@ impl PlannerReport {
             refinements: plan.passes,
             retries: plan.retries(),
             kept_rests: plan.fell_back,
+            kept_to_corner: plan.kept_to_rest,
             crawls: plan.crawled,
             uncut: plan.uncut,
             aggregated: plan.aggregated,
@@ -660,12 +665,13 @@ impl fmt::Display for Summary {
                 )?;
                 writeln!(
                     f,
-                    "  look-ahead    {} solves, {} refinements, {} retries, {} uncut, {} aggregated; {} rests kept at a queue end, {} crawls; {} ticks with the queue dry",
+                    "  look-ahead    {} solves, {} refinements, {} retries, {} uncut, {} aggregated, {} plans kept to a corner; {} rests kept at a queue end, {} crawls; {} ticks with the queue dry",
                     p.solves,
                     p.refinements,
                     p.retries,
                     p.uncut,
                     p.aggregated,
+                    p.kept_to_corner,
                     p.kept_rests,
                     p.crawls,
                     p.starved_ticks
