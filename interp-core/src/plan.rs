@@ -1558,6 +1558,21 @@ impl Window {
         self.lower_range(s0, s1, which, v);
     }
 
+    /// How many of the new spans starting at `starts` (in order) the
+    /// intervals have room for, counting from the first: a span with no
+    /// room would lower its whole sub-range ([`Self::lower_exact`]).
+    pub fn spans_with_room(&self, starts: &[f64]) -> usize {
+        let h = self.data.h;
+        (0..starts.len())
+            .take_while(|&k| {
+                let g = index_of(starts[k], h);
+                let here = starts[..k].iter().filter(|&&x| index_of(x, h) == g).count();
+                self.interval_at(starts[k])
+                    .is_some_and(|it| it.n_spans as usize + here < SPANS)
+            })
+            .count()
+    }
+
     /// Lower the machine limit at the point `s` to `v` as narrowly as the
     /// window holds it without a new cut: the narrowest span that covers
     /// `s`, over its extent, else the sub-range `s` lies in. For a limit that

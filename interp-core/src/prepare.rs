@@ -1510,19 +1510,11 @@ fn sample_laws(
         // Only the levels the intervals have room for, from the innermost:
         // a span with no room lowers its whole sub-range (the innermost
         // level's speed over 31 µm).
-        let mut fit = 0;
-        while fit < n {
-            let g = index_of(ext[fit].0, h);
-            let here = ext[..fit].iter().filter(|e| index_of(e.0, h) == g).count();
-            let room = w
-                .interval_at(ext[fit].0)
-                .is_some_and(|it| it.n_spans as usize + here < crate::plan::SPANS);
-            if !room {
-                break;
-            }
-            fit += 1;
+        let mut starts = [0.0; ONE_SIDED_LEVELS];
+        for (x, e) in starts.iter_mut().zip(&ext[..n]) {
+            *x = e.0;
         }
-        let n = fit;
+        let n = w.spans_with_room(&starts[..n]);
         if n == 0 || n_stairs.get() >= MAX_STAIRS {
             return None;
         }
@@ -1980,16 +1972,11 @@ fn stepped_laws(
     let eval = |u: f64| path.eval(u.clamp(u_lo, u_hi), 3);
     // A span an interval has no room for would lower its whole sub-range
     // (`Window::lower_exact`): then the stretch is held whole, as before.
-    let h = w.h();
-    let room = (1..n).all(|k| {
-        let x = seg.s0 + edges[k - 1];
-        let here = (1..n)
-            .filter(|&j| index_of(seg.s0 + edges[j - 1], h) == index_of(x, h))
-            .count();
-        w.interval_at(x)
-            .is_some_and(|it| it.n_spans as usize + here <= crate::plan::SPANS)
-    });
-    if !room {
+    let mut starts = [0.0; 2 * STATIONARY_STEPS + 2];
+    for (x, e) in starts.iter_mut().zip(&edges[..n - 1]) {
+        *x = seg.s0 + e;
+    }
+    if w.spans_with_room(&starts[..n - 1]) < n - 1 {
         edges[1] = len;
         n = 2;
     }

@@ -703,6 +703,19 @@ fn a_raised_override_on_a_soft_machine_keeps_its_plan_to_the_corner() {
     assert!(failed.len() <= 2, "every pass failed at ticks {failed:?}");
 }
 
+/// [`overrides_failed_through`] on `ruota_dentata-q1`, the default machine,
+/// to tick 4,400.
+fn ruota_overrides_failed(later_freezes: usize, kept_pieces: bool) -> (Vec<u64>, u64) {
+    let cfg = InterpConfig::default();
+    overrides_failed_through(
+        "ruota_dentata-q1.ngc",
+        &cfg,
+        4_400,
+        later_freezes,
+        kept_pieces,
+    )
+}
+
 /// A re-solve frozen inside a grid interval continues the pieces the kept
 /// plan has there. `ruota_dentata-q1`'s slow stretches are cut into eighths
 /// of an interval; a re-solve from the machine on, its freeze point three
@@ -714,24 +727,12 @@ fn a_raised_override_on_a_soft_machine_keeps_its_plan_to_the_corner() {
 #[test]
 fn a_re_solve_frozen_inside_a_finely_cut_interval_keeps_its_cuts() {
     let later = interp_core::plan::LATER_FREEZES;
-    let (failed, solved) = overrides_failed_through(
-        "ruota_dentata-q1.ngc",
-        &InterpConfig::default(),
-        4_400,
-        later,
-        true,
-    );
+    let (failed, solved) = ruota_overrides_failed(later, true);
     assert!(solved > 50, "{solved} overrides re-solved");
     assert!(failed.is_empty(), "every pass failed at ticks {failed:?}");
     // (The case: cut afresh, and no later freeze tried, that override
     // fails every pass.)
-    let (failed, _) = overrides_failed_through(
-        "ruota_dentata-q1.ngc",
-        &InterpConfig::default(),
-        4_400,
-        0,
-        false,
-    );
+    let (failed, _) = ruota_overrides_failed(0, false);
     assert!(failed.contains(&4_278), "{failed:?}");
 }
 
@@ -746,13 +747,7 @@ fn a_re_solve_frozen_inside_a_finely_cut_interval_keeps_its_cuts() {
 #[test]
 fn a_raised_override_that_fails_from_its_freeze_piece_is_planned_from_a_later_one() {
     let later = interp_core::plan::LATER_FREEZES;
-    let (failed, solved) = overrides_failed_through(
-        "ruota_dentata-q1.ngc",
-        &InterpConfig::default(),
-        4_400,
-        later,
-        false,
-    );
+    let (failed, solved) = ruota_overrides_failed(later, false);
     assert!(solved > 50, "{solved} overrides re-solved");
     assert!(failed.is_empty(), "every pass failed at ticks {failed:?}");
 }
